@@ -1,0 +1,63 @@
+"""Typed exceptions. Every error poekin raises on purpose derives from :class:`PoekinError`.
+
+Messages are one line: what is wrong, then how to fix it. Lookup errors list the valid names
+and suggest the nearest one, so a typo is a one-step fix.
+"""
+
+from __future__ import annotations
+
+import difflib
+from collections.abc import Iterable
+
+__all__ = [
+    "InputError",
+    "MenagerieUnavailableError",
+    "MetricsFileError",
+    "ModelError",
+    "PoekinError",
+    "UnknownFrameError",
+    "UnknownRobotError",
+    "did_you_mean",
+]
+
+
+class PoekinError(Exception):
+    """Base class of every error poekin raises on purpose."""
+
+
+class InputError(PoekinError, ValueError):
+    """Numeric input of the wrong shape, type or value (e.g. NaN joint values)."""
+
+
+class ModelError(PoekinError):
+    """A model file is missing, unreadable, malformed, or MuJoCo rejects it."""
+
+
+class UnknownRobotError(ModelError, LookupError):
+    """A Menagerie robot name that the registry does not know."""
+
+
+class UnknownFrameError(ModelError, LookupError):
+    """A site or body name that the model does not have."""
+
+
+class MenagerieUnavailableError(ModelError):
+    """A Menagerie robot is known but cannot be fetched (no network, no local clone)."""
+
+
+class MetricsFileError(PoekinError):
+    """A metrics CSV cannot be written safely (bad path, or a header that does not match)."""
+
+
+def did_you_mean(name: str, valid: Iterable[str], *, listed: int = 12) -> str:
+    """Text for an error message: the nearest valid names, then (some of) all valid names.
+
+    >>> did_you_mean("atachment_site", ["attachment_site", "base"])
+    "did you mean 'attachment_site'? Valid names: 'attachment_site', 'base'"
+    """
+    valid = list(valid)
+    close = difflib.get_close_matches(name, valid, n=1, cutoff=0.6)
+    hint = f"did you mean {close[0]!r}? " if close else ""
+    shown = ", ".join(repr(v) for v in valid[:listed])
+    more = f", ... ({len(valid) - listed} more)" if len(valid) > listed else ""
+    return f"{hint}Valid names: {shown}{more}" if valid else f"{hint}there are no valid names"
