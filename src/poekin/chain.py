@@ -1,0 +1,265 @@
+"""The serial-chain model: screw axes, home pose, and Product-of-Exponentials forward kinematics.
+
+Conventions (the same everywhere in poekin): a screw axis or twist is ``[w; v]`` (angular part
+first), lengths are metres, angles radians, poses are homogeneous ``4x4`` matrices.
+
+Space form (screws ``S_i`` in the world frame at ``q = 0``)::
+
+    T_world_frame(q) = exp([S_1] q_1) ... exp([S_n] q_n) M
+
+Body form (screws ``B_i = Ad(M^-1) S_i`` in the end frame at ``q = 0``)::
+
+    T_world_frame(q) = M exp([B_1] q_1) ... exp([B_n] q_n)
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import Any, Literal
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from poekin import lie
+from poekin.errors import InputError
+
+__all__ = ["Chain", "JointType", "as_joint_values", "poe"]
+
+JointType = Literal["revolute", "prismatic"]
+FloatArray = NDArray[np.float64]
+
+# A user-given screw axis must be unit length to this tolerance. Screws derived from MuJoCo are
+# unit to ~1e-16 (the compiler normalises axes); hand-typed tables are usually good to ~1e-6.
+_UNIT_TOL = 1e-6
+
+
+def _readonly(a: ArrayLike, shape: tuple[int, ...], name: str) -> FloatArray:
+    arr = np.array(a, dtype=np.float64)  # always a copy: the chain owns its arrays
+    if arr.shape != shape:
+        raise InputError(f"{name} must have shape {shape}, got {arr.shape}")
+    if not np.all(np.isfinite(arr)):
+        raise InputError(f"{name} contains NaN or inf")
+    arr.flags.writeable = False
+    return arr
+
+
+def as_joint_values(q: ArrayLike, n: int) -> FloatArray:
+    """Validate joint values ``q`` of shape ``(..., n)`` and return them as float64.
+
+    Integers and float32 are accepted and converted. Anything non-numeric, a wrong last axis,
+    NaN or inf raises :class:`~poekin.errors.InputError`.
+    """
+    try:
+        arr = np.asarray(q, dtype=np.float64)
+    except (TypeError, ValueError) as e:
+        raise InputError(f"joint values must be numbers, got {q!r:.60}") from e
+    if arr.ndim == 0 or arr.shape[-1] != n:
+        raise InputError(
+            f"expected {n} joint values (shape (..., {n})), got an array of shape {arr.shape}"
+        )
+    if not np.all(np.isfinite(arr)):
+        raise InputError("joint values contain NaN or inf; every q must be finite")
+    return arr
+
+
+@dataclasses.dataclass(frozen=True)
+class _ScrewTerms:
+    """Per-joint constants of ``exp([S] q)`` for unit screws ``S = [w; v]``, computed once.
+
+    With ``|w| = 1`` (or ``w = 0, |v| = 1``) Rodrigues needs no small-angle branch::
+
+        R = I + sin(q) W + (1 - cos q) W^2
+        p = (q I + (1 - cos q) W + (q - sin q) W^2) v
+    """
+
+    W: FloatArray  # (n, 3, 3) hat(w)
+    W2: FloatArray  # (n, 3, 3) hat(w)^2
+    v: FloatArray  # (n, 3)
+    Wv: FloatArray  # (n, 3)
+    W2v: FloatArray  # (n, 3)
+
+    @classmethod
+    def of(cls, screws: FloatArray) -> _ScrewTerms:
+        W = np.asarray(lie.hat_so3(screws[:, :3]), dtype=np.float64)
+        W2 = W @ W
+        v = screws[:, 3:]
+        return cls(W, W2, v, (W @ v[..., None])[..., 0], (W2 @ v[..., None])[..., 0])
+
+
+def poe(
+    terms: _ScrewTerms, q: FloatArray, *, left: FloatArray | None, right: FloatArray | None
+) -> FloatArray:
+    """``left @ exp([S_1] q_1) ... exp([S_n] q_n) @ right`` for unit screws.
+
+    Args:
+        terms: the screws' constants, see :class:`_ScrewTerms`.
+        q: ``(..., n)`` joint values.
+        left, right: ``(4, 4)`` constant poses, or None for the identity.
+
+    Returns:
+        ``(..., 4, 4)`` poses.
+    """
+    batch = q.shape[:-1]
+    s = np.sin(q)[..., None]
+    c = 1.0 - np.cos(q)[..., None]
+    qv = q[..., None]
+    R_i = np.eye(3) + s[..., None] * terms.W + c[..., None] * terms.W2  # (..., n, 3, 3)
+    p_i = qv * terms.v + c * terms.Wv + (qv - s) * terms.W2v  # (..., n, 3)
+    n = terms.v.shape[0]
+    if left is None and n > 0:  # start from the first factor: saves a 3x3 product
+        R, p, start = R_i[..., 0, :, :], p_i[..., 0, :], 1
+    else:
+        L = np.eye(4) if left is None else left
+        R = np.broadcast_to(L[:3, :3], (*batch, 3, 3))
+        p = np.broadcast_to(L[:3, 3], (*batch, 3))
+        start = 0
+    for i in range(start, n):
+        p = p + (R @ p_i[..., i, :, None])[..., 0]
+        R = R @ R_i[..., i, :, :]
+    if right is not None:
+        p = p + R @ right[:3, 3]
+        R = R @ right[:3, :3]
+    T = np.zeros((*batch, 4, 4))
+    T[..., :3, :3] = R
+    T[..., :3, 3] = p
+    T[..., 3, 3] = 1.0
+    return T
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class Chain:
+    """A serial chain of revolute and prismatic joints, as a PoE model. Immutable.
+
+    Attributes:
+        joint_names: ``n`` joint names, base to tip.
+        joint_types: ``n`` of ``"revolute"`` / ``"prismatic"``.
+        screws: ``(n, 6)`` space-frame unit screw axes ``S_i = [w; v]`` at ``q = 0``.
+        home: ``(4, 4)`` ``M = T_world_frame(q = 0)``.
+        limits: ``(n, 2)`` lower and upper joint limits (rad or m); ``-inf``/``inf`` if unlimited.
+        frame: name of the end frame (site or body) that ``home`` and ``fk`` describe.
+        robot: name of the robot or model file the chain came from ("" if typed by hand).
+        qpos_indices: for a chain imported from MuJoCo, the index of each joint in ``qpos``, so
+            ``chain.fk(data.qpos[list(chain.qpos_indices)])`` is the frame's pose; else None.
+        body_screws: ``(n, 6)`` body-frame screws ``B_i = Ad(M^-1) S_i`` (derived).
+    """
+
+    joint_names: tuple[str, ...]
+    joint_types: tuple[JointType, ...]
+    screws: FloatArray
+    home: FloatArray
+    limits: FloatArray | None = None
+    frame: str = "ee"
+    robot: str = ""
+    qpos_indices: tuple[int, ...] | None = None
+    body_screws: FloatArray = dataclasses.field(init=False, repr=False)
+    _space: _ScrewTerms = dataclasses.field(init=False, repr=False)
+    _body: _ScrewTerms = dataclasses.field(init=False, repr=False)
+
+    def __post_init__(self) -> None:
+        n = len(self.joint_names)
+        set_ = object.__setattr__
+        set_(self, "joint_names", tuple(self.joint_names))
+        set_(self, "joint_types", tuple(self.joint_types))
+        if len(self.joint_types) != n:
+            raise InputError(f"{n} joint names but {len(self.joint_types)} joint types")
+        set_(self, "screws", _readonly(self.screws, (n, 6), "screws"))
+        set_(self, "home", _readonly(self.home, (4, 4), "home"))
+        limits = np.tile([-np.inf, np.inf], (n, 1)) if self.limits is None else self.limits
+        lim = np.array(limits, dtype=np.float64)
+        if lim.shape != (n, 2) or np.any(np.isnan(lim)) or np.any(lim[:, 0] > lim[:, 1]):
+            raise InputError(f"limits must be (n, 2) = ({n}, 2) with lower <= upper")
+        lim.flags.writeable = False
+        set_(self, "limits", lim)
+        if self.qpos_indices is not None:
+            set_(self, "qpos_indices", tuple(int(i) for i in self.qpos_indices))
+        self._check_screws()
+        self._check_home()
+        body = lie.adjoint(lie.inverse(self.home)) @ self.screws.T
+        body_screws = np.ascontiguousarray(body.T)
+        body_screws.flags.writeable = False
+        set_(self, "body_screws", body_screws)
+        set_(self, "_space", _ScrewTerms.of(self.screws))
+        set_(self, "_body", _ScrewTerms.of(self.body_screws))
+
+    def _check_screws(self) -> None:
+        for name, kind, S in zip(self.joint_names, self.joint_types, self.screws, strict=True):
+            w, v = np.linalg.norm(S[:3]), np.linalg.norm(S[3:])
+            if kind == "revolute" and abs(w - 1.0) > _UNIT_TOL:
+                raise InputError(
+                    f"joint {name!r}: a revolute screw needs a unit axis w, got |w| = {w:.6g}; "
+                    "normalise it"
+                )
+            if kind == "prismatic" and (w > _UNIT_TOL or abs(v - 1.0) > _UNIT_TOL):
+                raise InputError(
+                    f"joint {name!r}: a prismatic screw is [0; v] with |v| = 1, "
+                    f"got |w| = {w:.6g}, |v| = {v:.6g}"
+                )
+            if kind not in ("revolute", "prismatic"):
+                raise InputError(
+                    f"joint {name!r}: unknown joint type {kind!r}; use 'revolute' or 'prismatic'"
+                )
+
+    def _check_home(self) -> None:
+        R = self.home[:3, :3]
+        if not np.allclose(R.T @ R, np.eye(3), atol=_UNIT_TOL) or np.linalg.det(R) < 0:
+            raise InputError("home pose M: its rotation block is not orthonormal with det +1")
+        if not np.allclose(self.home[3], [0.0, 0.0, 0.0, 1.0]):
+            raise InputError("home pose M: the last row must be [0, 0, 0, 1]")
+
+    @property
+    def n_joints(self) -> int:
+        """Number of joints ``n``."""
+        return len(self.joint_names)
+
+    def fk(self, q: ArrayLike) -> FloatArray:
+        """Space-form PoE ``T_world_frame = exp([S_1] q_1) ... exp([S_n] q_n) M``.
+
+        Args:
+            q: ``(..., n)`` joint values, as MuJoCo stores them in ``qpos`` (rad, m).
+
+        Returns:
+            ``(..., 4, 4)`` pose of ``frame`` in the world (base) frame.
+        """
+        q = as_joint_values(q, self.n_joints)
+        return poe(self._space, q, left=None, right=self.home)
+
+    def fk_body(self, q: ArrayLike) -> FloatArray:
+        """Body-form PoE ``T_world_frame = M exp([B_1] q_1) ... exp([B_n] q_n)``.
+
+        Same arguments and result as :meth:`fk`; equal to it to float precision.
+        """
+        q = as_joint_values(q, self.n_joints)
+        return poe(self._body, q, left=self.home, right=None)
+
+    def __repr__(self) -> str:
+        joints = ", ".join(
+            f"{n}({'R' if t == 'revolute' else 'P'})"
+            for n, t in zip(self.joint_names, self.joint_types, strict=True)
+        )
+        source = f"{self.robot!r}, " if self.robot else ""
+        return f"Chain({source}frame={self.frame!r}, joints=[{joints}])"
+
+    def describe(self) -> dict[str, Any]:
+        """A JSON-ready summary: joints, screws, body screws, home, limits."""
+        return {
+            "robot": self.robot,
+            "frame": self.frame,
+            "joints": [
+                {
+                    "name": n,
+                    "type": t,
+                    "screw": s.tolist(),
+                    "body_screw": b.tolist(),
+                    "limits": [float(lo), float(hi)],
+                }
+                for n, t, s, b, (lo, hi) in zip(
+                    self.joint_names,
+                    self.joint_types,
+                    self.screws,
+                    self.body_screws,
+                    self.limits if self.limits is not None else [],
+                    strict=True,
+                )
+            ],
+            "home": self.home.tolist(),
+        }
