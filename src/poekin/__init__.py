@@ -1,0 +1,84 @@
+"""poekin: Product-of-Exponentials forward kinematics derived from MuJoCo models.
+
+Conventions: twists and screw axes are ``[w; v]`` (angular first), quaternions ``wxyz``, SI
+units, radians. Poses are ``(..., 4, 4)`` homogeneous matrices; joint values ``(..., n)`` mean
+exactly what MuJoCo stores in ``qpos``.
+
+>>> import poekin
+>>> chain = poekin.load("universal_robots_ur5e")        # screws and M from the model
+>>> T_world_ee = chain.fk([0.0, -1.57, 1.57, 0.0, 0.0, 0.0])
+"""
+
+from poekin.chain import Chain, JointType
+from poekin.errors import (
+    InputError,
+    MenagerieUnavailableError,
+    MetricsFileError,
+    ModelError,
+    PoekinError,
+    UnknownFrameError,
+    UnknownRobotError,
+)
+from poekin.import_mujoco import chain_from_model, load
+from poekin.lie import (
+    adjoint,
+    exp_se3,
+    exp_so3,
+    hat_se3,
+    hat_so3,
+    inverse,
+    log_se3,
+    log_so3,
+    matrix_exp_se3,
+    matrix_exp_so3,
+    rotation_angle,
+    vec_to_se3,
+    vec_to_so3,
+    vee_se3,
+    vee_so3,
+)
+from poekin.params import UR5E_HOME, UR5E_SCREWS, fk_ur5e_poe, ur5e_chain
+from poekin.sources import AssetsStrippedWarning, LoadedModel, load_model
+from poekin.verify import VerifyReport, pose_errors, sample_joint_values, verify
+
+__version__ = "0.1.0"
+
+__all__ = [
+    "UR5E_HOME",
+    "UR5E_SCREWS",
+    "AssetsStrippedWarning",
+    "Chain",
+    "InputError",
+    "JointType",
+    "LoadedModel",
+    "MenagerieUnavailableError",
+    "MetricsFileError",
+    "ModelError",
+    "PoekinError",
+    "UnknownFrameError",
+    "UnknownRobotError",
+    "VerifyReport",
+    "adjoint",
+    "chain_from_model",
+    "exp_se3",
+    "exp_so3",
+    "fk_ur5e_poe",
+    "hat_se3",
+    "hat_so3",
+    "inverse",
+    "load",
+    "load_model",
+    "log_se3",
+    "log_so3",
+    "matrix_exp_se3",
+    "matrix_exp_so3",
+    "pose_errors",
+    "rotation_angle",
+    "sample_joint_values",
+    "ur5e_chain",
+    "vec_to_se3",
+    "vec_to_so3",
+    "vee_se3",
+    "vee_so3",
+    "verify",
+]

@@ -1,0 +1,256 @@
+"""The poekin command line: outputs, exit codes, and one-line errors without tracebacks."""
+
+from __future__ import annotations
+
+import csv
+import json
+import os
+import pathlib
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+from helpers import MJ_TOL, assert_close
+
+from poekin import load
+from poekin.cli import main
+from poekin.metrics import METRICS_HEADER
+
+UR5E_XML = pathlib.Path(os.environ["MENAGERIE_ROOT"]) / "universal_robots_ur5e" / "ur5e.xml"
+
+
+def run(capsys: pytest.CaptureFixture[str], *argv: str) -> tuple[int, str, str]:
+    code = main(list(argv))
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+def test_verify_json(capsys: pytest.CaptureFixture[str]) -> None:
+    code, out, _ = run(capsys, "verify", "--samples", "200", "--json")
+    result = json.loads(out)
+    assert code == 0
+    assert list(result) == [
+        "robot",
+        "frame",
+        "samples",
+        "seed",
+        "max_pos_err_m",
+        "median_pos_err_m",
+        "max_ori_err_rad",
+        "median_ori_err_rad",
+        "passed",
+    ]
+    assert result["robot"] == "universal_robots_ur5e"
+    assert result["frame"] == "attachment_site"
+    assert result["samples"] == 200 and result["passed"] is True
+    assert result["max_pos_err_m"] <= MJ_TOL and result["max_ori_err_rad"] <= MJ_TOL
+
+
+def test_verify_text_plot_and_metrics(
+    capsys: pytest.CaptureFixture[str], tmp_path: pathlib.Path
+) -> None:
+    plot, metrics = tmp_path / "fk.png", tmp_path / "metrics.csv"
+    code, out, _ = run(
+        capsys, "verify", "--samples", "100", "--plot", str(plot), "--metrics", str(metrics)
+    )
+    assert code == 0
+    assert "space PoE" in out and "body PoE" in out and "PASS" in out
+    assert plot.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    code, _, _ = run(capsys, "verify", "--samples", "100", "--seed", "3", "--metrics", str(metrics))
+    assert code == 0
+    with metrics.open(newline="") as f:
+        rows = list(csv.reader(f))
+    assert tuple(rows[0]) == METRICS_HEADER
+    assert len(rows) == 1 + 16  # header once, 2 methods x 4 metrics per run
+    records = [dict(zip(METRICS_HEADER, r, strict=True)) for r in rows[1:]]
+    assert {r["metric"] for r in records} == {
+        "max_pos_err_m",
+        "median_pos_err_m",
+        "max_ori_err_rad",
+        "median_ori_err_rad",
+    }
+    assert {r["method"] for r in records} == {"space_poe", "body_poe"}
+    assert {r["experiment"] for r in records} == {"fk_verify_ur5e"}
+    assert {r["seed"] for r in records} == {"0", "3"}
+    assert len({r["model_sha"] for r in records}) == 1
+    assert all(float(r["value"]) <= MJ_TOL for r in records)
+
+
+def test_verify_fails_with_exit_1_when_out_of_tolerance(capsys: pytest.CaptureFixture[str]) -> None:
+    code, out, _ = run(capsys, "verify", "--samples", "20", "--pos-tol", "1e-18", "--json")
+    assert code == 1
+    assert json.loads(out)["passed"] is False
+
+
+def test_verify_other_robot_and_frame(capsys: pytest.CaptureFixture[str]) -> None:
+    code, out, err = run(
+        capsys,
+        "verify",
+        "franka_emika_panda",
+        "--frame",
+        "hand",
+        "--samples",
+        "50",
+        "--within-limits",
+        "--json",
+    )
+    assert code == 0 and json.loads(out)["frame"] == "hand"
+    assert err.count("\n") == 1 and "kinematics only" in err
+
+
+def test_screws(capsys: pytest.CaptureFixture[str]) -> None:
+    code, out, _ = run(capsys, "screws", "universal_robots_ur5e", "--json")
+    info = json.loads(out)
+    chain = load("universal_robots_ur5e")
+    assert code == 0
+    assert_close("screws", [j["screw"] for j in info["joints"]], chain.screws, 0.0)
+    assert_close("body screws", [j["body_screw"] for j in info["joints"]], chain.body_screws, 0.0)
+    assert_close("home", info["home"], chain.home, 0.0)
+    code, out, _ = run(capsys, "screws", str(UR5E_XML), "--body")
+    assert code == 0 and "body B_i" in out and "wrist_3_joint" in out
+
+
+def test_fk_single(capsys: pytest.CaptureFixture[str]) -> None:
+    q = [0.1, -1.2, 1.3, 0.4, -0.5, 2.0]
+    code, out, _ = run(capsys, "fk", "universal_robots_ur5e", "--json", "--q", *map(str, q))
+    assert code == 0
+    assert_close("T", json.loads(out)["T"], load("universal_robots_ur5e").fk(q), 0.0)
+    code, out, _ = run(capsys, "fk", "universal_robots_ur5e", "--q", *map(str, q))
+    assert code == 0 and out.startswith("T_world_attachment_site =")
+
+
+def test_fk_batch_files(capsys: pytest.CaptureFixture[str], tmp_path: pathlib.Path) -> None:
+    q = np.random.default_rng(0).uniform(-3, 3, size=(7, 6))
+    np.save(tmp_path / "q.npy", q)
+    out_path = tmp_path / "T.npy"
+    code, _, _ = run(
+        capsys,
+        "fk",
+        "universal_robots_ur5e",
+        "--input",
+        str(tmp_path / "q.npy"),
+        "--output",
+        str(out_path),
+    )
+    assert code == 0
+    assert_close("T.npy", np.load(out_path), load("universal_robots_ur5e").fk(q), 0.0)
+    before = out_path.read_bytes()
+    code, _, err = run(
+        capsys,
+        "fk",
+        "universal_robots_ur5e",
+        "--input",
+        str(tmp_path / "q.npy"),
+        "--output",
+        str(out_path),
+    )
+    assert code == 2 and "already exists" in err and "--force" in err
+    assert out_path.read_bytes() == before
+
+
+def _write(tmp_path: pathlib.Path, name: str, text: str) -> str:
+    (tmp_path / name).write_text(text)
+    return str(tmp_path / name)
+
+
+BAD_INPUTS = [
+    (["verify", "universal_robots_ur5"], "did you mean 'universal_robots_ur5e'"),
+    (["verify", "no/such/robot.xml"], "model file not found"),
+    (["verify", "{tmp}"], "is a directory"),
+    (["verify", "{bad_xml}"], "cannot read"),
+    (["verify", "--frame", "atachment_site"], "did you mean 'attachment_site'"),
+    (["verify", "franka_emika_panda"], "name the end frame"),
+    (["verify", "--samples", "0"], "--samples must be at least 1"),
+    (["verify", "--metrics", "{tmp}/missing/m.csv"], "does not exist"),
+    (["verify", "--metrics", "{other_csv}"], "header differs"),
+    (["verify", "--plot", "{tmp}/missing/fk.png"], "does not exist"),
+    (["fk", "universal_robots_ur5e", "--q", "1", "2"], "expected 6 joint values"),
+    (["fk", "universal_robots_ur5e", "--q", "0", "0", "nan", "0", "0", "0"], "NaN or inf"),
+    (["fk", "universal_robots_ur5e", "--q", "0", "0", "inf", "0", "0", "0"], "NaN or inf"),
+    (["fk", "universal_robots_ur5e"], "give joint values with --q"),
+    (
+        ["fk", "universal_robots_ur5e", "--input", "{tmp}/none.npy", "--output", "{tmp}/T.npy"],
+        "no such file",
+    ),
+    (
+        ["fk", "universal_robots_ur5e", "--input", "{bad_xml}", "--output", "{tmp}/T.npy"],
+        "not a .npy",
+    ),
+]
+
+
+def assert_one_error_line(err: str, message: str) -> None:
+    """stderr holds exactly one error line (plus, at most, notes) and no traceback."""
+    lines = err.splitlines()
+    errors = [ln for ln in lines if ln.startswith("poekin: error: ")]
+    assert len(errors) == 1 and message in errors[0], err
+    assert all(ln.startswith("poekin: note: ") for ln in lines if ln not in errors), err
+    assert "Traceback" not in err
+
+
+@pytest.mark.parametrize(("argv", "message"), BAD_INPUTS)
+def test_bad_input_gives_one_line_and_exit_2(
+    argv: list[str], message: str, tmp_path: pathlib.Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    other = _write(tmp_path, "other.csv", "a,b,c\n1,2,3\n")
+    fills = {
+        "tmp": str(tmp_path),
+        "bad_xml": _write(tmp_path, "bad.xml", "<mujoco><oops>"),
+        "other_csv": other,
+    }
+    before = pathlib.Path(other).read_bytes()
+    code, _, err = run(capsys, *[a.format(**fills) for a in argv])
+    assert code == 2
+    assert_one_error_line(err, message)
+    assert pathlib.Path(other).read_bytes() == before
+
+
+@pytest.mark.parametrize(
+    ("argv", "message"),
+    [(["verify", "--samples", "many"], "invalid int value"), (["teleport"], "invalid choice")],
+)
+def test_argparse_errors_are_one_line(
+    argv: list[str], message: str, capsys: pytest.CaptureFixture[str]
+) -> None:
+    with pytest.raises(SystemExit) as exc:
+        main(argv)
+    err = capsys.readouterr().err
+    assert exc.value.code == 2
+    assert err.count("\n") == 1 and message in err and "--help" in err
+
+
+def test_no_network_menagerie(
+    capsys: pytest.CaptureFixture[str], tmp_path: pathlib.Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.delenv("MENAGERIE_ROOT")
+    monkeypatch.setenv("MENAGERIE_CACHE_DIR", str(tmp_path))
+    monkeypatch.setenv("MENAGERIE_BASE_URL", (tmp_path / "offline").as_uri())
+    code, _, err = run(capsys, "verify")
+    assert code == 2
+    assert_one_error_line(
+        err, "set MENAGERIE_ROOT to a local mujoco_menagerie clone, or pass a path"
+    )
+
+
+@pytest.mark.parametrize("command", ["verify", "screws", "fk"])
+def test_every_command_has_help_with_an_example(
+    command: str, capsys: pytest.CaptureFixture[str]
+) -> None:
+    with pytest.raises(SystemExit) as exc:
+        main([command, "--help"])
+    assert exc.value.code == 0
+    assert f"poekin {command}" in capsys.readouterr().out.split("example")[1]
+
+
+def test_console_script_runs_without_traceback() -> None:
+    """The installed entry point, in a real process: exit code and stderr as a user sees them."""
+    proc = subprocess.run(
+        [sys.executable, "-m", "poekin.cli", "fk", "universal_robots_ur5e", "--q", "1"],
+        capture_output=True,
+        text=True,
+        check=False,
+    )
+    assert proc.returncode == 2
+    assert proc.stderr.startswith("poekin: error: expected 6 joint values")
+    assert "Traceback" not in proc.stderr
