@@ -17,16 +17,30 @@ from poekin.sources import LoadedModel
 MJ_TOL = 1e-13
 
 
+# `poekin verify --json` keys, in order, as issue #2 specifies them.
+SUMMARY_KEYS = [
+    "robot",
+    "frame",
+    "samples",
+    "seed",
+    "max_pos_err_m",
+    "median_pos_err_m",
+    "max_ori_err_rad",
+    "median_ori_err_rad",
+    "passed",
+]
+
+
 def assert_close(field: str, actual: ArrayLike, expected: ArrayLike, atol: float) -> None:
-    """Assert ``|actual - expected| <= atol`` elementwise; the message names ``field``."""
-    a, e = np.asarray(actual, dtype=float), np.asarray(expected, dtype=float)
+    """Assert equal shapes and ``max |actual - expected| <= atol``; the message names ``field``
+    and the worst index. NaN anywhere fails."""
+    a, e = np.asarray(actual), np.asarray(expected)
     assert a.shape == e.shape, f"{field}: shape {a.shape} != expected {e.shape}"
-    err = np.abs(a - e)
-    worst = float(np.max(err, initial=0.0))
-    assert worst <= atol, (
-        f"{field}: max abs error {worst:.3g} > {atol:g} at index "
-        f"{np.unravel_index(np.argmax(err), err.shape) if err.size else ()}"
-    )
+    err = np.abs(a.astype(np.float64) - e.astype(np.float64))
+    worst = float(np.max(err)) if err.size else 0.0
+    if not worst <= atol:  # also fails on NaN
+        where = np.unravel_index(int(np.nanargmax(err)), err.shape) if err.size else ()
+        raise AssertionError(f"{field}: max abs error {worst:.3e} > atol {atol:.1e} at {where}")
 
 
 def load_quiet(source: str) -> LoadedModel:

@@ -11,7 +11,7 @@ import sys
 
 import numpy as np
 import pytest
-from helpers import MJ_TOL, assert_close
+from helpers import MJ_TOL, SUMMARY_KEYS, assert_close
 
 from poekin import load
 from poekin.cli import main
@@ -30,17 +30,7 @@ def test_verify_json(capsys: pytest.CaptureFixture[str]) -> None:
     code, out, _ = run(capsys, "verify", "--samples", "200", "--json")
     result = json.loads(out)
     assert code == 0
-    assert list(result) == [
-        "robot",
-        "frame",
-        "samples",
-        "seed",
-        "max_pos_err_m",
-        "median_pos_err_m",
-        "max_ori_err_rad",
-        "median_ori_err_rad",
-        "passed",
-    ]
+    assert list(result) == SUMMARY_KEYS
     assert result["robot"] == "universal_robots_ur5e"
     assert result["frame"] == "attachment_site"
     assert result["samples"] == 200 and result["passed"] is True
@@ -124,27 +114,12 @@ def test_fk_batch_files(capsys: pytest.CaptureFixture[str], tmp_path: pathlib.Pa
     q = np.random.default_rng(0).uniform(-3, 3, size=(7, 6))
     np.save(tmp_path / "q.npy", q)
     out_path = tmp_path / "T.npy"
-    code, _, _ = run(
-        capsys,
-        "fk",
-        "universal_robots_ur5e",
-        "--input",
-        str(tmp_path / "q.npy"),
-        "--output",
-        str(out_path),
-    )
+    argv = ["fk", "universal_robots_ur5e", "--input", str(tmp_path / "q.npy")]
+    code, _, _ = run(capsys, *argv, "--output", str(out_path))
     assert code == 0
     assert_close("T.npy", np.load(out_path), load("universal_robots_ur5e").fk(q), 0.0)
     before = out_path.read_bytes()
-    code, _, err = run(
-        capsys,
-        "fk",
-        "universal_robots_ur5e",
-        "--input",
-        str(tmp_path / "q.npy"),
-        "--output",
-        str(out_path),
-    )
+    code, _, err = run(capsys, *argv, "--output", str(out_path))
     assert code == 2 and "already exists" in err and "--force" in err
     assert out_path.read_bytes() == before
 

@@ -11,6 +11,7 @@ from typing import Any
 import numpy as np
 import pytest
 import scipy.linalg
+from helpers import assert_close
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -52,22 +53,6 @@ angles_below_pi = st.one_of(
     st.sampled_from([a for a in SPECIAL_ANGLES if a <= PI - 1e-6]), st.floats(0.0, PI - 1e-6)
 )
 FAST = settings(max_examples=25, deadline=None)
-
-
-def assert_close(name: str, actual: Any, expected: Any, atol: float) -> None:
-    """Assert equal shapes and ``max |actual - expected| <= atol``, naming ``name`` if not."""
-    actual = np.asarray(actual)
-    expected = np.asarray(expected)
-    assert actual.shape == expected.shape, (
-        f"{name}: shape {actual.shape} != expected {expected.shape}"
-    )
-    err = np.abs(actual.astype(np.float64) - expected.astype(np.float64))
-    worst = float(np.max(err)) if err.size else 0.0
-    if not worst <= atol:  # also fails on NaN
-        where = np.unravel_index(int(np.nanargmax(err)), err.shape) if err.size else ()
-        raise AssertionError(
-            f"{name}: max abs error {worst:.3e} > atol {atol:.1e} at index {where}"
-        )
 
 
 # --------------------------------------------------------------------------------------------

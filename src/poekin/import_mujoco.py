@@ -19,12 +19,20 @@ from typing import Literal
 
 import mujoco
 import numpy as np
+from numpy.typing import NDArray
 
 from poekin.chain import Chain, JointType
 from poekin.errors import ModelError, UnknownFrameError, did_you_mean
 from poekin.sources import LoadedModel, load_model
 
-__all__ = ["FrameKind", "chain_from_model", "find_frame", "load", "site_and_body_names"]
+__all__ = [
+    "FrameKind",
+    "chain_from_model",
+    "find_frame",
+    "frame_pose",
+    "load",
+    "site_and_body_names",
+]
 
 FrameKind = Literal["site", "body"]
 _JOINT_TYPES: dict[int, JointType] = {
@@ -69,6 +77,18 @@ def find_frame(model: mujoco.MjModel, frame: str | None) -> tuple[FrameKind, int
     raise UnknownFrameError(
         f"no site or body named {frame!r}: {did_you_mean(frame, sites + bodies)}"
     )
+
+
+def frame_pose(
+    data: mujoco.MjData, kind: FrameKind, fid: int, out: NDArray[np.float64] | None = None
+) -> NDArray[np.float64]:
+    """``(4, 4)`` world pose of a site or body from ``data`` (after ``mj_kinematics``), written
+    into ``out`` if given."""
+    T = np.eye(4) if out is None else out
+    xpos, xmat = (data.site_xpos, data.site_xmat) if kind == "site" else (data.xpos, data.xmat)
+    T[:3, :3] = xmat[fid].reshape(3, 3)
+    T[:3, 3] = xpos[fid]
+    return T
 
 
 def chain_from_model(model: mujoco.MjModel, frame: str | None = None, *, robot: str = "") -> Chain:
@@ -117,13 +137,7 @@ def chain_from_model(model: mujoco.MjModel, frame: str | None = None, *, robot: 
             screws[row, 3:] = -np.cross(w, data.xanchor[j])
         else:
             screws[row, 3:] = w
-    home = np.eye(4)
-    if kind == "site":
-        home[:3, :3] = data.site_xmat[fid].reshape(3, 3)
-        home[:3, 3] = data.site_xpos[fid]
-    else:
-        home[:3, :3] = data.xmat[fid].reshape(3, 3)
-        home[:3, 3] = data.xpos[fid]
+    home = frame_pose(data, kind, fid)
     limits = np.where(
         model.jnt_limited[joints, None].astype(bool),
         model.jnt_range[joints],

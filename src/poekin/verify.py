@@ -20,7 +20,7 @@ from tqdm import tqdm
 
 from poekin import lie
 from poekin.chain import Chain
-from poekin.import_mujoco import chain_from_model, find_frame
+from poekin.import_mujoco import chain_from_model, find_frame, frame_pose
 from poekin.sources import LoadedModel
 
 __all__ = [
@@ -93,12 +93,7 @@ def mujoco_poses(
         data.qpos[:] = model.qpos0
         data.qpos[idx] = q[k]
         mujoco.mj_forward(model, data)
-        if kind == "site":
-            out[k, :3, :3] = data.site_xmat[fid].reshape(3, 3)
-            out[k, :3, 3] = data.site_xpos[fid]
-        else:
-            out[k, :3, :3] = data.xmat[fid].reshape(3, 3)
-            out[k, :3, 3] = data.xpos[fid]
+        frame_pose(data, kind, fid, out=out[k])
     return out
 
 
@@ -120,21 +115,24 @@ class VerifyReport:
     pos_err: Mapping[str, FloatArray]
     ori_err: Mapping[str, FloatArray]
 
+    def _worst(self, stat: str) -> float:
+        return max((m[stat] for m in self.per_method().values()), default=0.0)
+
     @property
     def max_pos_err_m(self) -> float:
-        return max((float(np.max(e, initial=0.0)) for e in self.pos_err.values()), default=0.0)
+        return self._worst("max_pos_err_m")
 
     @property
     def median_pos_err_m(self) -> float:
-        return max((float(np.median(e)) for e in self.pos_err.values() if e.size), default=0.0)
+        return self._worst("median_pos_err_m")
 
     @property
     def max_ori_err_rad(self) -> float:
-        return max((float(np.max(e, initial=0.0)) for e in self.ori_err.values()), default=0.0)
+        return self._worst("max_ori_err_rad")
 
     @property
     def median_ori_err_rad(self) -> float:
-        return max((float(np.median(e)) for e in self.ori_err.values() if e.size), default=0.0)
+        return self._worst("median_ori_err_rad")
 
     @property
     def passed(self) -> bool:
