@@ -123,15 +123,26 @@ def _asset_path(spec: mujoco.MjSpec, directory: str, file: str) -> pathlib.Path:
     return base / directory / file
 
 
-def _missing_assets(spec: mujoco.MjSpec) -> tuple[list[mujoco.MjsMesh], list[mujoco.MjsTexture]]:
-    meshes = [
-        m for m in spec.meshes if m.file and not _asset_path(spec, spec.meshdir, m.file).is_file()
-    ]
-    textures = []
+def _asset_files(
+    spec: mujoco.MjSpec,
+) -> Iterator[tuple[mujoco.MjsMesh | mujoco.MjsTexture, pathlib.Path]]:
+    """Every file-backed mesh and texture with each file it reads (a cube texture has six)."""
+    for m in spec.meshes:
+        if m.file:
+            yield m, _asset_path(spec, spec.meshdir, m.file)
     for t in spec.textures:
-        files = [t.file, *getattr(t, "cubefiles", [])]
-        if any(f and not _asset_path(spec, spec.texturedir, f).is_file() for f in files):
-            textures.append(t)
+        for f in [t.file, *getattr(t, "cubefiles", [])]:
+            if f:
+                yield t, _asset_path(spec, spec.texturedir, f)
+
+
+def _missing_assets(spec: mujoco.MjSpec) -> tuple[list[mujoco.MjsMesh], list[mujoco.MjsTexture]]:
+    missing: dict[int, mujoco.MjsMesh | mujoco.MjsTexture] = {}
+    for asset, path in _asset_files(spec):
+        if not path.is_file():
+            missing.setdefault(id(asset), asset)
+    meshes = [a for a in missing.values() if isinstance(a, mujoco.MjsMesh)]
+    textures = [a for a in missing.values() if isinstance(a, mujoco.MjsTexture)]
     return meshes, textures
 
 
@@ -183,14 +194,7 @@ def _included_xml(xml_path: pathlib.Path) -> Iterator[pathlib.Path]:
 
 
 def _model_files(spec: mujoco.MjSpec, xml_path: pathlib.Path) -> tuple[pathlib.Path, ...]:
-    files = {xml_path, *_included_xml(xml_path)}
-    for m in spec.meshes:
-        if m.file:
-            files.add(_asset_path(spec, spec.meshdir, m.file))
-    for t in spec.textures:
-        for f in [t.file, *getattr(t, "cubefiles", [])]:
-            if f:
-                files.add(_asset_path(spec, spec.texturedir, f))
+    files = {xml_path, *_included_xml(xml_path), *(path for _, path in _asset_files(spec))}
     return tuple(sorted(p.resolve() for p in files if p.is_file()))
 
 

@@ -49,8 +49,9 @@ def sample_joint_values(
     Prismatic joints sample their limits, or ``[-1, 1]`` m if they have none.
     """
     assert chain.limits is not None
-    lo = np.where([t == "revolute" for t in chain.joint_types], -2 * np.pi, chain.limits[:, 0])
-    hi = np.where([t == "revolute" for t in chain.joint_types], 2 * np.pi, chain.limits[:, 1])
+    revolute = np.array([t == "revolute" for t in chain.joint_types], dtype=bool)
+    lo = np.where(revolute, -2 * np.pi, chain.limits[:, 0])
+    hi = np.where(revolute, 2 * np.pi, chain.limits[:, 1])
     if within_limits:
         lo = np.where(np.isfinite(chain.limits[:, 0]), chain.limits[:, 0], lo)
         hi = np.where(np.isfinite(chain.limits[:, 1]), chain.limits[:, 1], hi)
