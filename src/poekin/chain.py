@@ -33,7 +33,7 @@ FloatArray = NDArray[np.float64]
 _UNIT_TOL = 1e-6
 
 
-def _readonly(a: ArrayLike, shape: tuple[int, ...], name: str) -> FloatArray:
+def readonly_array(a: ArrayLike, shape: tuple[int, ...], name: str) -> FloatArray:
     arr = np.array(a, dtype=np.float64)  # always a copy: the chain owns its arrays
     if arr.shape != shape:
         raise InputError(f"{name} must have shape {shape}, got {arr.shape}")
@@ -162,8 +162,8 @@ class Chain:
         set_(self, "joint_types", tuple(self.joint_types))
         if len(self.joint_types) != n:
             raise InputError(f"{n} joint names but {len(self.joint_types)} joint types")
-        set_(self, "screws", _readonly(self.screws, (n, 6), "screws"))
-        set_(self, "home", _readonly(self.home, (4, 4), "home"))
+        set_(self, "screws", readonly_array(self.screws, (n, 6), "screws"))
+        set_(self, "home", readonly_array(self.home, (4, 4), "home"))
         limits = np.tile([-np.inf, np.inf], (n, 1)) if self.limits is None else self.limits
         lim = np.array(limits, dtype=np.float64)
         if lim.shape != (n, 2) or np.any(np.isnan(lim)) or np.any(lim[:, 0] > lim[:, 1]):
