@@ -262,6 +262,15 @@ def test_log_so3_at_pi_gives_the_axis_up_to_sign(seed: int) -> None:
     assert_close("log(exp(pi a))", omega, sign * PI * axis, ATOL)
 
 
+@pytest.mark.parametrize("diag", [(-1, -1, 1), (-1, 1, -1), (1, -1, -1)])
+def test_log_so3_of_an_exact_half_turn_emits_no_warning(diag: tuple[int, int, int]) -> None:
+    # sin t is exactly 0 here (a diagonal matrix has no antisymmetric part), unlike exp(pi a)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        omega = lie.log_so3(np.diag(np.array(diag, dtype=float)))
+    assert_close("|log| of a half turn", np.abs(omega), PI * (np.array(diag) > 0), 0.0)
+
+
 def test_log_se3_coefficient_at_pi() -> None:
     # V^{-1} = I - W/2 + W^2/pi^2 at t = pi, so V^{-1} V = I there
     axis = np.array([0.0, 0.0, 1.0])

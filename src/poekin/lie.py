@@ -157,7 +157,8 @@ def _t_over_sin_t(t: Array, sin_t: Array) -> Array:
     small = t < _SMALL_ANGLE
     t2 = t * t
     series = 1 + t2 / 6 * (1 + t2 * 7 / 60)
-    return np.where(small, series, t / np.where(small, 1, sin_t))
+    # sin t is exactly 0 at t = pi; log_so3 takes the symmetric-part branch there.
+    return np.where(small, series, t / np.where(small | (sin_t == 0), 1, sin_t))
 
 
 # --------------------------------------------------------------------------------------------
