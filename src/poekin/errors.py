@@ -16,6 +16,7 @@ __all__ = [
     "ModelError",
     "PoekinError",
     "UnknownFrameError",
+    "UnknownParamsError",
     "UnknownRobotError",
     "did_you_mean",
 ]
@@ -39,6 +40,10 @@ class UnknownRobotError(ModelError, LookupError):
 
 class UnknownFrameError(ModelError, LookupError):
     """A site or body name that the model does not have."""
+
+
+class UnknownParamsError(PoekinError, LookupError):
+    """A parameter-set name that :data:`poekin.params.PARAM_SETS` does not know."""
 
 
 class MenagerieUnavailableError(ModelError):

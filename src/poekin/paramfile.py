@@ -1,0 +1,442 @@
+"""Parameter files: read a DH table or a PoE parameter set from JSON or YAML, or by name.
+
+Accepted shapes (JSON shown; YAML holds the same structure)::
+
+    # a DH table, exactly what DHTable.describe() writes (extra keys such as "notes" ignored)
+    {"convention": "standard",
+     "rows": [{"a": 0, "alpha": 1.5708, "d": 0.1625, "theta_offset": 0,
+               "joint_type": "revolute", "joint": "shoulder_pan_joint"}, ...],
+     "base": [[1, 0, 0, 0], ...], "tool": [[1, 0, 0, 0], ...], "frame": "flange", "robot": ""}
+
+    # a PoE set: space-frame screws [w; v] (or "body_screws") and the home pose M
+    {"screws": [[0, 0, 1, 0, 0, 0], ...], "home": [[1, 0, 0, 0.8], ...],
+     "joint_names": [...], "joint_types": [...], "frame": "ee", "robot": ""}
+
+    # exactly what Chain.describe() writes ("body_screw" and "limits" ignored)
+    {"robot": "", "frame": "ee", "joints": [{"name": "j1", "type": "revolute",
+     "screw": [0, 0, 1, 0, 0, 0]}, ...], "home": [[1, 0, 0, 0.8], ...]}
+
+Optional keys: ``theta_offset`` (0), ``joint_type`` (``"revolute"``), ``joint`` (``jointN``),
+``base``/``tool`` (identity), ``joint_names`` (``jointN``), ``joint_types`` (revolute),
+``frame`` (``"ee"``), ``robot`` (``""``). Units are metres and radians.
+
+This module only reads; nothing here writes a file. Every malformed input raises
+:class:`~poekin.errors.InputError` whose one-line message names the source, the place in it and
+what to do.
+"""
+
+from __future__ import annotations
+
+import difflib
+import json
+import os
+from collections.abc import Callable, Mapping, Sequence
+from pathlib import Path
+from typing import Any, TypeVar, cast
+
+import numpy as np
+from numpy.typing import NDArray
+
+from poekin import lie
+from poekin.chain import Chain, JointType
+from poekin.dh import Convention, DHTable
+from poekin.errors import InputError, UnknownParamsError, did_you_mean
+from poekin.params import PARAM_SETS, named_params
+
+__all__ = ["FILE_SUFFIXES", "load_params", "params_from_dict"]
+
+#: File name endings :func:`load_params` reads (case-insensitive).
+FILE_SUFFIXES = (".json", ".yaml", ".yml")
+
+FloatArray = NDArray[np.float64]
+_T = TypeVar("_T")
+
+_ROW_KEYS = ("a", "alpha", "d", "theta_offset", "joint_type", "joint")
+_ROW_HINT = "each row needs a, alpha, d (theta_offset and joint_type are optional)"
+_SCREW_HINT = "each screw is [w1, w2, w3, v1, v2, v3] (angular part first)"
+_NEITHER = (
+    "neither a DH table (needs 'rows') nor a PoE set (needs 'screws' or 'body_screws' with 'home')"
+)
+
+
+# --- small validators: each names its place ("rows[2].alpha") in the message ------------------
+
+
+def _kind(x: object) -> str:
+    """How a JSON/YAML value reads in an error message: ``a string ('pi/2')``, ``null``..."""
+    if x is None:
+        return "null"
+    if isinstance(x, (bool, np.bool_)):
+        return str(bool(x)).lower()
+    if isinstance(x, str):
+        return f"a string ({x!r:.40})"
+    if isinstance(x, Mapping):
+        return "an object"
+    if isinstance(x, (list, tuple, np.ndarray)):
+        return f"a list of {len(x)}"
+    return f"{type(x).__name__} {x!r:.40}"
+
+
+def _items(x: object) -> list[Any] | None:
+    """``x`` as a list if it is a JSON/YAML list (or a tuple, or a numpy array); else None."""
+    if isinstance(x, (list, tuple)) or (isinstance(x, np.ndarray) and x.ndim >= 1):
+        return list(x)
+    return None
+
+
+def _number(x: object, where: str) -> float:
+    if isinstance(x, (bool, np.bool_)) or not isinstance(x, (int, float, np.integer, np.floating)):
+        raise InputError(f"{where} must be a number, got {_kind(x)}{_quoted_number_hint(x)}")
+    try:
+        value = float(x)
+    except OverflowError:
+        value = float("inf")
+    if not np.isfinite(value):
+        what = "NaN" if np.isnan(value) else "infinite"
+        raise InputError(f"{where} is {what}; every parameter must be a finite number")
+    return value
+
+
+def _quoted_number_hint(x: object) -> str:
+    """For a string that reads as a number: how to write it so that it is one."""
+    if not isinstance(x, str):
+        return ""
+    try:
+        float(x)
+    except ValueError:
+        return ""
+    return "; drop the quotes (YAML reads 1e-3 as text: write 1.0e-3)"
+
+
+def _vector(x: object, where: str, n: int, hint: str) -> list[float]:
+    items = _items(x)
+    if items is None:
+        raise InputError(f"{where} must be a list of {n} numbers, got {_kind(x)}; {hint}")
+    if len(items) != n:
+        raise InputError(f"{where} has {len(items)} numbers, expected {n}; {hint}")
+    return [_number(v, f"{where}[{j}]") for j, v in enumerate(items)]
+
+
+def _matrix4(x: object, where: str) -> FloatArray:
+    hint = "write it as 4 rows of 4 numbers, the last row [0, 0, 0, 1]"
+    rows = _items(x)
+    if rows is None:
+        raise InputError(f"{where} must be a 4x4 matrix, got {_kind(x)}; {hint}")
+    if len(rows) != 4:
+        raise InputError(f"{where} must be a 4x4 matrix, got {len(rows)} rows; {hint}")
+    return np.array([_vector(r, f"{where}[{i}]", 4, hint) for i, r in enumerate(rows)])
+
+
+def _string(x: object, where: str) -> str:
+    if not isinstance(x, str):
+        raise InputError(f"{where} must be a string, got {_kind(x)}")
+    return x
+
+
+def _list(x: object, where: str, what: str) -> list[Any]:
+    items = _items(x)
+    if items is None:
+        raise InputError(f"{where} must be a list of {what}, got {_kind(x)}")
+    if not items:
+        raise InputError(f"{where} is empty; give one entry ({what}) per joint, base to tip")
+    return items
+
+
+def _mapping(x: object, where: str, what: str) -> Mapping[str, Any]:
+    if not isinstance(x, Mapping):
+        raise InputError(f"{where} must be an object with {what}, got {_kind(x)}")
+    return x
+
+
+def _unique_names(names: Sequence[str], where: str) -> None:
+    seen: set[str] = set()
+    for name in names:
+        if name in seen:
+            raise InputError(f"{where}: joint name {name!r} appears twice; joint names must differ")
+        seen.add(name)
+
+
+def _build(source: str, make: Callable[[], _T]) -> _T:
+    """``make()``, with the source put in front of the InputError a constructor raises."""
+    try:
+        return make()
+    except InputError as e:
+        raise InputError(f"{source}: {e}") from e
+
+
+# --- the two shapes ---------------------------------------------------------------------------
+
+
+def _dh_table(obj: Mapping[str, Any], source: str) -> DHTable:
+    if "convention" not in obj:
+        raise InputError(
+            f"{source}: a DH table needs 'convention': \"standard\" (Denavit-Hartenberg) or "
+            '"modified" (Craig)'
+        )
+    convention = _string(obj["convention"], f"{source}: 'convention'")
+    rows = _list(obj["rows"], f"{source}: 'rows'", "rows {a, alpha, d, ...}")
+    a, alpha, d, theta = [], [], [], []
+    types: list[str] = []
+    names: list[str] = []
+    for i, row in enumerate(rows):
+        at = f"{source}: rows[{i}]"
+        row = _mapping(row, at, "a, alpha, d (theta_offset and joint_type are optional)")
+        for key in row:
+            if key not in _ROW_KEYS:
+                close = difflib.get_close_matches(str(key), _ROW_KEYS, n=1, cutoff=0.5)
+                hint = f" (did you mean {close[0]!r}?)" if close else ""
+                raise InputError(
+                    f"{at} has an unknown key {key!r}{hint}; row keys are {', '.join(_ROW_KEYS)}"
+                )
+        for key in ("a", "alpha", "d"):
+            if key not in row:
+                raise InputError(f"{at} has no {key!r}; {_ROW_HINT}")
+        a.append(_number(row["a"], f"{at}.a"))
+        alpha.append(_number(row["alpha"], f"{at}.alpha"))
+        d.append(_number(row["d"], f"{at}.d"))
+        theta.append(_number(row.get("theta_offset", 0.0), f"{at}.theta_offset"))
+        types.append(_string(row.get("joint_type", "revolute"), f"{at}.joint_type"))
+        names.append(_string(row.get("joint", f"joint{i + 1}"), f"{at}.joint"))
+    _unique_names(names, f"{source}: rows")
+    base = _matrix4(obj["base"], f"{source}: 'base'") if "base" in obj else np.eye(4)
+    tool = _matrix4(obj["tool"], f"{source}: 'tool'") if "tool" in obj else np.eye(4)
+    frame = _string(obj.get("frame", "ee"), f"{source}: 'frame'")
+    robot = _string(obj.get("robot", ""), f"{source}: 'robot'")
+    return _build(
+        source,
+        lambda: DHTable(
+            cast(Convention, convention),  # DHTable checks it, with its own message
+            np.array(a),
+            np.array(alpha),
+            np.array(d),
+            np.array(theta),
+            cast("tuple[JointType, ...]", tuple(types)),  # DHTable checks them too
+            tuple(names),
+            base=base,
+            tool=tool,
+            frame=frame,
+            robot=robot,
+        ),
+    )
+
+
+def _joints_form(obj: Mapping[str, Any], source: str) -> tuple[list[Any], list[Any], list[Any]]:
+    """Screws, names and types from ``Chain.describe()``'s ``joints`` list."""
+    joints = _list(obj["joints"], f"{source}: 'joints'", "joints {name, type, screw}")
+    screws, names, types = [], [], []
+    for i, joint in enumerate(joints):
+        at = f"{source}: joints[{i}]"
+        joint = _mapping(joint, at, "'screw' (name and type are optional)")
+        if "screw" not in joint:
+            raise InputError(f"{at} has no 'screw'; {_SCREW_HINT}")
+        screws.append(joint["screw"])
+        names.append(joint.get("name", f"joint{i + 1}"))
+        types.append(joint.get("type", "revolute"))
+    return screws, names, types
+
+
+def _per_joint(
+    obj: Mapping[str, Any], field: str, default: list[str], key: str, source: str
+) -> list[Any]:
+    """``obj[field]`` (one entry per screw in ``obj[key]``), or ``default`` if it is absent."""
+    if field not in obj:
+        return default
+    items = _list(obj[field], f"{source}: {field!r}", "strings, one per joint")
+    if len(items) != len(default):
+        raise InputError(
+            f"{source}: {field!r} has {len(items)} entries but {key!r} has {len(default)}; "
+            "give one per joint"
+        )
+    return items
+
+
+def _poe_chain(obj: Mapping[str, Any], source: str) -> Chain:
+    if "screws" in obj and "body_screws" in obj:
+        raise InputError(
+            f"{source}: has both 'screws' and 'body_screws'; keep one (space or body frame)"
+        )
+    if "home" not in obj:
+        raise InputError(
+            f"{source}: a PoE set needs 'home', the 4x4 pose of the end frame at q = 0"
+        )
+    if "joints" in obj and "screws" not in obj and "body_screws" not in obj:
+        key = "joints"
+        raw, raw_names, raw_types = _joints_form(obj, source)
+        name_at, type_at = "joints[{i}].name", "joints[{i}].type"
+    else:
+        key = "screws" if "screws" in obj else "body_screws"
+        raw = _list(obj[key], f"{source}: {key!r}", "screws [w1, w2, w3, v1, v2, v3]")
+        n = len(raw)
+        raw_names = _per_joint(obj, "joint_names", [f"joint{i + 1}" for i in range(n)], key, source)
+        raw_types = _per_joint(obj, "joint_types", ["revolute"] * n, key, source)
+        name_at, type_at = "joint_names[{i}]", "joint_types[{i}]"
+    at = "joints[{i}].screw" if key == "joints" else key + "[{i}]"
+    screws = np.array(
+        [_vector(s, f"{source}: {at.format(i=i)}", 6, _SCREW_HINT) for i, s in enumerate(raw)]
+    )
+    names = [_string(x, f"{source}: {name_at.format(i=i)}") for i, x in enumerate(raw_names)]
+    types = [_string(x, f"{source}: {type_at.format(i=i)}") for i, x in enumerate(raw_types)]
+    _unique_names(names, source)
+    home = _matrix4(obj["home"], f"{source}: 'home'")
+    if key == "body_screws":
+        # Check M first (a chain of no joints checks only M), then S_i = Ad(M) B_i.
+        _build(source, lambda: Chain((), (), np.zeros((0, 6)), home))
+        screws = np.asarray(screws @ lie.adjoint(home).T, dtype=np.float64)
+    frame = _string(obj.get("frame", "ee"), f"{source}: 'frame'")
+    robot = _string(obj.get("robot", ""), f"{source}: 'robot'")
+    joint_types = cast("tuple[JointType, ...]", tuple(types))  # Chain checks them
+    return _build(
+        source,
+        lambda: Chain(tuple(names), joint_types, screws, home, frame=frame, robot=robot),
+    )
+
+
+def params_from_dict(obj: object, source: str) -> Chain | DHTable:
+    """A DH table or a PoE chain from parsed JSON/YAML (dicts, lists, numbers). No I/O.
+
+    Args:
+        obj: the parsed document; see the module docstring for the accepted shapes.
+        source: where ``obj`` came from (a file name), put at the start of every error message.
+
+    Returns:
+        A :class:`~poekin.dh.DHTable` (the document has ``rows``) or a :class:`Chain` (it has
+        ``screws``, ``body_screws`` or ``joints``, and ``home``). ``describe()`` of either reads
+        back to the same kinematics.
+
+    Raises:
+        InputError: the document is malformed; the message names the source and the place.
+    """
+    if not isinstance(obj, Mapping):
+        raise InputError(f"{source}: the top level is {_kind(obj)}, expected an object: {_NEITHER}")
+    is_dh = "rows" in obj
+    is_poe = any(k in obj for k in ("screws", "body_screws", "joints"))
+    if is_dh and is_poe:
+        raise InputError(
+            f"{source}: has both 'rows' (a DH table) and PoE screws; keep one of the two"
+        )
+    if is_dh:
+        return _dh_table(obj, source)
+    if is_poe:
+        return _poe_chain(obj, source)
+    raise InputError(f"{source}: {_NEITHER}")
+
+
+# --- files ------------------------------------------------------------------------------------
+
+
+class _DuplicateKeyError(Exception):
+    def __init__(self, key: str) -> None:
+        super().__init__(key)
+        self.key = key
+
+
+def _reject_duplicate_keys(pairs: list[tuple[str, Any]]) -> dict[str, Any]:
+    """``json.loads`` hook: a key twice in one object is an error (JSON keeps the last)."""
+    out: dict[str, Any] = {}
+    for key, value in pairs:
+        if key in out:
+            raise _DuplicateKeyError(key)
+        out[key] = value
+    return out
+
+
+def _parse_json(text: str, source: str) -> object:
+    try:
+        return json.loads(text, object_pairs_hook=_reject_duplicate_keys)
+    except json.JSONDecodeError as e:
+        raise InputError(
+            f"{source}: not valid JSON: {e.msg} at line {e.lineno}, column {e.colno}"
+        ) from e
+    except _DuplicateKeyError as e:
+        raise InputError(
+            f"{source}: the key {e.key!r} appears twice in one object; keep one"
+        ) from e
+
+
+def _parse_yaml(text: str, source: str) -> object:
+    try:
+        import yaml
+    except ImportError as e:
+        raise InputError(
+            f"reading {source} needs PyYAML: pip install 'poekin[yaml]' (or save the table as JSON)"
+        ) from e
+    try:
+        result: object = yaml.safe_load(text)
+    except yaml.YAMLError as e:
+        mark = getattr(e, "problem_mark", None)
+        where = f" at line {mark.line + 1}, column {mark.column + 1}" if mark is not None else ""
+        problem = getattr(e, "problem", None) or type(e).__name__
+        raise InputError(f"{source}: not valid YAML: {problem}{where}") from e
+    return result
+
+
+def _read_text(path: Path, source: str) -> str:
+    try:
+        data = path.read_bytes()
+    except OSError as e:
+        raise InputError(
+            f"cannot read {source}: {e.strerror or e}; check that the file is readable"
+        ) from e
+    try:
+        text = data.decode("utf-8-sig")
+    except UnicodeDecodeError as e:
+        raise InputError(
+            f"{source}: not UTF-8 text (byte {e.start}); save it as UTF-8 JSON or YAML"
+        ) from e
+    if not text.strip():
+        raise InputError(f"{source} is empty; write a DH table ('rows') or a PoE set ('screws')")
+    return text
+
+
+def _named_sets_hint(name: str) -> str:
+    return did_you_mean(name, PARAM_SETS)
+
+
+def load_params(spec: str | os.PathLike[str]) -> Chain | DHTable:
+    """A named parameter set, or a DH table / PoE set read from a ``.json``/``.yaml`` file.
+
+    Args:
+        spec: a key of :data:`~poekin.params.PARAM_SETS` (e.g. ``"ur5e-dh"``), or the path of
+            a ``.json``, ``.yaml`` or ``.yml`` file in a shape :func:`params_from_dict` accepts.
+            YAML needs PyYAML (``pip install 'poekin[yaml]'``).
+
+    Returns:
+        A :class:`Chain` or a :class:`~poekin.dh.DHTable`.
+
+    Raises:
+        UnknownParamsError: ``spec`` looks like a name (no folder, no suffix) but is not one.
+        InputError: no such file, a folder, a suffix other than .json/.yaml/.yml, an empty or
+            unreadable file, a syntax error, or a malformed document.
+    """
+    text = os.fspath(spec)
+    if text in PARAM_SETS:
+        return named_params(text)
+    path = Path(text)
+    suffixes = ".json or .yaml (.yml)"
+    if path.is_dir():
+        raise InputError(
+            f"{text} is a directory; give a parameter file ({suffixes}) or a named set: "
+            f"{_named_sets_hint(path.name)}"
+        )
+    suffix = path.suffix.lower()
+    if not path.exists():
+        separators = {"/", os.sep, os.altsep or "/"}
+        if not path.suffix and not any(s in text for s in separators):
+            raise UnknownParamsError(
+                f"unknown parameter set {text!r}: {_named_sets_hint(text)}; "
+                f"or give a parameter file ({suffixes})"
+            )
+        raise InputError(
+            f"no such file {text!r}; give an existing parameter file ({suffixes}) or a named "
+            f"set: {_named_sets_hint(path.stem)}"
+        )
+    if suffix not in FILE_SUFFIXES:
+        raise InputError(
+            f"{text}: a parameter file must end in {suffixes}, got {path.suffix or 'no suffix'!r}; "
+            "rename it, or give a named set"
+        )
+    content = _read_text(path, text)
+    obj = _parse_json(content, text) if suffix == ".json" else _parse_yaml(content, text)
+    if obj is None:
+        raise InputError(f"{text} is empty; write a DH table ('rows') or a PoE set ('screws')")
+    return params_from_dict(obj, text)
