@@ -26,7 +26,7 @@ from poekin import lie
 from poekin.chain import Chain, JointType, as_joint_values, readonly_array
 from poekin.errors import InputError
 
-__all__ = ["CONVENTIONS", "Convention", "DHTable", "dh_from_chain"]
+__all__ = ["CONVENTIONS", "Convention", "DHTable", "dh_from_chain", "joint_lines"]
 
 Convention = Literal["standard", "modified"]
 CONVENTIONS: tuple[Convention, ...] = ("standard", "modified")
@@ -246,12 +246,14 @@ def _frame(R: FloatArray, p: FloatArray) -> FloatArray:
 
 def _rot_z_to(z: FloatArray) -> FloatArray:
     """The smallest rotation taking world z onto unit ``z``: world x moves as little as it can."""
-    c = float(z[2])
-    if c < -1.0 + 1e-12:
-        return np.diag([1.0, -1.0, -1.0])  # pi about x
-    k = np.array([-z[1], z[0], 0.0])  # e_z x z
-    K = lie.hat_so3(k)
-    return np.asarray(np.eye(3) + K + K @ K / (1.0 + c), dtype=np.float64)
+    k = np.array([-z[1], z[0], 0.0])  # e_z x z: sin(angle) times the unit rotation axis
+    s = float(np.linalg.norm(k))
+    if s < 1e-15:  # z is +-e_z up to rounding
+        return np.eye(3) if z[2] > 0.0 else np.diag([1.0, -1.0, -1.0])  # none, or pi about x
+    # Rodrigues with sin = s, 1 - cos = 1 - z[2] and a unit axis. The form K + K^2 / (1 + cos)
+    # would turn the ~1e-16 non-unitness of z into an error of 1e-16 / (1 + cos) near -e_z.
+    K = lie.hat_so3(k / s)
+    return np.asarray(np.eye(3) + s * K + (1.0 - z[2]) * (K @ K), dtype=np.float64)
 
 
 def _angle_about(u: FloatArray, v: FloatArray, axis: FloatArray) -> float:
@@ -328,7 +330,7 @@ def _end_step(
     return _std_step(F, x, d, a, u / norm if norm > _PARALLEL_SIN else z)
 
 
-def _joint_lines(chain: Chain) -> tuple[FloatArray, FloatArray]:
+def joint_lines(chain: Chain) -> tuple[FloatArray, FloatArray]:
     """``(n, 3)`` unit directions and points of the joint axis lines at ``q = 0``.
 
     A revolute joint's point is the foot on its axis of the previous joint's point (world origin
@@ -382,7 +384,7 @@ def dh_from_chain(
             "'modified' (Craig)"
         )
     n = chain.n_joints
-    dirs, points = _joint_lines(chain)
+    dirs, points = joint_lines(chain)
     if n == 0:
         empty = np.zeros(0)
         return DHTable(convention, empty, empty, empty, empty, (), (), tool=chain.home)

@@ -20,6 +20,8 @@ from tqdm import tqdm
 
 from poekin import lie
 from poekin.chain import Chain
+from poekin.dh import DHTable
+from poekin.errors import InputError
 from poekin.import_mujoco import chain_from_model, find_frame, frame_pose
 from poekin.sources import LoadedModel
 
@@ -102,7 +104,8 @@ def mujoco_poses(
 class VerifyReport:
     """The outcome of :func:`verify`.
 
-    ``pos_err`` / ``ori_err`` map a method (``"space PoE"``, ``"body PoE"``) to ``(N,)`` errors
+    ``pos_err`` / ``ori_err`` map a method (``"space PoE"``, ``"body PoE"``, ``"DH table"``) to
+    ``(N,)`` errors
     in m / rad. The ``max_*`` and ``median_*`` figures are the worst over the methods.
     """
 
@@ -171,6 +174,7 @@ def verify(
     frame: str | None = None,
     *,
     chain: Chain | None = None,
+    params: Chain | DHTable | None = None,
     samples: int = 1000,
     seed: int = 0,
     within_limits: bool = False,
@@ -183,20 +187,31 @@ def verify(
     Args:
         loaded: the model (see :func:`poekin.sources.load_model`).
         frame: site or body name; None means the model's only site.
-        chain: the PoE chain to check; by default the one derived from ``loaded``. A chain
-            given here must use the model's joint order and carry ``qpos_indices``.
+        chain: the model's chain, which says which joints move; by default the one derived
+            from ``loaded``. A chain given here must carry ``qpos_indices``.
+        params: the parameters to check, in the model's joint order: a PoE chain (its space and
+            body forms are checked) or a DH table (the table's own FK and the space and body
+            forms of its PoE conversion). By default ``chain`` itself.
         samples, seed: how many configurations, from which random seed.
         within_limits: sample within the joint limits instead of ``[-2 pi, 2 pi]``.
         pos_tol, ori_tol: pass/fail thresholds for the maxima (m, rad).
         progress: show a progress bar on a terminal.
     """
     chain = chain or chain_from_model(loaded.model, frame, robot=loaded.robot)
+    checked = chain if params is None else params
+    if checked.n_joints != chain.n_joints:
+        raise InputError(
+            f"the parameters have {checked.n_joints} joints but {loaded.robot}'s chain to "
+            f"{chain.frame!r} has {chain.n_joints} ({', '.join(chain.joint_names)})"
+        )
     q = sample_joint_values(chain, samples, seed=seed, within_limits=within_limits)
     T_ref = mujoco_poses(loaded.model, chain, q, progress=progress)
-    errors = {
-        "space PoE": pose_errors(T_ref, chain.fk(q)),
-        "body PoE": pose_errors(T_ref, chain.fk_body(q)),
-    }
+    errors = {}
+    if isinstance(checked, DHTable):
+        errors["DH table"] = pose_errors(T_ref, checked.fk(q))
+        checked = checked.to_chain()
+    errors["space PoE"] = pose_errors(T_ref, checked.fk(q))
+    errors["body PoE"] = pose_errors(T_ref, checked.fk_body(q))
     return VerifyReport(
         robot=loaded.robot,
         frame=chain.frame,

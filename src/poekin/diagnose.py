@@ -1,0 +1,649 @@
+"""Explain why a hand-typed parameter set disagrees with a model: :func:`diagnose`.
+
+The user's parameters (a PoE chain or a DH table) are compared with the model's chain:
+
+1. The errors a user sees: ``T_model(q)`` against ``T_yours(q)`` on random ``q``, and at
+   ``q = 0``.
+2. The best base alignment ``B = T_modelbase_yourbase``, so that ``T_model ~ B T_yours``. It is
+   found by consensus: the rotation and shift on which most joint axes agree, so that one wrong
+   joint cannot drag the base with it. A shift along joint 1's axis is not a base shift but a
+   different first link length (``d1``), and is reported as such.
+3. Joint by joint, after alignment: joint type, axis flipped, axis tilted (angle), axis line
+   offset (distance from the model's joint point to your axis line).
+4. Link lengths and twists: both chains as DH tables (your table's convention if you gave one,
+   else standard), row by row.
+5. The home pose ``M``: translation and rotation deltas.
+6. Bisection: starting from your aligned parameters, replace one part at a time by the model's,
+   always the one that removes the most error, until the errors vanish. For a DH table the parts
+   are its rows and the tool. For a PoE set they are the screws and ``M``, or the rows and tool
+   of both chains' DH tables when that explains the difference in fewer steps (a wrong first
+   link moves every later screw, but only one row).
+
+Lengths are metres, angles radians; messages also give degrees.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import itertools
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from poekin import lie
+from poekin.chain import Chain
+from poekin.dh import Convention, DHTable, dh_from_chain, joint_lines
+from poekin.errors import InputError
+from poekin.verify import pose_errors, sample_joint_values
+
+__all__ = ["BisectStep", "Diagnosis", "Finding", "diagnose"]
+
+FloatArray = NDArray[np.float64]
+
+DEFAULT_TOL = 1e-6  # m and rad: far above float rounding (~1e-14), far below typed-in mm
+# Consensus thresholds for the base alignment: a joint "agrees" with a candidate base when its
+# axis is within this angle / its axis line within this distance. Loose enough for values typed
+# to four digits, tight enough that a wrong link (mm and up) or a flipped axis does not agree.
+_AGREE_ANGLE = 0.02
+_AGREE_DIST = 1e-4
+_FLIP_ANGLE = 0.02  # an axis within this of the reversed direction counts as flipped
+_BISECT_SAMPLES = 200
+
+
+@dataclasses.dataclass(frozen=True)
+class Finding:
+    """One difference between your parameters and the model's.
+
+    ``kind`` is one of ``base_rotation``, ``base_shift``, ``joint_type``, ``axis_flipped``,
+    ``axis_tilted``, ``axis_offset``, ``link_length``, ``link_twist``, ``home_position``,
+    ``home_rotation``. ``joint`` is a 0-based joint index (None for base and M); ``value`` the
+    size of the difference (m or rad); ``message`` says it in plain words.
+    """
+
+    kind: str
+    message: str
+    joint: int | None = None
+    value: float = 0.0
+
+
+@dataclasses.dataclass(frozen=True)
+class BisectStep:
+    """After replacing ``part`` by the model's: the errors left. ``part`` is ``"M"`` or a joint
+    (PoE), or ``"tool"`` or a row with the parameters it changes (DH)."""
+
+    part: str
+    joint: int | None
+    max_pos_err_m: float
+    max_ori_err_rad: float
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class Diagnosis:
+    """The outcome of :func:`diagnose`. ``matches`` is True when your FK agrees with the
+    model's within the tolerances on every sample (no alignment allowed)."""
+
+    yours: Chain
+    model: Chain
+    aligned: Chain
+    base: FloatArray
+    findings: tuple[Finding, ...]
+    symptoms: tuple[str, ...]
+    bisect: tuple[BisectStep, ...]
+    convention: Convention
+    samples: int
+    seed: int
+    pos_tol: float
+    ori_tol: float
+    max_pos_err_m: float
+    max_ori_err_rad: float
+    home_pos_err_m: float
+    home_ori_err_rad: float
+    aligned_max_pos_err_m: float
+    aligned_max_ori_err_rad: float
+
+    @property
+    def matches(self) -> bool:
+        return self.max_pos_err_m <= self.pos_tol and self.max_ori_err_rad <= self.ori_tol
+
+    def joint_labels(self) -> dict[int, str]:
+        """Short labels of the joints with findings, for a figure: ``{index: "flipped"}``."""
+        labels: dict[int, list[str]] = {}
+        short = {
+            "joint_type": "type",
+            "axis_flipped": "flipped",
+            "axis_tilted": "tilted",
+            "axis_offset": "offset",
+        }
+        for f in self.findings:
+            if f.joint is not None and f.kind in short:
+                text = short[f.kind]
+                if f.kind in ("axis_tilted", "axis_offset"):
+                    text += f" {f.value:.3g}" + (" m" if f.kind == "axis_offset" else " rad")
+                labels.setdefault(f.joint, []).append(text)
+        return {j: ", ".join(t) for j, t in labels.items()}
+
+    def summary(self) -> dict[str, Any]:
+        """The JSON object printed by ``poekin diagnose --json``."""
+        return {
+            "yours": self.yours.robot,
+            "model": self.model.robot,
+            "frame": self.model.frame,
+            "matches": self.matches,
+            "samples": self.samples,
+            "seed": self.seed,
+            "pos_tol": self.pos_tol,
+            "ori_tol": self.ori_tol,
+            "max_pos_err_m": self.max_pos_err_m,
+            "max_ori_err_rad": self.max_ori_err_rad,
+            "home_pos_err_m": self.home_pos_err_m,
+            "home_ori_err_rad": self.home_ori_err_rad,
+            "aligned_max_pos_err_m": self.aligned_max_pos_err_m,
+            "aligned_max_ori_err_rad": self.aligned_max_ori_err_rad,
+            "base": self.base.tolist(),
+            "findings": [dataclasses.asdict(f) for f in self.findings],
+            "symptoms": list(self.symptoms),
+            "bisect": [dataclasses.asdict(s) for s in self.bisect],
+            "convention": self.convention,
+        }
+
+
+# --- geometry helpers ---------------------------------------------------------------------------
+
+
+def _unit(v: FloatArray) -> FloatArray:
+    return np.asarray(v / np.linalg.norm(v), dtype=np.float64)
+
+
+def _angle(u: FloatArray, v: FloatArray) -> float:
+    """Angle between unit vectors, accurate near 0 and pi."""
+    return float(np.arctan2(np.linalg.norm(np.cross(u, v)), u @ v))
+
+
+def _deg(x: float) -> str:
+    return f"{np.degrees(x):.1f} deg"
+
+
+def _vec(v: FloatArray, digits: int = 4) -> str:
+    return "[" + ", ".join(f"{x + 0.0:+.{digits}f}" for x in v) + "]"
+
+
+def _axis_angle(R: FloatArray) -> tuple[FloatArray, float]:
+    w = np.asarray(lie.log_so3(R), dtype=np.float64)
+    theta = float(np.linalg.norm(w))
+    return (w / theta if theta > 0 else np.array([0.0, 0.0, 1.0])), theta
+
+
+def _pose(R: FloatArray, p: FloatArray) -> FloatArray:
+    T = np.eye(4)
+    T[:3, :3], T[:3, 3] = R, p
+    return T
+
+
+def _moved(chain: Chain, B: FloatArray, *, robot: str | None = None) -> Chain:
+    """``chain`` with its base frame placed at ``B`` in another frame."""
+    screws = (np.asarray(lie.adjoint(B)) @ chain.screws.T).T
+    return dataclasses.replace(
+        chain,
+        screws=screws,
+        home=B @ chain.home,
+        robot=chain.robot if robot is None else robot,
+        qpos_indices=None,
+    )
+
+
+def _directions(chain: Chain) -> FloatArray:
+    dirs, _ = joint_lines(chain)
+    return dirs
+
+
+def _triad(u1: FloatArray, u2: FloatArray, k1: FloatArray, k2: FloatArray) -> FloatArray:
+    """The rotation taking ``u1`` onto ``k1`` and the plane of ``(u1, u2)`` onto ``(k1, k2)``."""
+
+    def frame(a: FloatArray, b: FloatArray) -> FloatArray:
+        y = _unit(np.cross(a, b))
+        return np.column_stack([a, y, np.cross(a, y)])
+
+    return np.asarray(frame(k1, k2) @ frame(u1, u2).T, dtype=np.float64)
+
+
+def _align_rotation(yours: Chain, model: Chain) -> FloatArray:
+    """The base rotation on which most joint axes (then the M axes) agree."""
+    U = np.vstack([_directions(yours), yours.home[:3, :3].T])
+    K = np.vstack([_directions(model), model.home[:3, :3].T])
+    n = yours.n_joints
+    candidates = [np.eye(3)]
+    for i, j in itertools.combinations(range(len(U)), 2):
+        su, sk = np.linalg.norm(np.cross(U[i], U[j])), np.linalg.norm(np.cross(K[i], K[j]))
+        if su > 0.1 and sk > 0.1 and abs(_angle(U[i], U[j]) - _angle(K[i], K[j])) < _AGREE_ANGLE:
+            candidates.append(_triad(U[i], U[j], K[i], K[j]))
+
+    def score(R: FloatArray) -> tuple[int, int, float, float]:
+        ang = np.array([_angle(R @ u, k) for u, k in zip(U, K, strict=True)])
+        agree = ang < _AGREE_ANGLE
+        spread = float(np.sum(ang[agree] ** 2))
+        turn = float(lie.rotation_angle(R))
+        return int(agree[:n].sum()), int(agree[n:].sum()), -spread, -turn
+
+    return max(candidates, key=score)
+
+
+def _align_shift(yours: Chain, model: Chain, R: FloatArray) -> FloatArray:
+    """The base shift, normal to the model's joint-1 axis, on which most axis lines agree."""
+    du, pu = joint_lines(yours)
+    dk, pk = joint_lines(model)
+    rows = [
+        i
+        for i in range(model.n_joints)
+        if yours.joint_types[i] == model.joint_types[i] == "revolute"
+        and _angle(R @ du[i], dk[i]) < _AGREE_ANGLE
+    ]
+    if not rows or model.n_joints == 0:
+        return np.zeros(3)
+    e = dk[0]
+    E = np.linalg.svd(np.eye(3) - np.outer(e, e))[0][:, :2]  # basis of the plane normal to e
+    P = {i: np.eye(3) - np.outer(dk[i], dk[i]) for i in rows}
+    rhs = {i: P[i] @ (pk[i] - R @ pu[i]) for i in rows}
+
+    def solve(subset: tuple[int, ...]) -> FloatArray:
+        A = np.vstack([P[i] @ E for i in subset])
+        b = np.concatenate([rhs[i] for i in subset])
+        return np.asarray(E @ np.linalg.lstsq(A, b, rcond=None)[0], dtype=np.float64)
+
+    def residuals(t: FloatArray) -> FloatArray:
+        return np.array([np.linalg.norm(P[i] @ t - rhs[i]) for i in rows])
+
+    candidates = [np.zeros(3)]
+    for size in (1, 2):
+        candidates += [solve(s) for s in itertools.combinations(rows, size)]
+
+    def score(t: FloatArray) -> tuple[int, float]:
+        return int(np.sum(residuals(t) < _AGREE_DIST)), -float(np.linalg.norm(t))
+
+    best = max(candidates, key=score)
+    agree = tuple(i for i, r in zip(rows, residuals(best), strict=True) if r < _AGREE_DIST)
+    return solve(agree) if agree else best
+
+
+def align_base(yours: Chain, model: Chain) -> FloatArray:
+    """``B = T_modelbase_yourbase`` (4, 4) that best aligns your joint axes with the model's.
+
+    Consensus over joints: a few wrong joints do not move it. It has no shift along the model's
+    joint-1 axis (that shows up as a different ``d1`` instead).
+    """
+    R = _align_rotation(yours, model)
+    return _pose(R, _align_shift(yours, model, R))
+
+
+# --- findings -----------------------------------------------------------------------------------
+
+
+def _base_findings(B: FloatArray, tol_p: float, tol_r: float) -> list[Finding]:
+    out = []
+    axis, turn = _axis_angle(B[:3, :3])
+    if turn > tol_r:
+        out.append(
+            Finding(
+                "base_rotation",
+                f"base frame: yours is turned {_deg(turn)} ({turn:.4g} rad) about "
+                f"{_vec(axis, 3)} relative to the model's",
+                value=turn,
+            )
+        )
+    shift = float(np.linalg.norm(B[:3, 3]))
+    if shift > tol_p:
+        out.append(
+            Finding(
+                "base_shift",
+                f"base frame: yours is shifted by {shift:.4g} m, {_vec(B[:3, 3])} in the "
+                "model's base frame",
+                value=shift,
+            )
+        )
+    return out
+
+
+def _joint_findings(
+    aligned: Chain, model: Chain, tol_p: float, tol_r: float
+) -> tuple[list[Finding], set[int]]:
+    out: list[Finding] = []
+    flipped: set[int] = set()
+    du, pu = joint_lines(aligned)
+    dk, pk = joint_lines(model)
+    for i, name in enumerate(model.joint_names):
+        label = f"joint {i + 1} ({name})"
+        if aligned.joint_types[i] != model.joint_types[i]:
+            out.append(
+                Finding(
+                    "joint_type",
+                    f"{label}: {aligned.joint_types[i]} in yours, {model.joint_types[i]} "
+                    "in the model",
+                    joint=i,
+                    value=1.0,
+                )
+            )
+            continue
+        angle = _angle(du[i], dk[i])
+        if angle > np.pi - _FLIP_ANGLE:
+            flipped.add(i)
+            out.append(
+                Finding(
+                    "axis_flipped",
+                    f"{label}: axis flipped (yours points the opposite way, "
+                    f"{_vec(du[i], 3)} vs {_vec(dk[i], 3)}): positive q turns it backwards",
+                    joint=i,
+                    value=angle,
+                )
+            )
+            angle = np.pi - angle
+        if angle > tol_r:
+            out.append(
+                Finding(
+                    "axis_tilted",
+                    f"{label}: axis tilted by {angle:.4g} rad ({_deg(angle)}), "
+                    f"{_vec(du[i], 3)} vs {_vec(dk[i], 3)}",
+                    joint=i,
+                    value=angle,
+                )
+            )
+        if model.joint_types[i] == "revolute":
+            r = pk[i] - pu[i]
+            offset = float(np.linalg.norm(r - du[i] * (r @ du[i])))
+            if offset > tol_p:
+                out.append(
+                    Finding(
+                        "axis_offset",
+                        f"{label}: axis line offset by {offset:.4g} m (distance from the "
+                        "model's joint point to your axis line)",
+                        joint=i,
+                        value=offset,
+                    )
+                )
+    return out, flipped
+
+
+def _length_findings(
+    aligned: Chain,
+    model: Chain,
+    yours_table: DHTable | None,
+    convention: Convention,
+    flipped: set[int],
+    tol_p: float,
+    tol_r: float,
+) -> list[Finding]:
+    """Row-by-row DH comparison; the model's table is extracted with the same choices as yours."""
+    if aligned.joint_types != model.joint_types:
+        return []
+    t_y = dh_from_chain(aligned, convention)
+    t_m = dh_from_chain(model, convention)
+    literal = (
+        yours_table if yours_table is not None and yours_table.convention == convention else None
+    )
+    out: list[Finding] = []
+    shift = 1 if convention == "modified" else 0
+    lengths, twists = [], []
+    for i, (a_name, al_name, d_name, _) in enumerate(t_m.param_names()):
+        # a is a distance between axis lines; d is measured along joint i's axis, whose sign
+        # flips with a flipped axis (reported already). alpha is meaningless next to a flip.
+        near_flip = bool(flipped & ({i - 1, i} if shift else {i, i + 1}))  # alpha's two axes
+        if abs(t_y.a[i] - t_m.a[i]) > tol_p:
+            sign = 1.0
+            if (
+                literal is not None
+                and abs(abs(literal.a[i]) - t_y.a[i]) < 1e-9
+                and literal.a[i] < 0
+            ):
+                sign = -1.0
+            lengths.append((a_name, sign * t_y.a[i], sign * t_m.a[i], i))
+        if i not in flipped and abs(t_y.d[i] - t_m.d[i]) > tol_p:
+            lengths.append((d_name, t_y.d[i], t_m.d[i], i))
+        dal = abs(np.angle(np.exp(1j * (t_y.alpha[i] - t_m.alpha[i]))))
+        if not near_flip and dal > tol_r and abs(dal - np.pi) > _FLIP_ANGLE:
+            twists.append((al_name, t_y.alpha[i], t_m.alpha[i], i))
+    for name, y, m, i in lengths:
+        out.append(
+            Finding(
+                "link_length",
+                f"{name}: {y + 0.0:.6g} m in yours vs {m + 0.0:.6g} m in the model "
+                f"({(y - m) * 1000:+.4g} mm)",
+                joint=i,
+                value=abs(y - m),
+            )
+        )
+    for name, y, m, i in twists:
+        out.append(
+            Finding(
+                "link_twist",
+                f"{name}: {y:.6g} rad ({_deg(y)}) in yours vs {m:.6g} rad ({_deg(m)}) in the model",
+                joint=i,
+                value=abs(y - m),
+            )
+        )
+    return out
+
+
+def _home_findings(aligned: Chain, model: Chain, tol_p: float, tol_r: float) -> list[Finding]:
+    out = []
+    dp = aligned.home[:3, 3] - model.home[:3, 3]
+    if np.linalg.norm(dp) > tol_p:
+        out.append(
+            Finding(
+                "home_position",
+                f"home pose M: its origin is off by {np.linalg.norm(dp):.4g} m, "
+                f"yours - model's = {_vec(dp)} in the model's base frame",
+                value=float(np.linalg.norm(dp)),
+            )
+        )
+    axis, turn = _axis_angle(model.home[:3, :3].T @ aligned.home[:3, :3])
+    if turn > tol_r:
+        out.append(
+            Finding(
+                "home_rotation",
+                f"home pose M: yours is turned {_deg(turn)} ({turn:.4g} rad) about "
+                f"{_vec(axis, 3)} (in the end frame) from the model's",
+                value=turn,
+            )
+        )
+    return out
+
+
+# --- errors, bisection, symptoms ----------------------------------------------------------------
+
+
+def _max_errors(model: Chain, chain: Chain, q: FloatArray) -> tuple[float, float]:
+    pos, ori = pose_errors(model.fk(q), chain.fk(q))
+    return float(np.max(pos, initial=0.0)), float(np.max(ori, initial=0.0))
+
+
+def _bisect(
+    aligned: Chain, model: Chain, q: FloatArray, tol_p: float, tol_r: float
+) -> list[BisectStep]:
+    _, points = joint_lines(model)
+    reach = max(float(np.max(np.linalg.norm(points, axis=1), initial=0.0)), 0.1)
+    reach = max(reach, float(np.linalg.norm(model.home[:3, 3])))
+    screws, home, types = aligned.screws.copy(), aligned.home.copy(), list(aligned.joint_types)
+    left = set(range(model.n_joints)) | {-1}  # -1 stands for M
+    steps: list[BisectStep] = []
+    errors = _max_errors(model, aligned, q)
+    while left and not (errors[0] <= tol_p and errors[1] <= tol_r):
+        trials = []
+        for part in sorted(left):
+            S, M, kinds = screws.copy(), home, list(types)
+            if part < 0:
+                M = model.home
+            else:
+                S[part], kinds[part] = model.screws[part], model.joint_types[part]
+            trial = dataclasses.replace(aligned, screws=S, home=M, joint_types=tuple(kinds))
+            e = _max_errors(model, trial, q)
+            trials.append((e[0] + reach * e[1], part, e, S, M, kinds))
+        _, part, errors, screws, home, types = min(trials, key=lambda t: (t[0], t[1]))
+        left.discard(part)
+        name = "M" if part < 0 else f"joint {part + 1} ({model.joint_names[part]})"
+        steps.append(BisectStep(name, None if part < 0 else part, errors[0], errors[1]))
+    return steps
+
+
+def _bisect_rows(
+    aligned: Chain,
+    model: Chain,
+    convention: Convention,
+    q: FloatArray,
+    tol_p: float,
+    tol_r: float,
+) -> list[BisectStep]:
+    """Bisection for a DH table: replace one row (or the tool) at a time by the model's row.
+
+    Both tables are extracted from the chains with the same choices, so rows correspond.
+    """
+    t_y, t_m = dh_from_chain(aligned, convention), dh_from_chain(model, convention)
+    fields = ("a", "alpha", "d", "theta_offset")
+    state = {f: np.array(getattr(t_y, f)) for f in fields} | {"tool": t_y.tool}
+    reach = max(float(np.linalg.norm(model.home[:3, 3])), 0.1)
+
+    def table(st: dict[str, FloatArray]) -> DHTable:
+        return dataclasses.replace(
+            t_y,
+            a=st["a"],
+            alpha=st["alpha"],
+            d=st["d"],
+            theta_offset=st["theta_offset"],
+            tool=st["tool"],
+        )
+
+    def errors(st: dict[str, FloatArray]) -> tuple[float, float]:
+        pos, ori = pose_errors(model.fk(q), table(st).fk(q))
+        return float(np.max(pos, initial=0.0)), float(np.max(ori, initial=0.0))
+
+    left = set(range(model.n_joints)) | {-1}  # -1 stands for the tool
+    steps: list[BisectStep] = []
+    err = errors(state)
+    names = t_m.param_names()
+    while left and not (err[0] <= tol_p and err[1] <= tol_r):
+        trials = []
+        for part in sorted(left):
+            st = {k: v.copy() for k, v in state.items()}
+            if part < 0:
+                st["tool"] = t_m.tool
+            else:
+                for f in fields:
+                    st[f][part] = getattr(t_m, f)[part]
+            e = errors(st)
+            trials.append((e[0] + reach * e[1], part, e, st))
+        _, part, err, state = min(trials, key=lambda t: (t[0], t[1]))
+        left.discard(part)
+        if part < 0:
+            label = "tool"
+        else:
+            changed = [
+                n
+                for n, f in zip(names[part], fields, strict=True)
+                if abs(getattr(t_y, f)[part] - getattr(t_m, f)[part]) > 1e-12
+            ]
+            label = f"row {part + 1} ({', '.join(changed) or 'unchanged'})"
+        steps.append(BisectStep(label, None if part < 0 else part, err[0], err[1]))
+    return steps
+
+
+def _symptoms(
+    max_p: float, max_r: float, home_p: float, home_r: float, tol_p: float, tol_r: float
+) -> list[str]:
+    if max_p <= tol_p and max_r <= tol_r:
+        return []
+    out = []
+    if max_r > 2.5:
+        out.append(
+            f"orientation errors near pi rad (here {max_r:.3g} rad) point to a flipped joint "
+            "axis, or a base or tool frame turned by 180 deg"
+        )
+    if 0.1 <= max_p <= 2.0:
+        out.append(
+            f"position errors of tenths of a metre (here {max_p:.3g} m) are the size of a link: "
+            "they point to a wrong M, a wrong sign of a link length, or a turned base"
+        )
+    elif max_p < 0.02 and max_p > tol_p:
+        out.append(
+            f"position errors of millimetres (here {max_p:.3g} m) point to link lengths that "
+            "differ slightly, e.g. rounded published values against CAD values"
+        )
+    if home_p > tol_p or home_r > tol_r:
+        out.append(
+            f"the pose is already wrong at q = 0 ({home_p:.3g} m, {home_r:.3g} rad): M or the "
+            "base frame differs, not only the joint axes"
+        )
+    else:
+        out.append(
+            "the pose is right at q = 0 but wrong elsewhere: M is right, the joint axes are not"
+        )
+    return out
+
+
+def diagnose(
+    yours: Chain | DHTable,
+    model: Chain,
+    *,
+    samples: int = 1000,
+    seed: int = 0,
+    pos_tol: float = DEFAULT_TOL,
+    ori_tol: float = DEFAULT_TOL,
+) -> Diagnosis:
+    """Compare your parameters with the model's and say what differs, joint by joint.
+
+    Args:
+        yours: your PoE chain or DH table, for the same joints in the same order.
+        model: the chain derived from the model (e.g. :func:`poekin.load`).
+        samples, seed: random configurations for the error figures (revolute joints in
+            ``[-2 pi, 2 pi]``, prismatic ones within their limits).
+        pos_tol, ori_tol: differences below these (m, rad) are not reported.
+    """
+    table = yours if isinstance(yours, DHTable) else None
+    chain = yours.to_chain() if isinstance(yours, DHTable) else yours
+    if chain.n_joints != model.n_joints:
+        raise InputError(
+            f"your parameters have {chain.n_joints} joints but the model's chain to "
+            f"{model.frame!r} has {model.n_joints} ({', '.join(model.joint_names)}); "
+            "give one row or screw per joint, base to tip"
+        )
+    if samples < 1:
+        raise InputError(f"samples must be at least 1, got {samples}")
+    convention: Convention = table.convention if table is not None else "standard"
+    q = sample_joint_values(model, samples, seed=seed)
+    max_p, max_r = _max_errors(model, chain, q)
+    home_p, home_r = _max_errors(model, chain, np.zeros((1, model.n_joints)))
+    B = align_base(chain, model)
+    aligned = _moved(chain, B)
+    al_p, al_r = _max_errors(model, aligned, q)
+    joints, flipped = _joint_findings(aligned, model, pos_tol, ori_tol)
+    findings = [
+        *_base_findings(B, pos_tol, ori_tol),
+        *joints,
+        *_length_findings(aligned, model, table, convention, flipped, pos_tol, ori_tol),
+        *_home_findings(aligned, model, pos_tol, ori_tol),
+    ]
+    q_few = q[:_BISECT_SAMPLES]
+    same_types = chain.joint_types == model.joint_types
+    rows = _bisect_rows(aligned, model, convention, q_few, pos_tol, ori_tol) if same_types else []
+    if table is not None and rows:
+        steps = rows  # a DH user typed rows: replace rows
+    else:  # a PoE user typed screws; a link-by-link account wins when it is shorter
+        screws = _bisect(aligned, model, q_few, pos_tol, ori_tol)
+        steps = rows if rows and len(rows) < len(screws) else screws
+    return Diagnosis(
+        yours=chain,
+        model=model,
+        aligned=aligned,
+        base=B,
+        findings=tuple(findings),
+        symptoms=tuple(_symptoms(max_p, max_r, home_p, home_r, pos_tol, ori_tol)),
+        bisect=tuple(steps),
+        convention=convention,
+        samples=samples,
+        seed=seed,
+        pos_tol=pos_tol,
+        ori_tol=ori_tol,
+        max_pos_err_m=max_p,
+        max_ori_err_rad=max_r,
+        home_pos_err_m=home_p,
+        home_ori_err_rad=home_r,
+        aligned_max_pos_err_m=al_p,
+        aligned_max_ori_err_rad=al_r,
+    )
