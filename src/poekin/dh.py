@@ -37,9 +37,9 @@ FloatArray = NDArray[np.float64]
 _PARALLEL_SIN = 1e-8
 # Two axis lines count as intersecting (or coincident) when closer than this, in metres.
 _INTERSECT_DIST = 1e-12
-# A common normal this far from the previous frame means nearly parallel axes, where DH
-# parameters are ill-conditioned; extraction says so in its notes.
-_FAR_NORMAL = 10.0
+# Axes closer than this to parallel (sine of the angle), but not parallel, put their common
+# normal far away (offset / sine): DH is ill-conditioned there, and extraction says so.
+_NEAR_PARALLEL_SIN = 1e-3
 
 
 def _link_matrices(
@@ -406,9 +406,10 @@ def dh_from_chain(
             notes.append(f"{pair} have parallel axes: chose d{i + 1} = 0")
         elif choice == "coincident":
             notes.append(f"{pair} share one axis line: a = d = 0, x axis kept")
-        elif abs(di) > _FAR_NORMAL:
+        elif tilt < _NEAR_PARALLEL_SIN:
             notes.append(
-                f"{pair} are nearly parallel: DH is ill-conditioned here (d{i + 1} = {di:.3g} m)"
+                f"{pair} are nearly parallel ({tilt:.2g} rad): DH is ill-conditioned here "
+                f"(d{i + 1} = {di:.3g} m)"
             )
         theta[i], d[i] = th, di
         if convention == "standard":
