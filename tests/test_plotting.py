@@ -2,20 +2,26 @@
 
 from __future__ import annotations
 
+import dataclasses
 import os
 import pathlib
 import subprocess
 import sys
 import textwrap
+import warnings
 
 import matplotlib
+import matplotlib.colors
+import matplotlib.image as mimage
 import numpy as np
 import pytest
 from matplotlib.figure import Figure
 
-from poekin import plotting
+import poekin
+from poekin import lie, plotting
+from poekin.diagnose import Diagnosis, Finding, diagnose
 from poekin.errors import InputError
-from poekin.plotting import plot_errors
+from poekin.plotting import plot_diagnosis, plot_errors
 
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
 
@@ -217,3 +223,270 @@ def test_fresh_process_keeps_its_backend_and_has_no_pyplot(tmp_path: pathlib.Pat
     )
     assert proc.returncode == 0, proc.stderr
     _assert_png(out)
+
+
+# --- the diagnosis figure -----------------------------------------------------------------------
+
+DIAG_PIXELS = (840, 1680)  # 14 x 7 in at 120 dpi: (rows, columns)
+
+
+@pytest.fixture(scope="module")
+def ur5e() -> poekin.Chain:
+    return poekin.load("universal_robots_ur5e")
+
+
+@pytest.fixture(scope="module")
+def panda_finger() -> poekin.Chain:
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", poekin.AssetsStrippedWarning)
+        return poekin.load("franka_emika_panda", "left_finger")
+
+
+def _with_screws(chain: poekin.Chain, screws: np.ndarray, **changes: object) -> poekin.Chain:
+    return dataclasses.replace(chain, screws=screws, robot="", qpos_indices=None, **changes)
+
+
+def _flipped(chain: poekin.Chain, joint: int) -> poekin.Chain:
+    S = chain.screws.copy()
+    S[joint] *= -1
+    return _with_screws(chain, S)
+
+
+def _axis_moved(chain: poekin.Chain, joint: int, shift: np.ndarray) -> poekin.Chain:
+    """``chain`` with revolute ``joint``'s axis line moved by ``shift`` (m)."""
+    S = chain.screws.copy()
+    S[joint, 3:] -= np.cross(S[joint, :3], shift)  # v = -w x q
+    return _with_screws(chain, S)
+
+
+def _diag_texts(fig: Figure) -> list[str]:
+    """Every string drawn: suptitle, panel titles, axis labels, texts, the figure legend."""
+    out = [fig.get_suptitle()]
+    for ax in fig.axes:
+        out += [ax.get_title(), ax.get_xlabel(), ax.get_ylabel(), ax.get_zlabel()]  # type: ignore[attr-defined]
+        out += [t.get_text() for t in ax.texts]
+    for leg in fig.legends:
+        out += [t.get_text() for t in leg.get_texts()] + [leg.get_title().get_text()]
+    return out
+
+
+def _quiet_figure(d: Diagnosis, title: str | None = None) -> Figure:
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        fig = plotting._diagnosis_figure(d, title)
+        fig.canvas.draw()  # warnings from drawing (layout, text) count too
+    return fig
+
+
+def _assert_equal_limits(fig: Figure) -> None:
+    for ax in fig.axes:
+        lims = [ax.get_xlim(), ax.get_ylim(), ax.get_zlim()]  # type: ignore[attr-defined]
+        widths = [hi - lo for lo, hi in lims]
+        assert min(widths) > 0
+        assert np.allclose(widths, widths[0], rtol=1e-9), widths
+        aspect = np.asarray(ax.get_box_aspect())  # type: ignore[attr-defined]
+        assert np.allclose(aspect, aspect[0]), aspect  # a cube: 1 m is as long on every axis
+        assert (ax.elev, ax.azim) == (25.0, -60.0)  # type: ignore[attr-defined]
+
+
+def _arrow_colors(ax: object) -> list[tuple[float, ...]]:
+    """The colour of each quiver (one per chain) in a 3-D axes."""
+    from mpl_toolkits.mplot3d.art3d import Line3DCollection
+
+    return [
+        tuple(np.round(c.get_color()[0], 3))
+        for c in ax.collections  # type: ignore[attr-defined]
+        if isinstance(c, Line3DCollection)
+    ]
+
+
+def test_diagnosis_png_flipped_joint(ur5e: poekin.Chain, tmp_path: pathlib.Path) -> None:
+    d = diagnose(_flipped(ur5e, 3), ur5e)
+    assert d.joint_labels() == {3: "flipped"}
+    out = tmp_path / "diag.png"
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert plot_diagnosis(d, out) is None  # type: ignore[func-returns-value]
+    assert out.read_bytes()[:8] == PNG_MAGIC
+    img = mimage.imread(out)
+    assert img.shape[:2] == DIAG_PIXELS
+    assert float(img[..., :3].std()) > 0.05  # something is drawn, not a blank canvas
+
+    fig = _quiet_figure(d)
+    assert len(fig.axes) == 2
+    left, right = fig.axes
+    assert left.get_title() == "as given (each in its own base frame)"
+    assert right.get_title().startswith("after aligning your base to the model's")
+    right_texts = [t.get_text() for t in right.texts]
+    assert "J4 flipped" in right_texts
+    assert "J4 flipped" not in [t.get_text() for t in left.texts]
+    # Every joint is tagged in both panels; J4's tag on the right is its finding label.
+    for ax in (left, right):
+        tags = " ".join(t.get_text() for t in ax.texts)
+        for i in range(1, 7):
+            assert f"J{i}" in tags
+    assert fig.get_suptitle() == (
+        "your parameters vs universal_robots_ur5e: mismatch\n"
+        f"max error {d.max_pos_err_m:.3g} m, {d.max_ori_err_rad:.3g} rad (180 deg) "
+        "over 1000 random q"
+    )
+    text = "\n".join(_diag_texts(fig))
+    assert "model: universal_robots_ur5e / attachment_site" in text
+    assert "yours: your parameters" in text
+    for label in ("x [m]", "y [m]", "z [m]"):
+        assert label in text
+    _assert_equal_limits(fig)
+    # One quiver per chain in each panel, in the two colours.
+    model_rgb = tuple(np.round(matplotlib.colors.to_rgba(plotting._MODEL_COLOR), 3))
+    yours_rgb = tuple(np.round(matplotlib.colors.to_rgba(plotting._YOURS_COLOR), 3))
+    for ax in (left, right):
+        assert _arrow_colors(ax) == [model_rgb, yours_rgb]
+
+
+def test_diagnosis_of_a_match_has_no_findings(ur5e: poekin.Chain, tmp_path: pathlib.Path) -> None:
+    d = diagnose(dataclasses.replace(ur5e), ur5e)
+    assert d.matches
+    out = tmp_path / "self.png"
+    plot_diagnosis(d, str(out))  # a str path works as well as a Path
+    assert mimage.imread(out).shape[:2] == DIAG_PIXELS
+    fig = _quiet_figure(d)
+    texts = _diag_texts(fig)
+    joined = "\n".join(texts)
+    assert "flipped" not in joined
+    assert "offset" not in joined
+    assert "base turned" not in joined
+    assert "M:" not in joined
+    assert "universal_robots_ur5e vs universal_robots_ur5e: match\n" in fig.get_suptitle()
+    assert "your base" not in texts  # the alignment is the identity: one base triad
+
+
+def test_diagnosis_title_overrides_the_first_line(ur5e: poekin.Chain) -> None:
+    d = diagnose(_flipped(ur5e, 0), ur5e)
+    fig = _quiet_figure(d, "my table vs ur5e / attachment_site")
+    first, second = fig.get_suptitle().split("\n")
+    assert first == "my table vs ur5e / attachment_site"
+    assert second.startswith("max error ")
+
+
+def test_diagnosis_prismatic_joint_and_moved_axis(
+    panda_finger: poekin.Chain, tmp_path: pathlib.Path
+) -> None:
+    assert panda_finger.joint_types[-1] == "prismatic"
+    n = panda_finger.n_joints
+    d = diagnose(_axis_moved(panda_finger, 2, np.array([0.01, 0.0, 0.0])), panda_finger)
+    assert d.joint_labels() == {2: "offset 0.01 m"}
+    out = tmp_path / "panda.png"
+    plot_diagnosis(d, out)
+    assert mimage.imread(out).shape[:2] == DIAG_PIXELS
+    fig = _quiet_figure(d)
+    left, right = fig.axes
+    assert "J3 offset 0.01 m" in [t.get_text() for t in right.texts]
+    assert not any("offset" in t.get_text() for t in left.texts)
+    # The slide joint gets its arrow: each quiver has n arrows of 3 strokes (shaft, 2 heads).
+    from mpl_toolkits.mplot3d.art3d import Line3DCollection
+
+    for ax in (left, right):
+        quivers = [c for c in ax.collections if isinstance(c, Line3DCollection)]
+        assert [len(q._segments3d) for q in quivers] == [3 * n, 3 * n]
+        tags = " ".join(t.get_text() for t in ax.texts)
+        assert f"J{n}" in tags
+    _assert_equal_limits(fig)
+
+
+def test_diagnosis_prismatic_flipped(panda_finger: poekin.Chain) -> None:
+    n = panda_finger.n_joints
+    d = diagnose(_flipped(panda_finger, n - 1), panda_finger)
+    fig = _quiet_figure(d)
+    assert f"J{n} flipped" in [t.get_text() for t in fig.axes[1].texts]
+
+
+def test_diagnosis_base_and_home_notes(ur5e: poekin.Chain) -> None:
+    B = np.eye(4)
+    B[:3, :3] = [[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]]  # 90 deg about z
+    B[:3, 3] = [0.05, 0.0, 0.0]
+    B_inv = lie.inverse(B)
+    screws = (np.asarray(lie.adjoint(B_inv)) @ ur5e.screws.T).T
+    home = B_inv @ ur5e.home
+    home[:3, 3] += B_inv[:3, :3] @ [0.0, 0.0, 0.03]
+    d = diagnose(_with_screws(ur5e, screws, home=home), ur5e)
+    assert {f.kind for f in d.findings} >= {"base_rotation", "base_shift", "home_position"}
+    fig = _quiet_figure(d)
+    left, right = (sorted(t.get_text() for t in ax.texts) for ax in fig.axes)
+    assert "base turned 90 deg, shifted 0.05 m" in left
+    assert "M: off by 0.03 m" in right
+    assert "your base" in right
+    assert not any(t.startswith("M:") for t in left)
+    assert not any(t.startswith("base ") for t in right)
+    assert "J1" in right  # the right panel's base has a triad for each base, J1 still tagged
+    _assert_equal_limits(fig)
+
+
+def test_diagnosis_degenerate_chains(tmp_path: pathlib.Path) -> None:
+    # One joint, every point at the origin: the extent has no size of its own.
+    one = poekin.Chain(("j",), ("revolute",), [[0.0, 0.0, 1.0, 0.0, 0.0, 0.0]], np.eye(4))
+    slide = poekin.Chain(("s",), ("prismatic",), [[0.0, 0.0, 0.0, 0.0, 0.0, 1.0]], np.eye(4))
+    for yours, model in ((one, one), (slide, slide), (one, slide)):
+        d = diagnose(yours, model)
+        fig = _quiet_figure(d)
+        _assert_equal_limits(fig)
+        for ax in fig.axes:
+            assert all(np.isfinite(ax.get_xlim()))
+        out = tmp_path / "one.png"
+        plot_diagnosis(d, out)
+        assert mimage.imread(out).shape[:2] == DIAG_PIXELS
+    texts = _diag_texts(_quiet_figure(diagnose(one, slide)))
+    assert "J1 type" in texts
+    assert "model: the model / ee" in texts  # a hand-made chain has no robot name
+
+
+def test_diagnosis_long_labels_are_wrapped(ur5e: poekin.Chain) -> None:
+    d = diagnose(_flipped(ur5e, 1), ur5e)
+    extra = tuple(
+        Finding(kind, "x", joint=1, value=0.0123456)
+        for kind in ("axis_tilted", "axis_offset", "joint_type")
+    )
+    d = dataclasses.replace(d, findings=d.findings + extra)
+    label = d.joint_labels()[1]
+    assert len(label) > 40
+    fig = _quiet_figure(d, "a title " * 20)
+    (text,) = [t.get_text() for t in fig.axes[1].texts if t.get_text().startswith("J2 ")]
+    assert "\n" in text
+    assert text.replace("\n  ", " ") == f"J2 {label}"
+
+
+def test_diagnosis_fresh_process_has_no_pyplot(tmp_path: pathlib.Path) -> None:
+    code = textwrap.dedent(
+        """
+        import sys, matplotlib
+        import poekin
+        from poekin.diagnose import diagnose
+        from poekin.plotting import plot_diagnosis
+        before = matplotlib.get_backend()
+        m = poekin.Chain(("j",), ("revolute",), [[0, 0, 1, 0, 0, 0]], [[1, 0, 0, 0.3],
+            [0, 1, 0, 0], [0, 0, 1, 0.2], [0, 0, 0, 1]])
+        plot_diagnosis(diagnose(m, m), sys.argv[1])
+        assert matplotlib.get_backend() == before == "svg", (before, matplotlib.get_backend())
+        assert "matplotlib.pyplot" not in sys.modules, "pyplot was imported"
+        """
+    )
+    env = {**os.environ, "MPLBACKEND": "svg"}
+    src = str(pathlib.Path(plotting.__file__).resolve().parents[1])
+    env["PYTHONPATH"] = os.pathsep.join([src, env.get("PYTHONPATH", "")])
+    out = tmp_path / "fresh_diag.png"
+    proc = subprocess.run(
+        [sys.executable, "-W", "error", "-c", code, str(out)],
+        env=env,
+        capture_output=True,
+        text=True,
+    )
+    assert proc.returncode == 0, proc.stderr
+    assert mimage.imread(out).shape[:2] == DIAG_PIXELS
+
+
+def test_diagnosis_figure_lists_the_link_lengths_that_differ(ur5e: poekin.Chain) -> None:
+    d = diagnose(poekin.named_params("lynch-park-ur5"), ur5e, samples=100)
+    text = "\n".join(_diag_texts(_quiet_figure(d)))
+    assert "DH link lengths and twists that differ" in text
+    assert "d1: 0.089 m in yours vs 0.163 m in the model" in text
+    exact = _diag_texts(_quiet_figure(diagnose(ur5e, ur5e, samples=20)))
+    assert not any("link lengths" in t for t in exact)

@@ -9,6 +9,7 @@ from __future__ import annotations
 import math
 import os
 import pathlib
+import textwrap
 from collections.abc import Mapping, Sequence
 from typing import Any
 
@@ -17,10 +18,16 @@ import numpy.typing as npt
 from matplotlib.axes import Axes
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
+from matplotlib.legend_handler import HandlerTuple
+from matplotlib.lines import Line2D
+from matplotlib.transforms import offset_copy
 
+from poekin.chain import Chain
+from poekin.dh import joint_lines
+from poekin.diagnose import Diagnosis
 from poekin.errors import InputError
 
-__all__ = ["plot_errors"]
+__all__ = ["plot_diagnosis", "plot_errors"]
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -296,3 +303,465 @@ def plot_errors(
     fig.tight_layout()
     fig.savefig(p, format="png", dpi=_DPI)
     return p
+
+
+# --- the diagnosis figure -----------------------------------------------------------------------
+
+_DIAG_FIGSIZE_IN = (14.0, 7.0)
+_DIAG_DPI = 120
+_MODEL_COLOR = "#1f5fa8"  # a blue
+_YOURS_COLOR = "#f07f0a"  # an orange
+_TRIAD_COLORS = ("#d62728", "#2ca02c", "#5a4fcf")  # x, y, z (z violet-blue, not the model's)
+_TAG_COLOR = "0.35"
+_ELEV, _AZIM = 25.0, -60.0
+_ARROW_FRAC = 0.13  # axis arrows: this fraction of the drawing's extent
+_YOURS_ARROW = 0.7  # your arrows are shorter, so that the model's show beyond them
+_TRIAD_FRAC = 0.07  # frame triads
+_NEAR_FRAC = 0.03  # points closer than this (fraction of the extent) share one tag
+_MARGIN_FRAC = 0.05
+_ZOOM = 1.22  # of the 3-D box in its panel (matplotlib's default leaves much space)
+_WRAP = 28  # characters per line of a finding label
+_DOWN = np.array([0.0, -1.0])  # notes at a base frame go below it
+_BOX: dict[str, Any] = {
+    "boxstyle": "round,pad=0.25",
+    "facecolor": "white",
+    "linewidth": 0.8,
+    "alpha": 0.92,
+}
+
+
+def _screen_dir(v: FloatArray) -> FloatArray:
+    """The 2-D direction (right, up) in which the 3-D direction ``v`` shows on screen, for the
+    orthographic view at ``_ELEV``, ``_AZIM``."""
+    el, az = math.radians(_ELEV), math.radians(_AZIM)
+    right = np.array([-math.sin(az), math.cos(az), 0.0])
+    up = np.array([-math.sin(el) * math.cos(az), -math.sin(el) * math.sin(az), math.cos(el)])
+    return np.array([float(v @ right), float(v @ up)])
+
+
+def _free_direction(obstacles: Sequence[FloatArray]) -> FloatArray:
+    """The screen direction (of 16) farthest in angle from all non-zero 2-D ``obstacles``;
+    up and to the right if there are none."""
+    angles = [math.atan2(o[1], o[0]) for o in obstacles if math.hypot(o[0], o[1]) > 1e-9]
+    candidates = [math.radians(45.0 + 22.5 * k) for k in range(16)]
+
+    def clearance(c: float) -> float:
+        return min((abs(math.remainder(c - a, 2 * math.pi)) for a in angles), default=0.0)
+
+    best = max(candidates, key=clearance)  # the first of equals: up-right when there is none
+    return np.array([math.cos(best), math.sin(best)])
+
+
+def _place_text(
+    ax: Any,
+    fig: Figure,
+    at: FloatArray,
+    text: str,
+    direction: FloatArray,
+    *,
+    offset_pt: float,
+    **style: Any,
+) -> None:
+    """``text`` next to the 3-D point ``at``, ``offset_pt`` points from it on screen along
+    ``direction``, aligned so that it extends away from the point."""
+    dx, dy = float(direction[0]), float(direction[1])
+    ha = "left" if dx > 0.35 else "right" if dx < -0.35 else "center"
+    va = "bottom" if dy > 0.35 else "top" if dy < -0.35 else "center"
+    transform = offset_copy(
+        ax.transData, fig=fig, x=dx * offset_pt, y=dy * offset_pt, units="points"
+    )
+    ax.text(*at, text, ha=ha, va=va, transform=transform, **style)
+
+
+def _tag(
+    ax: Any, fig: Figure, at: FloatArray, text: str, direction: FloatArray, color: str
+) -> None:
+    """A small joint or frame tag (``J3``, ``M``)."""
+    _place_text(ax, fig, at, text, direction, offset_pt=5.0, color=color, fontsize=7.5, zorder=6)
+
+
+def _note(
+    ax: Any,
+    fig: Figure,
+    at: FloatArray,
+    text: str,
+    direction: FloatArray,
+    color: str,
+    *,
+    offset_pt: float = 11.0,
+) -> None:
+    """A boxed, bold finding label (a joint's, the base's, M's) next to the point ``at``."""
+    _place_text(
+        ax,
+        fig,
+        at,
+        text,
+        direction,
+        offset_pt=offset_pt,
+        color=color,
+        fontsize=9,
+        fontweight="bold",
+        bbox={**_BOX, "edgecolor": color},
+        zorder=7,
+    )
+
+
+def _triad(ax: Any, T: FloatArray, length: float, *, dashed: bool, zorder: float) -> None:
+    """The x, y, z axes of the frame ``T`` as short red, green, blue lines."""
+    o = T[:3, 3]
+    for k, color in enumerate(_TRIAD_COLORS):
+        tip = o + length * T[:3, k]
+        ax.plot(
+            [o[0], tip[0]],
+            [o[1], tip[1]],
+            [o[2], tip[2]],
+            color=color,
+            linewidth=1.1 if dashed else 1.6,
+            linestyle=(0, (2, 1.5)) if dashed else "-",
+            zorder=zorder,
+        )
+
+
+def _path(chain: Chain, base: FloatArray) -> FloatArray:
+    """``(n + 2, 3)``: the base origin, the joint points, the end-frame origin."""
+    return np.vstack([base[:3, 3], joint_lines(chain)[1], chain.home[:3, 3]])
+
+
+def _skeleton(
+    ax: Any, chain: Chain, base: FloatArray, arrow: float, triad: float, *, mine: bool
+) -> None:
+    """Base-to-tip polyline through the joint points, joint dots, axis arrows and end-frame
+    triad of ``chain`` (its base frame at ``base``). The model is drawn wide, pale and
+    underneath, yours narrow, dashed and on top, so that both show where they coincide."""
+    color = _YOURS_COLOR if mine else _MODEL_COLOR
+    dirs, points = joint_lines(chain)
+    path = _path(chain, base)
+    z = 3.0 if mine else 2.0
+    ax.plot(
+        path[:, 0],
+        path[:, 1],
+        path[:, 2],
+        color=color,
+        linewidth=1.5 if mine else 4.5,
+        linestyle=(0, (4, 2)) if mine else "-",
+        alpha=1.0 if mine else 0.3,
+        solid_capstyle="round",
+        zorder=z,
+    )
+    if chain.n_joints:
+        ax.quiver(
+            points[:, 0],
+            points[:, 1],
+            points[:, 2],
+            dirs[:, 0],
+            dirs[:, 1],
+            dirs[:, 2],
+            length=arrow * (_YOURS_ARROW if mine else 1.0),
+            normalize=True,
+            arrow_length_ratio=0.3,
+            color=color,
+            linewidth=1.6 if mine else 3.2,
+            zorder=z + 0.1,
+        )
+        ax.plot(
+            points[:, 0],
+            points[:, 1],
+            points[:, 2],
+            linestyle="none",
+            marker="o",
+            markersize=3.5 if mine else 7.5,
+            markerfacecolor=color if mine else "white",
+            markeredgecolor=color,
+            markeredgewidth=0.8 if mine else 1.8,
+            zorder=z + 0.2,
+        )
+    _triad(ax, chain.home, triad, dashed=mine, zorder=z + 0.3)
+
+
+def _span(points: FloatArray) -> float:
+    """The largest x, y or z range of ``points``; 1 m if they all coincide."""
+    span = float(np.max(points.max(axis=0) - points.min(axis=0)))
+    return span if span > 1e-9 else 1.0
+
+
+def _tips(chain: Chain, base: FloatArray, arrow: float, triad: float) -> FloatArray:
+    """The ends of everything drawn for ``chain`` away from its points: arrows and triads."""
+    dirs, points = joint_lines(chain)
+    ends = [points + arrow * dirs]
+    for T in (base, chain.home):
+        ends.append(T[:3, 3] + triad * T[:3, :3].T)
+    return np.vstack(ends)
+
+
+def _groups(points: FloatArray, near: float) -> list[list[int]]:
+    """Indices of ``points`` grouped by proximity (each joins the first group within ``near``)."""
+    groups: list[list[int]] = []
+    for i, p in enumerate(points):
+        for g in groups:
+            if np.linalg.norm(points[g[0]] - p) <= near:
+                g.append(i)
+                break
+        else:
+            groups.append([i])
+    return groups
+
+
+def _obstacles(chain: Chain, base: FloatArray, index: int) -> list[FloatArray]:
+    """Screen directions of what leaves joint ``index``'s point: its axis arrow and the skeleton
+    towards the previous and the next point."""
+    dirs, points = joint_lines(chain)
+    path = _path(chain, base)
+    p = points[index]
+    return [
+        _screen_dir(dirs[index]),
+        _screen_dir(path[index] - p),
+        _screen_dir(path[index + 2] - p),
+    ]
+
+
+def _panel(
+    ax: Any,
+    fig: Figure,
+    model: Chain,
+    yours: Chain,
+    your_base: FloatArray,
+    *,
+    labels: Mapping[int, str],
+    base_note: str,
+    home_note: str,
+) -> None:
+    """One 3-D panel: the model's chain and ``yours`` (its base frame at ``your_base``)."""
+    eye = np.eye(4)
+    model_path, your_path = _path(model, eye), _path(yours, your_base)
+    extent = _span(np.vstack([model_path, your_path]))
+    arrow, triad, near = _ARROW_FRAC * extent, _TRIAD_FRAC * extent, _NEAR_FRAC * extent
+    drawn = np.vstack(
+        [
+            model_path,
+            your_path,
+            _tips(model, eye, arrow, triad),
+            _tips(yours, your_base, arrow, triad),
+        ]
+    )
+    lo, hi = drawn.min(axis=0), drawn.max(axis=0)
+    centre, half = (lo + hi) / 2, float(np.max(hi - lo)) / 2 + _MARGIN_FRAC * extent
+
+    _skeleton(ax, model, eye, arrow, triad, mine=False)
+    _skeleton(ax, yours, your_base, arrow, triad, mine=True)
+    _triad(ax, eye, triad, dashed=False, zorder=2.5)
+    placed: list[tuple[FloatArray, FloatArray]] = []  # (point, screen direction) of each text
+    if not np.allclose(your_base, eye, atol=1e-9):
+        _triad(ax, your_base, triad, dashed=True, zorder=3.5)
+        _note(ax, fig, your_base[:3, 3], "your base", _DOWN, _YOURS_COLOR, offset_pt=20.0)
+        placed.append((your_base[:3, 3], _DOWN))
+    if base_note:
+        _note(ax, fig, eye[:3, 3], base_note, _DOWN, "0.15", offset_pt=20.0)
+        placed.append((eye[:3, 3], _DOWN))
+
+    # Tags: grey at the model's joint points (one per group of coinciding points), the finding
+    # labels there in the model's colour, orange at your points where they are apart. Each
+    # goes where nothing else leaves its point on screen: no line, no point close by, no text.
+    chains = ((model, eye), (yours, your_base))
+    keypoints = np.vstack([model_path, your_path, *(_tips(c, b, arrow, triad) for c, b in chains)])
+
+    def crowd(at: FloatArray) -> list[FloatArray]:
+        d = np.linalg.norm(keypoints - at, axis=1)
+        close = keypoints[(d > near) & (d < 5 * near)]
+        out = [_screen_dir(k - at) for k in close]
+        out += [direction for p, direction in placed if np.linalg.norm(p - at) <= near]
+        return out
+
+    _, pm = joint_lines(model)
+    _, py = joint_lines(yours)
+    for g in _groups(pm, near):
+        at = pm[g[0]]
+        obstacles = crowd(at)
+        for i in g:
+            obstacles += _obstacles(model, eye, i) + _obstacles(yours, your_base, i)
+        plain = "/".join(f"J{i + 1}" for i in g if i not in labels)
+        found = [f"J{i + 1} {labels[i]}" for i in g if i in labels]
+        if found:
+            direction = _free_direction(obstacles)
+            text = "\n".join(textwrap.fill(t, _WRAP, subsequent_indent="  ") for t in found)
+            _note(ax, fig, at, text, direction, _MODEL_COLOR)
+            obstacles.append(direction)
+            placed.append((at, direction))
+        if plain:
+            direction = _free_direction(obstacles)
+            _tag(ax, fig, at, plain, direction, _TAG_COLOR)
+            placed.append((at, direction))
+    apart = 2 * near  # closer than this, your point is read off the model's tag
+    for g in _groups(py, near):
+        if all(np.linalg.norm(py[i] - pm[i]) > apart for i in g):
+            obstacles = crowd(py[g[0]])
+            obstacles += [o for i in g for o in _obstacles(yours, your_base, i)]
+            text = "/".join(f"J{i + 1}" for i in g)
+            direction = _free_direction(obstacles)
+            _tag(ax, fig, py[g[0]], text, direction, _YOURS_COLOR)
+            placed.append((py[g[0]], direction))
+
+    # The end frame: "M" (or the finding about it) beside the model's; yours tagged if apart.
+    for path, chain, mine in ((model_path, model, False), (your_path, yours, True)):
+        if mine and np.linalg.norm(your_path[-1] - model_path[-1]) <= apart:
+            continue
+        at = path[-1]
+        obstacles = [*crowd(at), _screen_dir(path[-2] - at)]
+        obstacles += [_screen_dir(chain.home[:3, k]) for k in range(3)]
+        direction = _free_direction(obstacles)
+        placed.append((at, direction))
+        if mine:
+            _tag(ax, fig, at, "M", direction, _YOURS_COLOR)
+        elif home_note:
+            _note(ax, fig, at, home_note, direction, "0.15")
+        else:
+            _tag(ax, fig, at, "M", direction, _TAG_COLOR)
+
+    for set_lim, c in zip((ax.set_xlim, ax.set_ylim, ax.set_zlim), centre, strict=True):
+        set_lim(float(c) - half, float(c) + half)
+    ax.set_box_aspect((1, 1, 1), zoom=_ZOOM)
+    ax.set_proj_type("ortho")
+    ax.view_init(elev=_ELEV, azim=_AZIM)
+    ax.set_xlabel("x [m]", labelpad=2)
+    ax.set_ylabel("y [m]", labelpad=2)
+    ax.set_zlabel("z [m]", labelpad=2)
+    ax.tick_params(labelsize=7, pad=0)
+
+
+_LENGTH_KINDS = ("link_length", "link_twist")
+_MAX_LENGTH_LINES = 8
+
+
+def _base_note(diagnosis: Diagnosis) -> str:
+    parts = []
+    for f in diagnosis.findings:
+        if f.kind == "base_rotation":
+            parts.append(f"turned {math.degrees(f.value):.3g} deg")
+        elif f.kind == "base_shift":
+            parts.append(f"shifted {f.value:.3g} m")
+    return "base " + ", ".join(parts) if parts else ""
+
+
+def _home_note(diagnosis: Diagnosis) -> str:
+    parts = []
+    for f in diagnosis.findings:
+        if f.kind == "home_position":
+            parts.append(f"off by {f.value:.3g} m")
+        elif f.kind == "home_rotation":
+            parts.append(f"turned {math.degrees(f.value):.3g} deg")
+    return "M: " + ", ".join(parts) if parts else ""
+
+
+def _errors_line(p: float, r: float) -> str:
+    return f"max error {p:.3g} m, {r:.3g} rad ({math.degrees(r):.3g} deg)"
+
+
+def _diagnosis_figure(diagnosis: Diagnosis, title: str | None = None) -> Figure:
+    """The figure that :func:`plot_diagnosis` saves: two 3-D panels, a legend, a title."""
+    d = diagnosis
+    fig = Figure(figsize=_DIAG_FIGSIZE_IN, dpi=_DIAG_DPI)
+    FigureCanvasAgg(fig)
+    left = fig.add_subplot(1, 2, 1, projection="3d", computed_zorder=False)
+    right = fig.add_subplot(1, 2, 2, projection="3d", computed_zorder=False)
+    eye = np.eye(4)
+    _panel(left, fig, d.model, d.yours, eye, labels={}, base_note=_base_note(d), home_note="")
+    _panel(
+        right,
+        fig,
+        d.model,
+        d.aligned,
+        np.asarray(d.base, dtype=np.float64),
+        labels=d.joint_labels(),
+        base_note="",
+        home_note=_home_note(d),
+    )
+    left.set_title("as given (each in its own base frame)", fontsize=11)
+    right.set_title(
+        "after aligning your base to the model's\n"
+        f"{_errors_line(d.aligned_max_pos_err_m, d.aligned_max_ori_err_rad)} after alignment",
+        fontsize=11,
+    )
+
+    lengths = [f.message.split(" (")[0] for f in d.findings if f.kind in _LENGTH_KINDS]
+    if lengths:
+        shown = lengths[:_MAX_LENGTH_LINES]
+        if len(lengths) > len(shown):
+            shown.append(f"... and {len(lengths) - len(shown)} more")
+        right.text2D(
+            0.0,
+            0.02,
+            "DH link lengths and twists that differ:\n" + "\n".join(shown),
+            transform=right.transAxes,
+            fontsize=8,
+            va="bottom",
+            ha="left",
+            bbox={"boxstyle": "round", "facecolor": "white", "edgecolor": "0.6"},
+        )
+
+    yours_name = d.yours.robot or "your parameters"
+    model_name = d.model.robot or "the model"
+    handles: list[Any] = [
+        Line2D(
+            [],
+            [],
+            color=_MODEL_COLOR,
+            linewidth=2.8,
+            marker="o",
+            markersize=7.5,
+            markerfacecolor="white",
+            markeredgewidth=1.8,
+        ),
+        Line2D(
+            [],
+            [],
+            color=_YOURS_COLOR,
+            linewidth=1.5,
+            linestyle=(0, (4, 2)),
+            marker="o",
+            markersize=3.5,
+        ),
+        tuple(Line2D([], [], color=c, linewidth=1.6) for c in _TRIAD_COLORS),
+    ]
+    names = [
+        f"model: {model_name} / {d.model.frame}",
+        f"yours: {yours_name}",
+        "x, y, z of the base and end frames (dashed: yours)",
+    ]
+    fig.legend(
+        handles,
+        names,
+        loc="lower center",
+        ncol=3,
+        fontsize=9,
+        frameon=False,
+        handler_map={tuple: HandlerTuple(ndivide=None)},
+        title="at q = 0: joint points, joint axes as arrows, base to end frame M",
+        title_fontsize=9,
+    )
+    head = title or f"{yours_name} vs {model_name}: {'match' if d.matches else 'mismatch'}"
+    fig.suptitle(
+        f"{head}\n{_errors_line(d.max_pos_err_m, d.max_ori_err_rad)} over {d.samples} random q",
+        fontsize=12,
+    )
+    fig.subplots_adjust(left=0.0, right=1.0, bottom=0.12, top=0.85, wspace=0.0)
+    return fig
+
+
+def plot_diagnosis(
+    diagnosis: Diagnosis, path: str | os.PathLike[str], *, title: str | None = None
+) -> None:
+    """Save a picture of a :func:`~poekin.diagnose.diagnose` result as a PNG.
+
+    The arm at ``q = 0`` as a 3-D skeleton (base origin, joint points, end-frame origin) with
+    each joint's screw axis as an arrow, the model's chain in blue and yours in orange, overlaid:
+    on the left each in its own base frame, as given; on the right yours moved by the base
+    alignment into the model's base frame, with the joints that differ labelled (``J4
+    flipped``) and a different ``M`` or base frame noted. Base and end frames are small x/y/z
+    triads. The figure is 14 x 7 in at 120 dpi.
+
+    Args:
+        diagnosis: what :func:`~poekin.diagnose.diagnose` returned.
+        path: where to write the PNG (PNG whatever the suffix); an existing file is overwritten.
+        title: the figure title; default ``"<yours> vs <model>: match|mismatch"``. A second line
+            gives the largest errors.
+    """
+    _diagnosis_figure(diagnosis, title).savefig(path, format="png", dpi=_DIAG_DPI)
