@@ -152,6 +152,18 @@ BAD_INPUTS = [
         ["fk", "universal_robots_ur5e", "--input", "{bad_xml}", "--output", "{tmp}/T.npy"],
         "not a .npy",
     ),
+    (["dh"], "give a model"),
+    (["dh", "universal_robots_ur5e", "--params", "ur5e-dh"], "not both"),
+    (["dh", "universal_robots_ur5e", "--parallel-tol", "0"], "--parallel-tol must be positive"),
+    (["dh", "--params", "lynch-park-ur"], "did you mean 'lynch-park-ur5'"),
+    (["fk", "--params", "ur5e-dh", "--q", "1"], "expected 6 joint values"),
+    (["verify", "--against", "universal_robots_ur5e"], "goes with --params"),
+    (["verify", "franka_fr3", "--params", "ur5e-dh", "--against", "universal_robots_ur5e"], "two"),
+    (["verify", "--params", "ur5e-dh", "--against", "franka_fr3"], "has 7"),
+    (["diagnose", "--params", "{bad_xml}"], ".json or .yaml"),
+    (["diagnose", "--params", "ur5e-dh", "--against", "franka_fr3"], "6 joints but"),
+    (["diagnose", "--params", "ur5e-dh", "--samples", "0"], "--samples must be at least 1"),
+    (["diagnose", "--params", "ur5e-dh", "--plot", "{other_csv}"], "already exists"),
 ]
 
 
@@ -208,7 +220,7 @@ def test_no_network_menagerie(
     )
 
 
-@pytest.mark.parametrize("command", ["verify", "screws", "fk"])
+@pytest.mark.parametrize("command", ["verify", "screws", "fk", "dh", "diagnose"])
 def test_every_command_has_help_with_an_example(
     command: str, capsys: pytest.CaptureFixture[str]
 ) -> None:
@@ -229,3 +241,67 @@ def test_console_script_runs_without_traceback() -> None:
     assert proc.returncode == 2
     assert proc.stderr.startswith("poekin: error: expected 6 joint values")
     assert "Traceback" not in proc.stderr
+
+
+# --- dh, diagnose, --params ---------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("convention", ["standard", "modified"])
+def test_dh_json_round_trips_through_params(
+    convention: str, capsys: pytest.CaptureFixture[str], tmp_path: pathlib.Path
+) -> None:
+    code, out, _ = run(capsys, "dh", "franka_fr3", "--convention", convention, "--json")
+    assert code == 0
+    table = json.loads(out)
+    assert table["convention"] == convention and len(table["rows"]) == 7
+    assert set(table["rows"][0]) == {"a", "alpha", "d", "theta_offset", "joint_type", "joint"}
+    assert np.array(table["base"]).shape == (4, 4) and np.array(table["tool"]).shape == (4, 4)
+    path = tmp_path / "fr3_dh.json"
+    path.write_text(out)
+    code, out, _ = run(capsys, "verify", "--params", str(path), "--against", "franka_fr3", "--json")
+    result = json.loads(out)
+    assert code == 0 and result["passed"] is True
+    assert result["max_pos_err_m"] <= 1e-12 and result["max_ori_err_rad"] <= 1e-12
+
+
+def test_dh_text_names_the_convention_and_the_choices(capsys: pytest.CaptureFixture[str]) -> None:
+    code, out, _ = run(capsys, "dh", "universal_robots_ur5e")
+    assert code == 0
+    assert "standard (Denavit-Hartenberg)" in out
+    assert "note: joints 'shoulder_lift_joint' and 'elbow_joint' have parallel axes" in out
+    wrist_1 = next(ln for ln in out.splitlines() if ln.strip().startswith("wrist_1_joint"))
+    assert wrist_1.split()[4] == "0.134000"  # d4 = 0.138 - 0.131 + 0.127 (ur5e.xml offsets)
+
+
+def test_verify_a_published_table_shows_the_dh_row(capsys: pytest.CaptureFixture[str]) -> None:
+    code, out, _ = run(capsys, "verify", "--params", "ur5e-dh", "--samples", "100")
+    assert code == 1  # UR's published numbers differ from the Menagerie model by millimetres
+    assert "DH table" in out and "FAIL" in out and out.startswith("ur5e-dh against")
+
+
+def test_fk_with_named_params(capsys: pytest.CaptureFixture[str]) -> None:
+    q = ["0", "-1.5707963267948966", "0", "0", "1.5707963267948966", "0"]
+    code, out, _ = run(capsys, "fk", "--params", "lynch-park-ur5", "--q", *q, "--json")
+    assert code == 0
+    # Modern Robotics Example 4.5 at this q, worked out in the book: (0.095, 0.109, 0.988) m.
+    assert_close("p", np.array(json.loads(out)["T"])[:3, 3], [0.095, 0.109, 0.988], 1e-12)
+
+
+def test_diagnose_exit_codes_and_plot(
+    capsys: pytest.CaptureFixture[str], tmp_path: pathlib.Path
+) -> None:
+    code, out, _ = run(capsys, "dh", "universal_robots_ur5e", "--json")
+    own = tmp_path / "own.json"
+    own.write_text(out)
+    code, out, _ = run(capsys, "diagnose", "--params", str(own), "--samples", "200")
+    assert code == 0 and out.splitlines()[1].startswith("MATCH")
+    plot = tmp_path / "why.png"
+    code, out, _ = run(capsys, "diagnose", "--params", "lynch-park-ur5", "--plot", str(plot))
+    assert code == 1
+    assert "MISMATCH" in out and "turned 180.0 deg" in out and "d1: 0.089 m" in out
+    assert "home pose M" in out and "bisection" in out
+    assert plot.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    code, out, _ = run(capsys, "diagnose", "--params", "ur5e-dh", "--json")
+    result = json.loads(out)
+    assert code == 1 and result["matches"] is False
+    assert any("d4: 0.1333 m in yours vs 0.134 m" in f["message"] for f in result["findings"])

@@ -10,6 +10,8 @@ exactly what MuJoCo stores in ``qpos``.
 """
 
 from poekin.chain import Chain, JointType
+from poekin.dh import DHTable, dh_from_chain
+from poekin.diagnose import Diagnosis, diagnose
 from poekin.errors import (
     InputError,
     MenagerieUnavailableError,
@@ -17,6 +19,7 @@ from poekin.errors import (
     ModelError,
     PoekinError,
     UnknownFrameError,
+    UnknownParamsError,
     UnknownRobotError,
 )
 from poekin.import_mujoco import chain_from_model, load
@@ -37,17 +40,33 @@ from poekin.lie import (
     vee_se3,
     vee_so3,
 )
-from poekin.params import UR5E_HOME, UR5E_SCREWS, fk_ur5e_poe, ur5e_chain
+from poekin.paramfile import load_params
+from poekin.params import (
+    PARAM_SETS,
+    UR5_DH,
+    UR5E_DH,
+    UR5E_HOME,
+    UR5E_SCREWS,
+    fk_ur5e_poe,
+    lynch_park_ur5_chain,
+    named_params,
+    ur5e_chain,
+)
 from poekin.sources import AssetsStrippedWarning, LoadedModel, load_model
 from poekin.verify import VerifyReport, pose_errors, sample_joint_values, verify
 
 __version__ = "0.1.0"
 
 __all__ = [
+    "PARAM_SETS",
+    "UR5E_DH",
     "UR5E_HOME",
     "UR5E_SCREWS",
+    "UR5_DH",
     "AssetsStrippedWarning",
     "Chain",
+    "DHTable",
+    "Diagnosis",
     "InputError",
     "JointType",
     "LoadedModel",
@@ -56,10 +75,13 @@ __all__ = [
     "ModelError",
     "PoekinError",
     "UnknownFrameError",
+    "UnknownParamsError",
     "UnknownRobotError",
     "VerifyReport",
     "adjoint",
     "chain_from_model",
+    "dh_from_chain",
+    "diagnose",
     "exp_se3",
     "exp_so3",
     "fk_ur5e_poe",
@@ -68,10 +90,13 @@ __all__ = [
     "inverse",
     "load",
     "load_model",
+    "load_params",
     "log_se3",
     "log_so3",
+    "lynch_park_ur5_chain",
     "matrix_exp_se3",
     "matrix_exp_so3",
+    "named_params",
     "pose_errors",
     "rotation_angle",
     "sample_joint_values",

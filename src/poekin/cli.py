@@ -1,6 +1,7 @@
-"""The ``poekin`` command line: ``verify``, ``screws`` and ``fk``.
+"""The ``poekin`` command line: ``verify``, ``screws``, ``fk``, ``dh`` and ``diagnose``.
 
-Exit codes: 0 success (verify: within tolerance), 1 verify out of tolerance, 2 bad input.
+Exit codes: 0 success (verify: within tolerance; diagnose: parameters match), 1 verify out of
+tolerance or diagnose found differences, 2 bad input.
 Every expected failure prints one ``poekin: error: ...`` line and no traceback.
 """
 
@@ -8,15 +9,20 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import pathlib
 import sys
 import warnings
 from collections.abc import Callable, Sequence
-from typing import Any, NoReturn, TextIO
+from typing import TYPE_CHECKING, Any, NoReturn, TextIO
 
 import numpy as np
 
 from poekin.errors import InputError, PoekinError
+
+if TYPE_CHECKING:
+    from poekin.chain import Chain
+    from poekin.dh import DHTable
 
 __all__ = ["main"]
 
@@ -49,6 +55,28 @@ def _check_new_file(path: str, what: str, *, force: bool = False) -> pathlib.Pat
     return p
 
 
+# --- parameter sets ----------------------------------------------------------------------------
+
+
+def _params(spec: str) -> Chain | DHTable:
+    from poekin.paramfile import load_params
+
+    return load_params(spec)
+
+
+def _model_source(args: argparse.Namespace, default: str | None = DEFAULT_ROBOT) -> str:
+    """The model to compare with: ``--against`` or the positional SOURCE (not both)."""
+    against = getattr(args, "against", None)
+    if against and args.source and against != args.source:
+        raise InputError(f"two models given ({args.source!r} and --against {against!r}); give one")
+    source = against or args.source or default
+    if source is None:
+        raise InputError(
+            "give a model: a Menagerie robot name or an MJCF path (or --params FILE|NAME)"
+        )
+    return str(source)
+
+
 # --- verify -----------------------------------------------------------------------------------
 
 
@@ -63,10 +91,14 @@ def _cmd_verify(args: argparse.Namespace, out: TextIO) -> int:
         _check_new_file(args.plot, "plot", force=args.force)
     if args.metrics:
         check_metrics_file(args.metrics)
-    loaded = load_model(args.source)
+    if args.against and not args.params:
+        raise InputError("--against SOURCE goes with --params FILE|NAME (what to check)")
+    params = _params(args.params) if args.params else None
+    loaded = load_model(_model_source(args))
     report = verify(
         loaded,
         args.frame,
+        params=params,
         samples=args.samples,
         seed=args.seed,
         within_limits=args.within_limits,
@@ -78,8 +110,9 @@ def _cmd_verify(args: argparse.Namespace, out: TextIO) -> int:
         print(json.dumps(report.summary()), file=out)
     else:
         rng = "within joint limits" if args.within_limits else "in [-2 pi, 2 pi]"
+        checked = f"{args.params} against " if args.params else ""
         print(
-            f"{report.robot}  frame {report.frame!r}  {report.samples} samples {rng}, "
+            f"{checked}{report.robot}  frame {report.frame!r}  {report.samples} samples {rng}, "
             f"seed {report.seed}, vs mj_forward",
             file=out,
         )
@@ -102,7 +135,8 @@ def _cmd_verify(args: argparse.Namespace, out: TextIO) -> int:
         plot_errors(
             report.pos_err,
             report.ori_err,
-            title=f"{report.robot} / {report.frame}: PoE vs mj_forward, {report.samples} samples",
+            title=f"{args.params + ' vs ' if args.params else ''}{report.robot} / "
+            f"{report.frame}: FK vs mj_forward, {report.samples} samples",
             path=args.plot,
             pos_tol=report.pos_tol,
             ori_tol=report.ori_tol,
@@ -111,6 +145,8 @@ def _cmd_verify(args: argparse.Namespace, out: TextIO) -> int:
             print(f"plot written to {args.plot}", file=out)
     if args.metrics:
         notes = f"frame={report.frame}; range={'limits' if args.within_limits else '[-2pi,2pi]'}"
+        if args.params:
+            notes += f"; params={args.params}"
         rows = metric_rows(
             report,
             experiment=f"fk_verify_{loaded.short_name}",
@@ -137,7 +173,7 @@ def _matrix_lines(M: np.ndarray[Any, Any]) -> list[str]:
 def _cmd_screws(args: argparse.Namespace, out: TextIO) -> int:
     from poekin.import_mujoco import load
 
-    chain = load(args.source, args.frame)
+    chain = load(_model_source(args, None), args.frame)
     if args.json:
         print(json.dumps(_finite_json(chain.describe())), file=out)
         return 0
@@ -189,7 +225,9 @@ def _cmd_fk(args: argparse.Namespace, out: TextIO) -> int:
         if args.input is None:
             raise InputError("--output goes with --input q.npy")
         _check_new_file(args.output, "poses", force=args.force)
-    chain = load(args.source, args.frame)
+    if args.params and args.source:
+        raise InputError("give a model SOURCE or --params FILE|NAME, not both")
+    chain = _params(args.params) if args.params else load(_model_source(args, None), args.frame)
     if args.input is not None:
         T = chain.fk(_load_q_file(args.input))
         np.save(args.output, T)
@@ -204,6 +242,137 @@ def _cmd_fk(args: argparse.Namespace, out: TextIO) -> int:
         print(f"T_world_{chain.frame} =", file=out)
         print("\n".join(_matrix_lines(T)), file=out)
     return 0
+
+
+# --- dh ----------------------------------------------------------------------------------------
+
+
+def _dh_table(args: argparse.Namespace) -> DHTable:
+    from poekin.dh import DHTable, dh_from_chain
+    from poekin.import_mujoco import load
+
+    if args.params and args.source:
+        raise InputError("give a model SOURCE or --params FILE|NAME, not both")
+    if args.parallel_tol <= 0:
+        raise InputError(f"--parallel-tol must be positive, got {args.parallel_tol}")
+    obj = _params(args.params) if args.params else load(_model_source(args, None), args.frame)
+    if isinstance(obj, DHTable):
+        if obj.convention == args.convention:
+            return obj
+        obj = obj.to_chain()
+    return dh_from_chain(obj, args.convention, parallel_tol=args.parallel_tol)
+
+
+def _shown(x: float) -> float:
+    """``x`` for a 6-decimal column: rounding residue such as -1e-17 prints as 0.000000."""
+    return 0.0 if abs(x) < 5e-7 else x
+
+
+def _cmd_dh(args: argparse.Namespace, out: TextIO) -> int:
+    table = _dh_table(args)
+    if args.json:
+        print(json.dumps(table.describe()), file=out)
+        return 0
+    std = table.convention == "standard"
+    form = (
+        "standard (Denavit-Hartenberg): Rz(theta) Tz(d) Tx(a) Rx(alpha)"
+        if std
+        else "modified (Craig): Rx(alpha_{i-1}) Tx(a_{i-1}) Rz(theta) Tz(d)"
+    )
+    source = table.robot or args.params or args.source
+    print(f"{source}  frame {table.frame!r}  {form}", file=out)
+    width = max([len(n) for n in table.joint_names] + [5])
+    a, al = ("a", "alpha") if std else ("a(i-1)", "alpha(i-1)")
+    print(
+        f"  {'joint':{width}}    {a + ' [m]':>12}{al + ' [rad]':>18}{'d [m]':>12}"
+        f"{'theta_off [rad]':>17}",
+        file=out,
+    )
+    for row in table.rows():
+        values = [_shown(row[k]) for k in ("a", "alpha", "d", "theta_offset")]
+        print(
+            f"  {row['joint']:{width}}  {row['joint_type'][0].upper()} "
+            f"{values[0]:12.6f}{values[1]:18.6f}{values[2]:12.6f}{values[3]:17.6f}",
+            file=out,
+        )
+    print("base = T_world_frame0:", file=out)
+    print("\n".join(_matrix_lines(table.base)), file=out)
+    print(f"tool = T_frame{table.n_joints}_{table.frame}:", file=out)
+    print("\n".join(_matrix_lines(table.tool)), file=out)
+    for note in table.notes:
+        print(f"note: {note}", file=out)
+    return 0
+
+
+# --- diagnose ----------------------------------------------------------------------------------
+
+
+def _cmd_diagnose(args: argparse.Namespace, out: TextIO) -> int:
+    from poekin.diagnose import diagnose
+    from poekin.import_mujoco import load
+
+    if args.samples < 1:
+        raise InputError(f"--samples must be at least 1, got {args.samples}")
+    if args.plot:
+        _check_new_file(args.plot, "plot", force=args.force)
+    yours = _params(args.params)
+    model = load(_model_source(args), args.frame)
+    d = diagnose(
+        yours,
+        model,
+        samples=args.samples,
+        seed=args.seed,
+        pos_tol=args.pos_tol,
+        ori_tol=args.ori_tol,
+    )
+    if args.plot:
+        from poekin.plotting import plot_diagnosis
+
+        verdict = "match" if d.matches else "mismatch"
+        plot_diagnosis(
+            d, args.plot, title=f"{args.params} vs {model.robot} / {model.frame}: {verdict}"
+        )
+    if args.json:
+        print(json.dumps(d.summary()), file=out)
+        return 0 if d.matches else _EXIT_FAIL
+    print(
+        f"{args.params} vs {model.robot}  frame {model.frame!r}  {d.samples} random q in "
+        f"[-2 pi, 2 pi], seed {d.seed}",
+        file=out,
+    )
+    errs = f"max error {_fmt(d.max_pos_err_m)} m, {_fmt(d.max_ori_err_rad)} rad"
+    if d.matches:
+        print(
+            f"MATCH: {errs}, within {d.pos_tol:g} m, {d.ori_tol:g} rad",
+            file=out,
+        )
+        return 0
+    print(
+        f"MISMATCH: {errs} (at q = 0: {_fmt(d.home_pos_err_m)} m, "
+        f"{_fmt(d.home_ori_err_rad)} rad); after aligning the base: "
+        f"{_fmt(d.aligned_max_pos_err_m)} m, {_fmt(d.aligned_max_ori_err_rad)} rad",
+        file=out,
+    )
+    print(f"differences (above {d.pos_tol:g} m, {d.ori_tol:g} rad):", file=out)
+    for f in d.findings:
+        print(f"  - {f.message}", file=out)
+    if d.symptoms:
+        print("what the errors point to:", file=out)
+        for text in d.symptoms:
+            print(f"  - {text}", file=out)
+    if d.bisect:
+        print(
+            "bisection: replace one part at a time by the model's (largest gain first):", file=out
+        )
+        for k, step in enumerate(d.bisect, 1):
+            print(
+                f"  {k}. {step.part:32} -> max error {_fmt(step.max_pos_err_m)} m, "
+                f"{_fmt(step.max_ori_err_rad)} rad",
+                file=out,
+            )
+    if args.plot:
+        print(f"plot written to {args.plot}", file=out)
+    return _EXIT_FAIL
 
 
 # --- parser -----------------------------------------------------------------------------------
@@ -223,13 +392,21 @@ def _build_parser() -> argparse.ArgumentParser:
         p.add_argument(
             "source",
             metavar="SOURCE",
-            nargs="?" if default else None,
-            default=default,
+            nargs="?",
+            default=None,
             help="Menagerie robot name or path to an MJCF file"
             + (f" (default: {default})" if default else ""),
         )
         p.add_argument(
             "--frame", metavar="F", help="end frame: site or body name (default: the only site)"
+        )
+
+    def params(p: argparse.ArgumentParser, what: str) -> None:
+        p.add_argument(
+            "--params",
+            metavar="FILE|NAME",
+            help=f"{what}: a DH table or PoE set as a .json/.yaml file, or a named set "
+            "(lynch-park-ur5, ur5-dh, ur5e-dh, ur5e-poe)",
         )
 
     v = sub.add_parser(
@@ -238,10 +415,17 @@ def _build_parser() -> argparse.ArgumentParser:
         description="Compare space- and body-form PoE with MuJoCo's mj_forward on random q. "
         "Exit 0 if both maxima are within tolerance, 1 if not, 2 on bad input.",
         epilog="examples:\n  poekin verify\n  poekin verify --plot fk.png --metrics metrics.csv\n"
-        "  poekin verify franka_fr3 --frame attachment_site --within-limits --json",
+        "  poekin verify franka_fr3 --frame attachment_site --within-limits --json\n"
+        "  poekin verify --params ur5e-dh --against universal_robots_ur5e",
         formatter_class=fmt,
     )
     source(v, DEFAULT_ROBOT)
+    params(v, "check these parameters instead of the model's own PoE")
+    v.add_argument(
+        "--against",
+        metavar="SOURCE",
+        help=f"the model to check --params against (default: {DEFAULT_ROBOT})",
+    )
     v.add_argument("--samples", type=int, default=1000, help="random configurations (1000)")
     v.add_argument("--seed", type=int, default=0, help="random seed (0)")
     v.add_argument(
@@ -277,16 +461,83 @@ def _build_parser() -> argparse.ArgumentParser:
         description="Print T_world_frame(q) for one configuration, or map a batch of q "
         "(an (N, n) .npy file) to an (N, 4, 4) .npy file.",
         epilog="examples:\n  poekin fk universal_robots_ur5e --q 0 -1.57 1.57 0 0 0\n"
-        "  poekin fk universal_robots_ur5e --input q.npy --output T.npy",
+        "  poekin fk universal_robots_ur5e --input q.npy --output T.npy\n"
+        "  poekin fk --params lynch-park-ur5 --q 0 -1.5708 0 0 1.5708 0",
         formatter_class=fmt,
     )
     source(f)
+    params(f, "use these parameters instead of a model")
     f.add_argument("--q", type=float, nargs="+", metavar="Q", help="joint values (rad, m)")
     f.add_argument("--input", metavar="Q.npy", help="(N, n) array of joint values")
     f.add_argument("--output", metavar="T.npy", help="where to save the (N, 4, 4) poses")
     f.add_argument("--force", action="store_true", help="replace an existing --output file")
     f.add_argument("--json", action="store_true", help="print one JSON object")
     f.set_defaults(run=_cmd_fk)
+
+    d = sub.add_parser(
+        "dh",
+        help="print a Denavit-Hartenberg table of a model or parameter set",
+        description="Extract a DH table (standard or modified convention) from a model's chain, "
+        "or convert a parameter set. Its FK equals the chain's to float precision; the free "
+        "choices (parallel axes, prismatic joints) are printed as notes.",
+        epilog="examples:\n  poekin dh universal_robots_ur5e\n"
+        "  poekin dh franka_fr3 --convention modified --json > fr3_dh.json\n"
+        "  poekin dh --params lynch-park-ur5",
+        formatter_class=fmt,
+    )
+    source(d)
+    params(d, "convert these parameters instead of a model")
+    d.add_argument(
+        "--convention",
+        choices=["standard", "modified"],
+        default="standard",
+        help="standard (Denavit-Hartenberg) or modified (Craig); default standard",
+    )
+    d.add_argument(
+        "--parallel-tol",
+        type=float,
+        default=1e-8,
+        metavar="SIN",
+        help="treat axes within this sine of parallel as parallel (1e-8: float rounding only)",
+    )
+    d.add_argument("--json", action="store_true", help="print one JSON object")
+    d.set_defaults(run=_cmd_dh)
+
+    g = sub.add_parser(
+        "diagnose",
+        help="explain why a parameter set disagrees with a model",
+        description="Compare your PoE set or DH table with the model's chain, joint by joint, "
+        "after finding the best base alignment: base, flipped/tilted/offset axes, link lengths, "
+        "M, and a bisection that replaces one part at a time. Exit 0 if the parameters match, "
+        "1 if not, 2 on bad input.",
+        epilog="examples:\n  poekin diagnose --params lynch-park-ur5\n"
+        "  poekin diagnose --params my_ur5e.json --against universal_robots_ur5e "
+        "--plot why.png",
+        formatter_class=fmt,
+    )
+    g.add_argument(
+        "--params",
+        metavar="FILE|NAME",
+        required=True,
+        help="your parameters: a DH table or PoE set as a .json/.yaml file, or a named set "
+        "(lynch-park-ur5, ur5-dh, ur5e-dh, ur5e-poe)",
+    )
+    g.add_argument(
+        "--against",
+        metavar="SOURCE",
+        help=f"Menagerie robot name or MJCF path (default: {DEFAULT_ROBOT})",
+    )
+    g.add_argument(
+        "--frame", metavar="F", help="end frame: site or body name (default: the only site)"
+    )
+    g.add_argument("--samples", type=int, default=1000, help="random configurations (1000)")
+    g.add_argument("--seed", type=int, default=0, help="random seed (0)")
+    g.add_argument("--pos-tol", type=float, default=1e-6, help="position tolerance, m (1e-6)")
+    g.add_argument("--ori-tol", type=float, default=1e-6, help="orientation tolerance, rad (1e-6)")
+    g.add_argument("--plot", metavar="PATH", help="draw both arms at q = 0 to this PNG")
+    g.add_argument("--json", action="store_true", help="print one JSON object")
+    g.add_argument("--force", action="store_true", help="replace an existing --plot file")
+    g.set_defaults(run=_cmd_diagnose, source=None)
     return parser
 
 
@@ -314,6 +565,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         except KeyboardInterrupt:
             print("poekin: interrupted", file=sys.stderr)
             return 130
+        except BrokenPipeError:  # `poekin dh ... | head`: the reader left; say nothing more
+            os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+            return 141
 
 
 if __name__ == "__main__":

@@ -545,11 +545,22 @@ def _bisect_rows(
 
 
 def _symptoms(
-    max_p: float, max_r: float, home_p: float, home_r: float, tol_p: float, tol_r: float
+    max_p: float,
+    max_r: float,
+    home_p: float,
+    home_r: float,
+    aligned: tuple[float, float],
+    tol_p: float,
+    tol_r: float,
 ) -> list[str]:
     if max_p <= tol_p and max_r <= tol_r:
         return []
     out = []
+    if aligned[0] < 0.5 * max_p or aligned[1] < 0.5 * max_r:
+        out.append(
+            f"aligning the base alone brings the errors from {max_p:.3g} m, {max_r:.3g} rad down "
+            f"to {aligned[0]:.3g} m, {aligned[1]:.3g} rad: the base frame is the biggest cause"
+        )
     if max_r > 2.5:
         out.append(
             f"orientation errors near pi rad (here {max_r:.3g} rad) point to a flipped joint "
@@ -557,8 +568,8 @@ def _symptoms(
         )
     if 0.1 <= max_p <= 2.0:
         out.append(
-            f"position errors of tenths of a metre (here {max_p:.3g} m) are the size of a link: "
-            "they point to a wrong M, a wrong sign of a link length, or a turned base"
+            f"position errors of tenths of a metre and more (here {max_p:.3g} m) are the size "
+            "of a link: they point to a wrong M, a wrong sign of a link length, or a turned base"
         )
     elif max_p < 0.02 and max_p > tol_p:
         out.append(
@@ -633,7 +644,7 @@ def diagnose(
         aligned=aligned,
         base=B,
         findings=tuple(findings),
-        symptoms=tuple(_symptoms(max_p, max_r, home_p, home_r, pos_tol, ori_tol)),
+        symptoms=tuple(_symptoms(max_p, max_r, home_p, home_r, (al_p, al_r), pos_tol, ori_tol)),
         bisect=tuple(steps),
         convention=convention,
         samples=samples,
