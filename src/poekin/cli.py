@@ -409,6 +409,24 @@ def _build_parser() -> argparse.ArgumentParser:
             "(lynch-park-ur5, ur5-dh, ur5e-dh, ur5e-poe)",
         )
 
+    def sampling(p: argparse.ArgumentParser) -> None:
+        p.add_argument("--samples", type=int, default=1000, help="random configurations (1000)")
+        p.add_argument("--seed", type=int, default=0, help="random seed (0)")
+
+    def outputs(p: argparse.ArgumentParser, *, pos_tol: float, ori_tol: float, plot: str) -> None:
+        p.add_argument(
+            "--pos-tol", type=float, default=pos_tol, help=f"position tolerance, m ({pos_tol:g})"
+        )
+        p.add_argument(
+            "--ori-tol",
+            type=float,
+            default=ori_tol,
+            help=f"orientation tolerance, rad ({ori_tol:g})",
+        )
+        p.add_argument("--plot", metavar="PATH", help=plot)
+        p.add_argument("--json", action="store_true", help="print one JSON object")
+        p.add_argument("--force", action="store_true", help="replace an existing --plot file")
+
     v = sub.add_parser(
         "verify",
         help="check PoE FK against mj_forward on random joint values",
@@ -426,19 +444,14 @@ def _build_parser() -> argparse.ArgumentParser:
         metavar="SOURCE",
         help=f"the model to check --params against (default: {DEFAULT_ROBOT})",
     )
-    v.add_argument("--samples", type=int, default=1000, help="random configurations (1000)")
-    v.add_argument("--seed", type=int, default=0, help="random seed (0)")
+    sampling(v)
     v.add_argument(
         "--within-limits",
         action="store_true",
         help="sample within joint limits instead of [-2 pi, 2 pi]",
     )
-    v.add_argument("--pos-tol", type=float, default=1e-5, help="max position error, m (1e-5)")
-    v.add_argument("--ori-tol", type=float, default=1e-4, help="max orientation error, rad (1e-4)")
-    v.add_argument("--plot", metavar="PATH", help="write an error-distribution PNG")
+    outputs(v, pos_tol=1e-5, ori_tol=1e-4, plot="write an error-distribution PNG")
     v.add_argument("--metrics", metavar="PATH", help="append metric rows to this CSV")
-    v.add_argument("--json", action="store_true", help="print one JSON object")
-    v.add_argument("--force", action="store_true", help="replace an existing --plot file")
     v.set_defaults(run=_cmd_verify)
 
     s = sub.add_parser(
@@ -530,13 +543,8 @@ def _build_parser() -> argparse.ArgumentParser:
     g.add_argument(
         "--frame", metavar="F", help="end frame: site or body name (default: the only site)"
     )
-    g.add_argument("--samples", type=int, default=1000, help="random configurations (1000)")
-    g.add_argument("--seed", type=int, default=0, help="random seed (0)")
-    g.add_argument("--pos-tol", type=float, default=1e-6, help="position tolerance, m (1e-6)")
-    g.add_argument("--ori-tol", type=float, default=1e-6, help="orientation tolerance, rad (1e-6)")
-    g.add_argument("--plot", metavar="PATH", help="draw both arms at q = 0 to this PNG")
-    g.add_argument("--json", action="store_true", help="print one JSON object")
-    g.add_argument("--force", action="store_true", help="replace an existing --plot file")
+    sampling(g)
+    outputs(g, pos_tol=1e-6, ori_tol=1e-6, plot="draw both arms at q = 0 to this PNG")
     g.set_defaults(run=_cmd_diagnose, source=None)
     return parser
 

@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import dataclasses
 import itertools
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
@@ -455,32 +456,60 @@ def _max_errors(model: Chain, chain: Chain, q: FloatArray) -> tuple[float, float
     return float(np.max(pos, initial=0.0)), float(np.max(ori, initial=0.0))
 
 
-def _bisect(
+def _greedy(
+    build: Callable[[frozenset[int]], Callable[[FloatArray], FloatArray]],
+    label: Callable[[int], str],
+    n_joints: int,
+    model: Chain,
+    q: FloatArray,
+    tol_p: float,
+    tol_r: float,
+) -> list[BisectStep]:
+    """Replace parts (joints ``0..n-1`` and ``-1``, the end) one at a time, always the one that
+    leaves the least error, until the errors are within tolerance.
+
+    ``build(done)`` gives the FK with the parts in ``done`` taken from the model.
+    """
+    T_ref = model.fk(q)
+    reach = max(float(np.linalg.norm(model.home[:3, 3])), 0.1)  # turns rad into m
+
+    def errors(done: frozenset[int]) -> tuple[float, float]:
+        pos, ori = pose_errors(T_ref, build(done)(q))
+        return float(np.max(pos, initial=0.0)), float(np.max(ori, initial=0.0))
+
+    parts = [*range(n_joints), -1]
+    done: frozenset[int] = frozenset()
+    err = errors(done)
+    steps: list[BisectStep] = []
+    while len(done) < len(parts) and not (err[0] <= tol_p and err[1] <= tol_r):
+        trials = [(errors(done | {p}), p) for p in parts if p not in done]
+        err, part = min(trials, key=lambda t: (t[0][0] + reach * t[0][1], t[1]))
+        done |= {part}
+        steps.append(BisectStep(label(part), None if part < 0 else part, err[0], err[1]))
+    return steps
+
+
+def _bisect_screws(
     aligned: Chain, model: Chain, q: FloatArray, tol_p: float, tol_r: float
 ) -> list[BisectStep]:
-    _, points = joint_lines(model)
-    reach = max(float(np.max(np.linalg.norm(points, axis=1), initial=0.0)), 0.1)
-    reach = max(reach, float(np.linalg.norm(model.home[:3, 3])))
-    screws, home, types = aligned.screws.copy(), aligned.home.copy(), list(aligned.joint_types)
-    left = set(range(model.n_joints)) | {-1}  # -1 stands for M
-    steps: list[BisectStep] = []
-    errors = _max_errors(model, aligned, q)
-    while left and not (errors[0] <= tol_p and errors[1] <= tol_r):
-        trials = []
-        for part in sorted(left):
-            S, M, kinds = screws.copy(), home, list(types)
-            if part < 0:
-                M = model.home
-            else:
-                S[part], kinds[part] = model.screws[part], model.joint_types[part]
-            trial = dataclasses.replace(aligned, screws=S, home=M, joint_types=tuple(kinds))
-            e = _max_errors(model, trial, q)
-            trials.append((e[0] + reach * e[1], part, e, S, M, kinds))
-        _, part, errors, screws, home, types = min(trials, key=lambda t: (t[0], t[1]))
-        left.discard(part)
-        name = "M" if part < 0 else f"joint {part + 1} ({model.joint_names[part]})"
-        steps.append(BisectStep(name, None if part < 0 else part, errors[0], errors[1]))
-    return steps
+    """Bisection for a PoE set: replace one joint's screw (or M) at a time by the model's."""
+
+    def build(done: frozenset[int]) -> Callable[[FloatArray], FloatArray]:
+        pick = [i in done for i in range(model.n_joints)]
+        return dataclasses.replace(
+            aligned,
+            screws=np.where(np.array(pick)[:, None], model.screws, aligned.screws),
+            joint_types=tuple(
+                m if p else y
+                for p, m, y in zip(pick, model.joint_types, aligned.joint_types, strict=True)
+            ),
+            home=model.home if -1 in done else aligned.home,
+        ).fk
+
+    def label(part: int) -> str:
+        return "M" if part < 0 else f"joint {part + 1} ({model.joint_names[part]})"
+
+    return _greedy(build, label, model.n_joints, model, q, tol_p, tol_r)
 
 
 def _bisect_rows(
@@ -497,51 +526,24 @@ def _bisect_rows(
     """
     t_y, t_m = dh_from_chain(aligned, convention), dh_from_chain(model, convention)
     fields = ("a", "alpha", "d", "theta_offset")
-    state = {f: np.array(getattr(t_y, f)) for f in fields} | {"tool": t_y.tool}
-    reach = max(float(np.linalg.norm(model.home[:3, 3])), 0.1)
 
-    def table(st: dict[str, FloatArray]) -> DHTable:
-        return dataclasses.replace(
-            t_y,
-            a=st["a"],
-            alpha=st["alpha"],
-            d=st["d"],
-            theta_offset=st["theta_offset"],
-            tool=st["tool"],
-        )
+    def build(done: frozenset[int]) -> Callable[[FloatArray], FloatArray]:
+        pick = np.array([i in done for i in range(model.n_joints)], dtype=bool)
+        rows = {f: np.where(pick, getattr(t_m, f), getattr(t_y, f)) for f in fields}
+        return dataclasses.replace(t_y, **rows, tool=t_m.tool if -1 in done else t_y.tool).fk
 
-    def errors(st: dict[str, FloatArray]) -> tuple[float, float]:
-        pos, ori = pose_errors(model.fk(q), table(st).fk(q))
-        return float(np.max(pos, initial=0.0)), float(np.max(ori, initial=0.0))
-
-    left = set(range(model.n_joints)) | {-1}  # -1 stands for the tool
-    steps: list[BisectStep] = []
-    err = errors(state)
-    names = t_m.param_names()
-    while left and not (err[0] <= tol_p and err[1] <= tol_r):
-        trials = []
-        for part in sorted(left):
-            st = {k: v.copy() for k, v in state.items()}
-            if part < 0:
-                st["tool"] = t_m.tool
-            else:
-                for f in fields:
-                    st[f][part] = getattr(t_m, f)[part]
-            e = errors(st)
-            trials.append((e[0] + reach * e[1], part, e, st))
-        _, part, err, state = min(trials, key=lambda t: (t[0], t[1]))
-        left.discard(part)
+    def label(part: int) -> str:
         if part < 0:
-            label = "tool"
-        else:
-            changed = [
-                n
-                for n, f in zip(names[part], fields, strict=True)
-                if abs(getattr(t_y, f)[part] - getattr(t_m, f)[part]) > 1e-12
-            ]
-            label = f"row {part + 1} ({', '.join(changed) or 'unchanged'})"
-        steps.append(BisectStep(label, None if part < 0 else part, err[0], err[1]))
-    return steps
+            return "tool"
+        names = t_m.param_names()[part]
+        changed = [
+            n
+            for n, f in zip(names, fields, strict=True)
+            if abs(getattr(t_y, f)[part] - getattr(t_m, f)[part]) > 1e-12
+        ]
+        return f"row {part + 1} ({', '.join(changed) or 'unchanged'})"
+
+    return _greedy(build, label, model.n_joints, model, q, tol_p, tol_r)
 
 
 def _symptoms(
@@ -636,7 +638,7 @@ def diagnose(
     if table is not None and rows:
         steps = rows  # a DH user typed rows: replace rows
     else:  # a PoE user typed screws; a link-by-link account wins when it is shorter
-        screws = _bisect(aligned, model, q_few, pos_tol, ori_tol)
+        screws = _bisect_screws(aligned, model, q_few, pos_tol, ori_tol)
         steps = rows if rows and len(rows) < len(screws) else screws
     return Diagnosis(
         yours=chain,
