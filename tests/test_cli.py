@@ -163,6 +163,8 @@ BAD_INPUTS = [
     (["diagnose", "--params", "{bad_xml}"], ".json or .yaml"),
     (["diagnose", "--params", "ur5e-dh", "--against", "franka_fr3"], "6 joints but"),
     (["diagnose", "--params", "ur5e-dh", "--samples", "0"], "--samples must be at least 1"),
+    (["diagnose", "--params", "ur5e-dh", "--pos-tol", "-1"], "--pos-tol must be a positive"),
+    (["verify", "--ori-tol", "nan"], "--ori-tol must be a positive number"),
     (["diagnose", "--params", "ur5e-dh", "--plot", "{other_csv}"], "already exists"),
 ]
 

@@ -80,15 +80,23 @@ def _model_source(args: argparse.Namespace, default: str | None = DEFAULT_ROBOT)
 # --- verify -----------------------------------------------------------------------------------
 
 
+def _check_run_options(args: argparse.Namespace) -> None:
+    """--samples, --pos-tol and --ori-tol of verify and diagnose."""
+    if args.samples < 1:
+        raise InputError(f"--samples must be at least 1, got {args.samples}")
+    for flag, value in (("--pos-tol", args.pos_tol), ("--ori-tol", args.ori_tol)):
+        if not (np.isfinite(value) and value > 0):
+            raise InputError(f"{flag} must be a positive number, got {value}")
+    if args.plot:
+        _check_new_file(args.plot, "plot", force=args.force)
+
+
 def _cmd_verify(args: argparse.Namespace, out: TextIO) -> int:
     from poekin.metrics import append_metrics, check_metrics_file, metric_rows, sha256_files
     from poekin.sources import load_model
     from poekin.verify import verify
 
-    if args.samples < 1:
-        raise InputError(f"--samples must be at least 1, got {args.samples}")
-    if args.plot:
-        _check_new_file(args.plot, "plot", force=args.force)
+    _check_run_options(args)
     if args.metrics:
         check_metrics_file(args.metrics)
     if args.against and not args.params:
@@ -311,10 +319,7 @@ def _cmd_diagnose(args: argparse.Namespace, out: TextIO) -> int:
     from poekin.diagnose import diagnose
     from poekin.import_mujoco import load
 
-    if args.samples < 1:
-        raise InputError(f"--samples must be at least 1, got {args.samples}")
-    if args.plot:
-        _check_new_file(args.plot, "plot", force=args.force)
+    _check_run_options(args)
     yours = _params(args.params)
     model = load(_model_source(args), args.frame)
     d = diagnose(
