@@ -519,6 +519,18 @@ def test_matrix_exp_se3_wrong_shapes_raise() -> None:
         lie.matrix_exp_se3(np.zeros((3, 6)), np.zeros(4))
 
 
+@pytest.mark.parametrize("batch", [(), (1,), (3, 1, 2, 1)])
+def test_homogeneous_puts_r_and_p_in_a_pose(batch: tuple[int, ...]) -> None:
+    rng = np.random.default_rng(0)
+    R, p = lie.exp_so3(rng.normal(size=(*batch, 3))), rng.normal(size=(*batch, 3))
+    T = lie.homogeneous(R, p)
+    assert_close("R", T[..., :3, :3], R, 0.0)
+    assert_close("p", T[..., :3, 3], p, 0.0)
+    assert_close("last row", T[..., 3, :], np.broadcast_to([0.0, 0.0, 0.0, 1.0], (*batch, 4)), 0.0)
+    with pytest.raises(InputError, match=re.escape("(..., 3)")):
+        lie.homogeneous(R, np.zeros(4))
+
+
 def test_public_api() -> None:
     for name in lie.__all__:
         assert callable(getattr(lie, name)), name

@@ -23,7 +23,7 @@ from numpy.typing import ArrayLike, NDArray
 from poekin import lie
 from poekin.errors import InputError
 
-__all__ = ["Chain", "JointType", "as_joint_values", "poe"]
+__all__ = ["Chain", "JointType", "as_joint_values", "check_pose", "poe", "readonly_array"]
 
 JointType = Literal["revolute", "prismatic"]
 FloatArray = NDArray[np.float64]
@@ -41,6 +41,15 @@ def readonly_array(a: ArrayLike, shape: tuple[int, ...], name: str) -> FloatArra
         raise InputError(f"{name} contains NaN or inf")
     arr.flags.writeable = False
     return arr
+
+
+def check_pose(T: FloatArray, name: str) -> None:
+    """Raise :class:`InputError` unless ``(4, 4)`` ``T`` is a rigid transform (to 1e-6)."""
+    R = T[:3, :3]
+    if not np.allclose(R.T @ R, np.eye(3), atol=_UNIT_TOL) or np.linalg.det(R) < 0:
+        raise InputError(f"{name}: the rotation block is not orthonormal with det +1")
+    if not np.allclose(T[3], [0.0, 0.0, 0.0, 1.0]):
+        raise InputError(f"{name}: the last row must be [0, 0, 0, 1]")
 
 
 def as_joint_values(q: ArrayLike, n: int) -> FloatArray:
@@ -173,7 +182,7 @@ class Chain:
         if self.qpos_indices is not None:
             set_(self, "qpos_indices", tuple(int(i) for i in self.qpos_indices))
         self._check_screws()
-        self._check_home()
+        check_pose(self.home, "home pose M")
         body = lie.adjoint(lie.inverse(self.home)) @ self.screws.T
         body_screws = np.ascontiguousarray(body.T)
         body_screws.flags.writeable = False
@@ -198,13 +207,6 @@ class Chain:
                 raise InputError(
                     f"joint {name!r}: unknown joint type {kind!r}; use 'revolute' or 'prismatic'"
                 )
-
-    def _check_home(self) -> None:
-        R = self.home[:3, :3]
-        if not np.allclose(R.T @ R, np.eye(3), atol=_UNIT_TOL) or np.linalg.det(R) < 0:
-            raise InputError("home pose M: its rotation block is not orthonormal with det +1")
-        if not np.allclose(self.home[3], [0.0, 0.0, 0.0, 1.0]):
-            raise InputError("home pose M: the last row must be [0, 0, 0, 1]")
 
     @property
     def n_joints(self) -> int:

@@ -64,6 +64,15 @@ def _params(spec: str) -> Chain | DHTable:
     return load_params(spec)
 
 
+def _params_or_chain(args: argparse.Namespace) -> Chain | DHTable:
+    """``--params`` if given, else the chain of the positional model SOURCE (not both)."""
+    from poekin.import_mujoco import load
+
+    if args.params and args.source:
+        raise InputError("give a model SOURCE or --params FILE|NAME, not both")
+    return _params(args.params) if args.params else load(_model_source(args, None), args.frame)
+
+
 def _model_source(args: argparse.Namespace, default: str | None = DEFAULT_ROBOT) -> str:
     """The model to compare with: ``--against`` or the positional SOURCE (not both)."""
     against = getattr(args, "against", None)
@@ -223,7 +232,6 @@ def _load_q_file(path: str) -> np.ndarray[Any, Any]:
 
 
 def _cmd_fk(args: argparse.Namespace, out: TextIO) -> int:
-    from poekin.import_mujoco import load
 
     if (args.q is None) == (args.input is None):
         raise InputError("give joint values with --q Q1 ... Qn, or a batch with --input q.npy")
@@ -233,9 +241,7 @@ def _cmd_fk(args: argparse.Namespace, out: TextIO) -> int:
         if args.input is None:
             raise InputError("--output goes with --input q.npy")
         _check_new_file(args.output, "poses", force=args.force)
-    if args.params and args.source:
-        raise InputError("give a model SOURCE or --params FILE|NAME, not both")
-    chain = _params(args.params) if args.params else load(_model_source(args, None), args.frame)
+    chain = _params_or_chain(args)
     if args.input is not None:
         T = chain.fk(_load_q_file(args.input))
         np.save(args.output, T)
@@ -257,13 +263,10 @@ def _cmd_fk(args: argparse.Namespace, out: TextIO) -> int:
 
 def _dh_table(args: argparse.Namespace) -> DHTable:
     from poekin.dh import DHTable, dh_from_chain
-    from poekin.import_mujoco import load
 
-    if args.params and args.source:
-        raise InputError("give a model SOURCE or --params FILE|NAME, not both")
     if args.parallel_tol <= 0:
         raise InputError(f"--parallel-tol must be positive, got {args.parallel_tol}")
-    obj = _params(args.params) if args.params else load(_model_source(args, None), args.frame)
+    obj = _params_or_chain(args)
     if isinstance(obj, DHTable):
         if obj.convention == args.convention:
             return obj

@@ -23,7 +23,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from poekin import lie
-from poekin.chain import Chain, JointType, as_joint_values, readonly_array
+from poekin.chain import Chain, JointType, as_joint_values, check_pose, readonly_array
 from poekin.errors import InputError
 
 __all__ = ["CONVENTIONS", "Convention", "DHTable", "dh_from_chain", "joint_lines"]
@@ -115,11 +115,7 @@ class DHTable:
             set_(self, field, readonly_array(getattr(self, field), (n,), field))
         for field in ("base", "tool"):
             T = readonly_array(getattr(self, field), (4, 4), field)
-            R = T[:3, :3]
-            if not np.allclose(R.T @ R, np.eye(3), atol=1e-6) or np.linalg.det(R) < 0:
-                raise InputError(f"{field}: the rotation block is not orthonormal with det +1")
-            if not np.allclose(T[3], [0.0, 0.0, 0.0, 1.0]):
-                raise InputError(f"{field}: the last row must be [0, 0, 0, 1]")
+            check_pose(T, field)
             set_(self, field, T)
         set_(self, "notes", tuple(self.notes))
 
@@ -235,13 +231,6 @@ class DHTable:
 
 
 # --- extraction -------------------------------------------------------------------------------
-
-
-def _frame(R: FloatArray, p: FloatArray) -> FloatArray:
-    T = np.eye(4)
-    T[:3, :3] = R
-    T[:3, 3] = p
-    return T
 
 
 def _rot_z_to(z: FloatArray) -> FloatArray:
@@ -388,7 +377,7 @@ def dh_from_chain(
     if n == 0:
         empty = np.zeros(0)
         return DHTable(convention, empty, empty, empty, empty, (), (), tool=chain.home)
-    base = _frame(_rot_z_to(dirs[0]), points[0])
+    base = np.asarray(lie.homogeneous(_rot_z_to(dirs[0]), points[0]), dtype=np.float64)
     a, alpha, d, theta = (np.zeros(n) for _ in range(4))
     notes: list[str] = []
     names = chain.joint_names

@@ -175,12 +175,6 @@ def _axis_angle(R: FloatArray) -> tuple[FloatArray, float]:
     return (w / theta if theta > 0 else np.array([0.0, 0.0, 1.0])), theta
 
 
-def _pose(R: FloatArray, p: FloatArray) -> FloatArray:
-    T = np.eye(4)
-    T[:3, :3], T[:3, 3] = R, p
-    return T
-
-
 def _moved(chain: Chain, B: FloatArray, *, robot: str | None = None) -> Chain:
     """``chain`` with its base frame placed at ``B`` in another frame."""
     screws = (np.asarray(lie.adjoint(B)) @ chain.screws.T).T
@@ -193,11 +187,6 @@ def _moved(chain: Chain, B: FloatArray, *, robot: str | None = None) -> Chain:
     )
 
 
-def _directions(chain: Chain) -> FloatArray:
-    dirs, _ = joint_lines(chain)
-    return dirs
-
-
 def _triad(u1: FloatArray, u2: FloatArray, k1: FloatArray, k2: FloatArray) -> FloatArray:
     """The rotation taking ``u1`` onto ``k1`` and the plane of ``(u1, u2)`` onto ``(k1, k2)``."""
 
@@ -208,10 +197,11 @@ def _triad(u1: FloatArray, u2: FloatArray, k1: FloatArray, k2: FloatArray) -> Fl
     return np.asarray(frame(k1, k2) @ frame(u1, u2).T, dtype=np.float64)
 
 
-def _align_rotation(yours: Chain, model: Chain) -> FloatArray:
-    """The base rotation on which most joint axes (then the M axes) agree."""
-    U = np.vstack([_directions(yours), yours.home[:3, :3].T])
-    K = np.vstack([_directions(model), model.home[:3, :3].T])
+def _align_rotation(yours: Chain, model: Chain, du: FloatArray, dk: FloatArray) -> FloatArray:
+    """The base rotation on which most joint axes (directions ``du``, ``dk``), then the M axes,
+    agree."""
+    U = np.vstack([du, yours.home[:3, :3].T])
+    K = np.vstack([dk, model.home[:3, :3].T])
     n = yours.n_joints
     candidates = [np.eye(3)]
     for i, j in itertools.combinations(range(len(U)), 2):
@@ -229,10 +219,15 @@ def _align_rotation(yours: Chain, model: Chain) -> FloatArray:
     return max(candidates, key=score)
 
 
-def _align_shift(yours: Chain, model: Chain, R: FloatArray) -> FloatArray:
+def _align_shift(
+    yours: Chain,
+    model: Chain,
+    R: FloatArray,
+    lines_y: tuple[FloatArray, FloatArray],
+    lines_m: tuple[FloatArray, FloatArray],
+) -> FloatArray:
     """The base shift, normal to the model's joint-1 axis, on which most axis lines agree."""
-    du, pu = joint_lines(yours)
-    dk, pk = joint_lines(model)
+    (du, pu), (dk, pk) = lines_y, lines_m
     rows = [
         i
         for i in range(model.n_joints)
@@ -272,8 +267,10 @@ def align_base(yours: Chain, model: Chain) -> FloatArray:
     Consensus over joints: a few wrong joints do not move it. It has no shift along the model's
     joint-1 axis (that shows up as a different ``d1`` instead).
     """
-    R = _align_rotation(yours, model)
-    return _pose(R, _align_shift(yours, model, R))
+    lines_y, lines_m = joint_lines(yours), joint_lines(model)
+    R = _align_rotation(yours, model, lines_y[0], lines_m[0])
+    shift = _align_shift(yours, model, R, lines_y, lines_m)
+    return np.asarray(lie.homogeneous(R, shift), dtype=np.float64)
 
 
 # --- findings -----------------------------------------------------------------------------------
@@ -451,8 +448,9 @@ def _home_findings(aligned: Chain, model: Chain, tol_p: float, tol_r: float) -> 
 # --- errors, bisection, symptoms ----------------------------------------------------------------
 
 
-def _max_errors(model: Chain, chain: Chain, q: FloatArray) -> tuple[float, float]:
-    pos, ori = pose_errors(model.fk(q), chain.fk(q))
+def _max_errors(T_ref: FloatArray, T: FloatArray) -> tuple[float, float]:
+    """Worst position (m) and orientation (rad) error of poses ``T`` against ``T_ref``."""
+    pos, ori = pose_errors(T_ref, T)
     return float(np.max(pos, initial=0.0)), float(np.max(ori, initial=0.0))
 
 
@@ -474,8 +472,7 @@ def _greedy(
     reach = max(float(np.linalg.norm(model.home[:3, 3])), 0.1)  # turns rad into m
 
     def errors(done: frozenset[int]) -> tuple[float, float]:
-        pos, ori = pose_errors(T_ref, build(done)(q))
-        return float(np.max(pos, initial=0.0)), float(np.max(ori, initial=0.0))
+        return _max_errors(T_ref, build(done)(q))
 
     parts = [*range(n_joints), -1]
     done: frozenset[int] = frozenset()
@@ -620,11 +617,12 @@ def diagnose(
         raise InputError(f"samples must be at least 1, got {samples}")
     convention: Convention = table.convention if table is not None else "standard"
     q = sample_joint_values(model, samples, seed=seed)
-    max_p, max_r = _max_errors(model, chain, q)
-    home_p, home_r = _max_errors(model, chain, np.zeros((1, model.n_joints)))
+    T_ref = model.fk(q)
+    max_p, max_r = _max_errors(T_ref, chain.fk(q))
+    home_p, home_r = _max_errors(model.home, chain.home)
     B = align_base(chain, model)
     aligned = _moved(chain, B)
-    al_p, al_r = _max_errors(model, aligned, q)
+    al_p, al_r = _max_errors(T_ref, aligned.fk(q))
     joints, flipped = _joint_findings(aligned, model, pos_tol, ori_tol)
     findings = [
         *_base_findings(B, pos_tol, ori_tol),

@@ -19,6 +19,7 @@ __all__ = [
     "UnknownParamsError",
     "UnknownRobotError",
     "did_you_mean",
+    "nearest",
 ]
 
 
@@ -54,6 +55,12 @@ class MetricsFileError(PoekinError):
     """A metrics CSV cannot be written safely (bad path, or a header that does not match)."""
 
 
+def nearest(name: str, valid: Iterable[str], *, cutoff: float = 0.6) -> str | None:
+    """The valid name closest to ``name`` (difflib ratio at least ``cutoff``), or None."""
+    close = difflib.get_close_matches(name, list(valid), n=1, cutoff=cutoff)
+    return close[0] if close else None
+
+
 def did_you_mean(name: str, valid: Iterable[str], *, listed: int = 12) -> str:
     """Text for an error message: the nearest valid names, then (some of) all valid names.
 
@@ -61,8 +68,8 @@ def did_you_mean(name: str, valid: Iterable[str], *, listed: int = 12) -> str:
     "did you mean 'attachment_site'? Valid names: 'attachment_site', 'base'"
     """
     valid = list(valid)
-    close = difflib.get_close_matches(name, valid, n=1, cutoff=0.6)
-    hint = f"did you mean {close[0]!r}? " if close else ""
+    close = nearest(name, valid)
+    hint = f"did you mean {close!r}? " if close else ""
     shown = ", ".join(repr(v) for v in valid[:listed])
     more = f", ... ({len(valid) - listed} more)" if len(valid) > listed else ""
     return f"{hint}Valid names: {shown}{more}" if valid else f"{hint}there are no valid names"

@@ -44,6 +44,7 @@ __all__ = [
     "exp_so3",
     "hat_se3",
     "hat_so3",
+    "homogeneous",
     "inverse",
     "log_se3",
     "log_so3",
@@ -108,6 +109,13 @@ def _homogeneous(R: Array, p: Array) -> Array:
     T[..., :3, 3] = p
     T[..., 3, 3] = 1
     return T
+
+
+def homogeneous(R: ArrayLike, p: ArrayLike) -> Array:
+    """Poses ``[[R, p], [0, 1]]``: ``R (..., 3, 3)``, ``p (..., 3) -> (..., 4, 4)``."""
+    return _homogeneous(
+        _as_float_array(R, (3, 3), "homogeneous", "R"), _as_float_array(p, (3,), "homogeneous", "p")
+    )
 
 
 # --------------------------------------------------------------------------------------------

@@ -27,7 +27,6 @@ what to do.
 
 from __future__ import annotations
 
-import difflib
 import json
 import os
 from collections.abc import Callable, Mapping, Sequence
@@ -40,7 +39,7 @@ from numpy.typing import NDArray
 from poekin import lie
 from poekin.chain import Chain, JointType
 from poekin.dh import Convention, DHTable
-from poekin.errors import InputError, UnknownParamsError, did_you_mean
+from poekin.errors import InputError, UnknownParamsError, did_you_mean, nearest
 from poekin.params import PARAM_SETS, named_params
 
 __all__ = ["FILE_SUFFIXES", "load_params", "params_from_dict"]
@@ -183,8 +182,8 @@ def _dh_table(obj: Mapping[str, Any], source: str) -> DHTable:
         row = _mapping(row, at, "a, alpha, d (theta_offset and joint_type are optional)")
         for key in row:
             if key not in _ROW_KEYS:
-                close = difflib.get_close_matches(str(key), _ROW_KEYS, n=1, cutoff=0.5)
-                hint = f" (did you mean {close[0]!r}?)" if close else ""
+                close = nearest(str(key), _ROW_KEYS, cutoff=0.5)  # 'theta' -> 'theta_offset'
+                hint = f" (did you mean {close!r}?)" if close else ""
                 raise InputError(
                     f"{at} has an unknown key {key!r}{hint}; row keys are {', '.join(_ROW_KEYS)}"
                 )
@@ -388,10 +387,6 @@ def _read_text(path: Path, source: str) -> str:
     return text
 
 
-def _named_sets_hint(name: str) -> str:
-    return did_you_mean(name, PARAM_SETS)
-
-
 def load_params(spec: str | os.PathLike[str]) -> Chain | DHTable:
     """A named parameter set, or a DH table / PoE set read from a ``.json``/``.yaml`` file.
 
@@ -416,19 +411,19 @@ def load_params(spec: str | os.PathLike[str]) -> Chain | DHTable:
     if path.is_dir():
         raise InputError(
             f"{text} is a directory; give a parameter file ({suffixes}) or a named set: "
-            f"{_named_sets_hint(path.name)}"
+            f"{did_you_mean(path.name, PARAM_SETS)}"
         )
     suffix = path.suffix.lower()
     if not path.exists():
         separators = {"/", os.sep, os.altsep or "/"}
         if not path.suffix and not any(s in text for s in separators):
             raise UnknownParamsError(
-                f"unknown parameter set {text!r}: {_named_sets_hint(text)}; "
+                f"unknown parameter set {text!r}: {did_you_mean(text, PARAM_SETS)}; "
                 f"or give a parameter file ({suffixes})"
             )
         raise InputError(
             f"no such file {text!r}; give an existing parameter file ({suffixes}) or a named "
-            f"set: {_named_sets_hint(path.stem)}"
+            f"set: {did_you_mean(path.stem, PARAM_SETS)}"
         )
     if suffix not in FILE_SUFFIXES:
         raise InputError(

@@ -631,24 +631,25 @@ _LENGTH_KINDS = ("link_length", "link_twist")
 _MAX_LENGTH_LINES = 8
 
 
-def _base_note(diagnosis: Diagnosis) -> str:
+def _findings_note(
+    diagnosis: Diagnosis, head: str, shift_kind: str, shift_word: str, turn_kind: str
+) -> str:
+    """``head`` then the sizes of the findings of ``shift_kind`` (m) and ``turn_kind`` (rad)."""
     parts = []
     for f in diagnosis.findings:
-        if f.kind == "base_rotation":
+        if f.kind == turn_kind:
             parts.append(f"turned {math.degrees(f.value):.3g} deg")
-        elif f.kind == "base_shift":
-            parts.append(f"shifted {f.value:.3g} m")
-    return "base " + ", ".join(parts) if parts else ""
+        elif f.kind == shift_kind:
+            parts.append(f"{shift_word} {f.value:.3g} m")
+    return head + ", ".join(parts) if parts else ""
+
+
+def _base_note(diagnosis: Diagnosis) -> str:
+    return _findings_note(diagnosis, "base ", "base_shift", "shifted", "base_rotation")
 
 
 def _home_note(diagnosis: Diagnosis) -> str:
-    parts = []
-    for f in diagnosis.findings:
-        if f.kind == "home_position":
-            parts.append(f"off by {f.value:.3g} m")
-        elif f.kind == "home_rotation":
-            parts.append(f"turned {math.degrees(f.value):.3g} deg")
-    return "M: " + ", ".join(parts) if parts else ""
+    return _findings_note(diagnosis, "M: ", "home_position", "off by", "home_rotation")
 
 
 def _errors_line(p: float, r: float) -> str:
