@@ -11,8 +11,9 @@ import sys
 
 import numpy as np
 import pytest
-from helpers import MJ_TOL, SUMMARY_KEYS, assert_close
+from helpers import MJ_TOL, SUMMARY_KEYS, assert_close, load_quiet
 
+import poekin
 from poekin import load
 from poekin.cli import main
 from poekin.metrics import METRICS_HEADER
@@ -166,6 +167,11 @@ BAD_INPUTS = [
     (["diagnose", "--params", "ur5e-dh", "--pos-tol", "-1"], "--pos-tol must be a positive"),
     (["verify", "--ori-tol", "nan"], "--ori-tol must be a positive number"),
     (["diagnose", "--params", "ur5e-dh", "--plot", "{other_csv}"], "already exists"),
+    (["fk", "unitree_go2", "--all-frames", "--q", "0", "1"], "expected 19 qpos values"),
+    (["fk", "unitree_go2", "--frame", "FL_calf", "--q", "0"], "--all-frames"),
+    (["fk", "aloha", "--all-frames", "--frame", "left/gripper", "--q", "0"], "not --frame"),
+    (["verify", "aloha", "--all-frames", "--frame", "left/gripper"], "give no frame"),
+    (["screws", "unitree_go2", "--frame", "imu"], "'joint0' on the path to 'imu' is a free"),
 ]
 
 
@@ -307,3 +313,55 @@ def test_diagnose_exit_codes_and_plot(
     result = json.loads(out)
     assert code == 1 and result["matches"] is False
     assert any("d4: 0.1333 m in yours vs 0.134 m" in f["message"] for f in result["findings"])
+
+
+GO2_STAND = ["0", "0", "0.3", "1", "0", "0", "0"] + ["0", "0.9", "-1.8"] * 4
+
+
+def test_fk_all_frames_text_json_and_npy(
+    capsys: pytest.CaptureFixture[str], tmp_path: pathlib.Path
+) -> None:
+    tree = poekin.load_tree(load_quiet("unitree_go2"))
+    T = tree.fk(np.array(GO2_STAND, dtype=float))
+    code, out, _ = run(capsys, "fk", "unitree_go2", "--all-frames", "--q", *GO2_STAND)
+    assert code == 0
+    assert out.count("T_world_") == tree.n_frames == 14
+    assert "T_world_FL_calf =" in out and "T_world_imu =" in out
+    code, out, _ = run(capsys, "fk", "unitree_go2", "--all-frames", "--json", "--q", *GO2_STAND)
+    frames = json.loads(out)["frames"]
+    assert list(frames) == list(tree.frame_names)
+    assert_close("json poses", np.array(list(frames.values())), T, 0.0)
+    qpos = poekin.sample_qpos(tree, 5, seed=1)
+    np.save(tmp_path / "q.npy", qpos)
+    code, out, _ = run(
+        capsys,
+        "fk",
+        "unitree_go2",
+        "--all-frames",
+        "--input",
+        str(tmp_path / "q.npy"),
+        "--output",
+        str(tmp_path / "T.npy"),
+    )
+    assert code == 0 and "(5, 14, 4, 4)" in out and "FL_hip" in out
+    assert_close("npy poses", np.load(tmp_path / "T.npy"), tree.fk(qpos), 0.0)
+
+
+def test_verify_all_frames(capsys: pytest.CaptureFixture[str]) -> None:
+    code, out, _ = run(capsys, "verify", "aloha", "--all-frames", "--samples", "100")
+    assert code == 0
+    assert "every body and site" in out and "26 frames; worst" in out
+    assert "tree FK" in out and "space PoE" in out and "body PoE" in out
+    code, out, _ = run(capsys, "verify", "unitree_go2", "--all-frames", "--samples", "50", "--json")
+    result = json.loads(out)
+    assert code == 0 and result["frame"] == "all frames"
+    assert len(result["frames"]) == 14
+    assert max(f["max_pos_err_m"] for f in result["frames"].values()) <= MJ_TOL
+
+
+def test_verify_a_frame_behind_a_free_joint_checks_the_tree(
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    code, out, _ = run(capsys, "verify", "unitree_go2", "--frame", "FL_calf", "--samples", "50")
+    assert code == 0
+    assert "frame 'FL_calf'" in out and "tree FK" in out and "space PoE" not in out

@@ -534,3 +534,41 @@ def test_homogeneous_puts_r_and_p_in_a_pose(batch: tuple[int, ...]) -> None:
 def test_public_api() -> None:
     for name in lie.__all__:
         assert callable(getattr(lie, name)), name
+
+
+# --- quaternions ---------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("shape", BATCH_SHAPES)
+@FAST
+@given(seed=seeds, scale=st.sampled_from([0.0, 1e-16, 1e-3, 1.0, 1.0 + 1e-16, 7.0, 1e8]))
+def test_quaternions_match_mujoco(shape: tuple[int, ...], seed: int, scale: float) -> None:
+    """quat_normalize and quat_to_rotation are mju_normalize4 and mju_quat2Mat, batched."""
+    import mujoco
+
+    rng = np.random.default_rng(seed)
+    q = rng.normal(size=(*shape, 4))
+    q = q / np.linalg.norm(q, axis=-1, keepdims=True) * scale
+    unit = lie.quat_normalize(q)
+    R = lie.quat_to_rotation(unit)
+    assert unit.shape == q.shape and R.shape == (*shape, 3, 3)
+    expected_q, expected_R = np.empty_like(q), np.empty((*shape, 9))
+    for idx in np.ndindex(*shape):
+        expected_q[idx] = q[idx]
+        mujoco.mju_normalize4(expected_q[idx])
+        mujoco.mju_quat2Mat(expected_R[idx], expected_q[idx])
+    assert_close("quat_normalize", unit, expected_q, 1e-15)
+    assert_close("quat_to_rotation", R, expected_R.reshape(*shape, 3, 3), 1e-15)
+
+
+@pytest.mark.parametrize("shape", BATCH_SHAPES)
+@FAST
+@given(seed=seeds, angle=angles_to_pi)
+def test_rotation_to_quat_round_trip(shape: tuple[int, ...], seed: int, angle: float) -> None:
+    rng = np.random.default_rng(seed)
+    R = lie.exp_so3(rotation_vectors(rng, shape, angle))
+    quat = lie.rotation_to_quat(R)
+    assert quat.shape == (*shape, 4)
+    assert np.all(quat[..., 0] >= 0)
+    assert_close("|quat|", np.linalg.norm(quat, axis=-1), np.ones(shape), 1e-15)
+    assert_close("R(quat(R))", lie.quat_to_rotation(quat), R, 1e-15)

@@ -22,7 +22,7 @@ from poekin.errors import (
     UnknownParamsError,
     UnknownRobotError,
 )
-from poekin.import_mujoco import chain_from_model, load
+from poekin.import_mujoco import chain_from_model, load, load_tree, tree_from_model
 from poekin.lie import (
     adjoint,
     exp_se3,
@@ -35,7 +35,10 @@ from poekin.lie import (
     log_so3,
     matrix_exp_se3,
     matrix_exp_so3,
+    quat_normalize,
+    quat_to_rotation,
     rotation_angle,
+    rotation_to_quat,
     vec_to_se3,
     vec_to_so3,
     vee_se3,
@@ -54,7 +57,8 @@ from poekin.params import (
     ur5e_chain,
 )
 from poekin.sources import AssetsStrippedWarning, LoadedModel, load_model
-from poekin.verify import VerifyReport, pose_errors, sample_joint_values, verify
+from poekin.tree import Mimic, Tree, TreeJointType
+from poekin.verify import VerifyReport, pose_errors, sample_joint_values, sample_qpos, verify
 
 __version__ = "0.1.0"
 
@@ -73,8 +77,11 @@ __all__ = [
     "LoadedModel",
     "MenagerieUnavailableError",
     "MetricsFileError",
+    "Mimic",
     "ModelError",
     "PoekinError",
+    "Tree",
+    "TreeJointType",
     "UnknownFrameError",
     "UnknownParamsError",
     "UnknownRobotError",
@@ -93,6 +100,7 @@ __all__ = [
     "load",
     "load_model",
     "load_params",
+    "load_tree",
     "log_se3",
     "log_so3",
     "lynch_park_ur5_chain",
@@ -100,8 +108,13 @@ __all__ = [
     "matrix_exp_so3",
     "named_params",
     "pose_errors",
+    "quat_normalize",
+    "quat_to_rotation",
     "rotation_angle",
+    "rotation_to_quat",
     "sample_joint_values",
+    "sample_qpos",
+    "tree_from_model",
     "ur5e_chain",
     "vec_to_se3",
     "vec_to_so3",

@@ -52,22 +52,26 @@ def check_pose(T: FloatArray, name: str) -> None:
         raise InputError(f"{name}: the last row must be [0, 0, 0, 1]")
 
 
-def as_joint_values(q: ArrayLike, n: int) -> FloatArray:
+def as_joint_values(
+    q: ArrayLike, n: int, *, what: str = "joint values", layout: str = ""
+) -> FloatArray:
     """Validate joint values ``q`` of shape ``(..., n)`` and return them as float64.
 
     Integers and float32 are accepted and converted. Anything non-numeric, a wrong last axis,
-    NaN or inf raises :class:`~poekin.errors.InputError`.
+    NaN or inf raises :class:`~poekin.errors.InputError`; ``what`` names the values in the
+    message, and ``layout`` (if given) is appended to a wrong-shape message.
     """
     try:
         arr = np.asarray(q, dtype=np.float64)
     except (TypeError, ValueError) as e:
-        raise InputError(f"joint values must be numbers, got {q!r:.60}") from e
+        raise InputError(f"{what} must be numbers, got {q!r:.60}") from e
     if arr.ndim == 0 or arr.shape[-1] != n:
         raise InputError(
-            f"expected {n} joint values (shape (..., {n})), got an array of shape {arr.shape}"
+            f"expected {n} {what} (shape (..., {n})), got an array of shape {arr.shape}"
+            + (f"; {layout}" if layout else "")
         )
     if not np.all(np.isfinite(arr)):
-        raise InputError("joint values contain NaN or inf; every q must be finite")
+        raise InputError(f"{what} contain NaN or inf; every value must be finite")
     return arr
 
 

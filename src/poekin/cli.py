@@ -115,6 +115,7 @@ def _cmd_verify(args: argparse.Namespace, out: TextIO) -> int:
     report = verify(
         loaded,
         args.frame,
+        all_frames=args.all_frames,
         params=params,
         samples=args.samples,
         seed=args.seed,
@@ -128,8 +129,9 @@ def _cmd_verify(args: argparse.Namespace, out: TextIO) -> int:
     else:
         rng = "within joint limits" if args.within_limits else "in [-2 pi, 2 pi]"
         checked = f"{args.params} against " if args.params else ""
+        frame = "every body and site" if args.all_frames else f"frame {report.frame!r}"
         print(
-            f"{checked}{report.robot}  frame {report.frame!r}  {report.samples} samples {rng}, "
+            f"{checked}{report.robot}  {frame}  {report.samples} samples {rng}, "
             f"seed {report.seed}, vs mj_forward",
             file=out,
         )
@@ -142,6 +144,14 @@ def _cmd_verify(args: argparse.Namespace, out: TextIO) -> int:
             print(
                 f"{method:12}{_fmt(s['max_pos_err_m']):>14}{_fmt(s['median_pos_err_m']):>16}"
                 f"{_fmt(s['max_ori_err_rad']):>15}{_fmt(s['median_ori_err_rad']):>18}",
+                file=out,
+            )
+        if len(report.frame_errors) > 1:
+            worst = max(report.frame_errors, key=lambda f: report.frame_errors[f])
+            pos, ori = report.frame_errors[worst]
+            print(
+                f"{len(report.frame_errors)} frames; worst {worst!r}: {_fmt(pos)} m, "
+                f"{_fmt(ori)} rad",
                 file=out,
             )
         verdict = "PASS" if report.passed else "FAIL"
@@ -231,30 +241,49 @@ def _load_q_file(path: str) -> np.ndarray[Any, Any]:
     return arr
 
 
-def _cmd_fk(args: argparse.Namespace, out: TextIO) -> int:
+def _fk_function(args: argparse.Namespace) -> tuple[Callable[[Any], Any], tuple[str, ...]]:
+    """``(fk, frame names)``: the whole tree with ``--all-frames``, else one frame's chain."""
+    if not args.all_frames:
+        chain = _params_or_chain(args)
+        return chain.fk, (chain.frame,)
+    from poekin.import_mujoco import load_tree
 
+    if args.params or args.frame:
+        raise InputError(
+            "--all-frames poses every frame of a model: give SOURCE, not --frame/--params"
+        )
+    tree = load_tree(_model_source(args, None))
+    return tree.fk, tree.frame_names
+
+
+def _cmd_fk(args: argparse.Namespace, out: TextIO) -> int:
     if (args.q is None) == (args.input is None):
         raise InputError("give joint values with --q Q1 ... Qn, or a batch with --input q.npy")
     if args.input is not None and args.output is None:
-        raise InputError("--input needs --output T.npy for the (N, 4, 4) poses")
+        raise InputError("--input needs --output T.npy for the poses")
     if args.output is not None:
         if args.input is None:
             raise InputError("--output goes with --input q.npy")
         _check_new_file(args.output, "poses", force=args.force)
-    chain = _params_or_chain(args)
+    fk, frames = _fk_function(args)
     if args.input is not None:
-        T = chain.fk(_load_q_file(args.input))
+        T = fk(_load_q_file(args.input))
         np.save(args.output, T)
-        print(
-            f"{T.shape[0] if T.ndim > 2 else 1} poses {T.shape} written to {args.output}", file=out
-        )
+        print(f"poses of shape {T.shape} written to {args.output}", file=out)
+        if args.all_frames:
+            print(f"frames (axis -3): {', '.join(frames)}", file=out)
         return 0
-    T = chain.fk(args.q)
+    T = fk(args.q)
+    if not args.all_frames:
+        T = T[None]
     if args.json:
-        print(json.dumps({"frame": chain.frame, "q": list(args.q), "T": T.tolist()}), file=out)
-    else:
-        print(f"T_world_{chain.frame} =", file=out)
-        print("\n".join(_matrix_lines(T)), file=out)
+        poses = {f: T[k].tolist() for k, f in enumerate(frames)}
+        body = {"frames": poses} if args.all_frames else {"frame": frames[0], "T": poses[frames[0]]}
+        print(json.dumps({**body, "q": list(args.q)}), file=out)
+        return 0
+    for k, f in enumerate(frames):
+        print(f"T_world_{f} =", file=out)
+        print("\n".join(_matrix_lines(T[k])), file=out)
     return 0
 
 
@@ -442,6 +471,7 @@ def _build_parser() -> argparse.ArgumentParser:
         "Exit 0 if both maxima are within tolerance, 1 if not, 2 on bad input.",
         epilog="examples:\n  poekin verify\n  poekin verify --plot fk.png --metrics metrics.csv\n"
         "  poekin verify franka_fr3 --frame attachment_site --within-limits --json\n"
+        "  poekin verify unitree_go2 --all-frames\n"
         "  poekin verify --params ur5e-dh --against universal_robots_ur5e",
         formatter_class=fmt,
     )
@@ -453,6 +483,11 @@ def _build_parser() -> argparse.ArgumentParser:
         help=f"the model to check --params against (default: {DEFAULT_ROBOT})",
     )
     sampling(v)
+    v.add_argument(
+        "--all-frames",
+        action="store_true",
+        help="check every body and site in one run (the whole tree on random qpos)",
+    )
     v.add_argument(
         "--within-limits",
         action="store_true",
@@ -480,15 +515,21 @@ def _build_parser() -> argparse.ArgumentParser:
         "fk",
         help="forward kinematics for joint values",
         description="Print T_world_frame(q) for one configuration, or map a batch of q "
-        "(an (N, n) .npy file) to an (N, 4, 4) .npy file.",
+        "(an (N, n) .npy file) to an (N, 4, 4) .npy file. With --all-frames, q is the model's "
+        "whole qpos (MuJoCo's layout: a free joint is x y z qw qx qy qz, a ball joint a "
+        "quaternion wxyz) and every body and site is posed: (N, frames, 4, 4).",
         epilog="examples:\n  poekin fk universal_robots_ur5e --q 0 -1.57 1.57 0 0 0\n"
         "  poekin fk universal_robots_ur5e --input q.npy --output T.npy\n"
-        "  poekin fk --params lynch-park-ur5 --q 0 -1.5708 0 0 1.5708 0",
+        "  poekin fk --params lynch-park-ur5 --q 0 -1.5708 0 0 1.5708 0\n"
+        "  poekin fk unitree_go2 --all-frames --input qpos.npy --output T_all.npy",
         formatter_class=fmt,
     )
     source(f)
     params(f, "use these parameters instead of a model")
     f.add_argument("--q", type=float, nargs="+", metavar="Q", help="joint values (rad, m)")
+    f.add_argument(
+        "--all-frames", action="store_true", help="pose every body and site from the whole qpos"
+    )
     f.add_argument("--input", metavar="Q.npy", help="(N, n) array of joint values")
     f.add_argument("--output", metavar="T.npy", help="where to save the (N, 4, 4) poses")
     f.add_argument("--force", action="store_true", help="replace an existing --output file")

@@ -1,9 +1,12 @@
-"""Deriving a PoE :class:`~poekin.chain.Chain` from a compiled MuJoCo model.
+"""Reading a :class:`~poekin.tree.Tree` and PoE :class:`~poekin.chain.Chain` from a compiled
+MuJoCo model.
 
-Nothing here is typed by hand. MuJoCo's own ``mj_kinematics`` is run once with the chain's
-joints at ``q = 0`` (every other joint at its reference ``qpos0``); the world-frame joint axes
-(``xaxis``) and anchors (``xanchor``) it reports are the space-frame screw axes, and the frame's
-pose is the home pose ``M``::
+Nothing here is typed by hand. The tree takes every body and site offset, joint axis, anchor and
+``ref`` from the compiled ``MjModel``, so MJCF ``<default>`` classes, ``childclass``,
+``euler``/``axisangle``/``xyaxes`` frames and ``compiler angle`` are already resolved by MuJoCo.
+A chain is the tree walked once with its joints at ``q = 0`` (every other joint at ``qpos0``):
+the world-frame joint axes and anchors are the space-frame screw axes, and the frame's pose is
+the home pose ``M``::
 
     hinge:  S = [w; -w x p]      slide:  S = [0; w]
 
@@ -21,9 +24,11 @@ import mujoco
 import numpy as np
 from numpy.typing import NDArray
 
+from poekin import lie
 from poekin.chain import Chain, JointType
-from poekin.errors import ModelError, UnknownFrameError, did_you_mean
+from poekin.errors import UnknownFrameError, did_you_mean
 from poekin.sources import LoadedModel, load_model
+from poekin.tree import Tree, TreeJointType
 
 __all__ = [
     "FrameKind",
@@ -31,7 +36,9 @@ __all__ = [
     "find_frame",
     "frame_pose",
     "load",
+    "load_tree",
     "site_and_body_names",
+    "tree_from_model",
 ]
 
 FrameKind = Literal["site", "body"]
@@ -91,6 +98,55 @@ def frame_pose(
     return T
 
 
+_TREE_JOINT_TYPES: dict[int, TreeJointType] = {
+    int(mujoco.mjtJoint.mjJNT_HINGE): "revolute",
+    int(mujoco.mjtJoint.mjJNT_SLIDE): "prismatic",
+    int(mujoco.mjtJoint.mjJNT_BALL): "ball",
+    int(mujoco.mjtJoint.mjJNT_FREE): "free",
+}
+
+
+def tree_from_model(model: mujoco.MjModel, *, robot: str = "") -> Tree:
+    """The whole kinematic tree of a compiled MuJoCo model: every body, joint and site.
+
+    Body and site offsets, joint axes, anchors and ``ref`` (``qpos0``) are read from the
+    compiled model, so ``<default>`` classes, ``childclass``, ``euler``/``axisangle`` frames and
+    the like are already resolved. Mocap bodies sit at their model pose.
+    """
+
+    def quat(q: NDArray[np.float64]) -> NDArray[np.float64]:
+        return np.asarray(lie.quat_to_rotation(q), dtype=np.float64)
+
+    joints = range(model.njnt)
+    hinge_like = [int(model.jnt_type[j]) in _JOINT_TYPES for j in joints]
+    limits = np.where(
+        (model.jnt_limited.astype(bool) & np.array(hinge_like, dtype=bool))[:, None],
+        model.jnt_range,
+        [-np.inf, np.inf],
+    )
+    refs = np.array([model.qpos0[model.jnt_qposadr[j]] if hinge_like[j] else 0.0 for j in joints])
+    return Tree(
+        body_names=tuple(site_and_body_names(model)[1]),
+        body_parents=model.body_parentid[1:] - 1,
+        body_pos=model.body_pos[1:],
+        body_rot=quat(model.body_quat[1:]),
+        joint_names=tuple(_name(model, mujoco.mjtObj.mjOBJ_JOINT, j, "joint") for j in joints),
+        joint_types=tuple(_TREE_JOINT_TYPES[int(model.jnt_type[j])] for j in joints),
+        joint_bodies=model.jnt_bodyid - 1,
+        joint_axes=model.jnt_axis,
+        joint_anchors=model.jnt_pos,
+        joint_refs=refs,
+        joint_limits=limits,
+        mimics=(None,) * model.njnt,
+        site_names=tuple(site_and_body_names(model)[0]),
+        site_bodies=model.site_bodyid - 1,
+        site_pos=model.site_pos,
+        site_rot=quat(model.site_quat),
+        qpos0=model.qpos0,
+        robot=robot,
+    )
+
+
 def chain_from_model(model: mujoco.MjModel, frame: str | None = None, *, robot: str = "") -> Chain:
     """The hinge/slide chain from the world to ``frame`` (a site or body name).
 
@@ -103,56 +159,8 @@ def chain_from_model(model: mujoco.MjModel, frame: str | None = None, *, robot: 
         UnknownFrameError: see :func:`find_frame`.
         ModelError: a ball or free joint lies on the path to the frame.
     """
-    kind, fid, name = find_frame(model, frame)
-    body = int(model.site_bodyid[fid]) if kind == "site" else fid
-    path = []
-    while body > 0:
-        path.append(body)
-        body = int(model.body_parentid[body])
-    joints = [
-        j
-        for b in reversed(path)
-        for j in range(model.body_jntadr[b], model.body_jntadr[b] + model.body_jntnum[b])
-    ]
-    for j in joints:
-        if int(model.jnt_type[j]) not in _JOINT_TYPES:
-            jtype = mujoco.mjtJoint(int(model.jnt_type[j])).name.removeprefix("mjJNT_").lower()
-            raise ModelError(
-                f"joint {_name(model, mujoco.mjtObj.mjOBJ_JOINT, j, 'joint')!r} on the path to "
-                f"{name!r} is a {jtype} joint; a PoE chain holds hinge and slide joints only "
-                "(choose a frame whose path has none, e.g. relative to a body after it)"
-            )
-
-    data = mujoco.MjData(model)
-    data.qpos[:] = model.qpos0
-    qpos_indices = [int(model.jnt_qposadr[j]) for j in joints]
-    data.qpos[qpos_indices] = 0.0
-    mujoco.mj_kinematics(model, data)
-
-    screws = np.zeros((len(joints), 6))
-    for row, j in enumerate(joints):
-        w = data.xaxis[j]
-        if model.jnt_type[j] == mujoco.mjtJoint.mjJNT_HINGE:
-            screws[row, :3] = w
-            screws[row, 3:] = -np.cross(w, data.xanchor[j])
-        else:
-            screws[row, 3:] = w
-    home = frame_pose(data, kind, fid)
-    limits = np.where(
-        model.jnt_limited[joints, None].astype(bool),
-        model.jnt_range[joints],
-        [-np.inf, np.inf],
-    )
-    return Chain(
-        joint_names=tuple(_name(model, mujoco.mjtObj.mjOBJ_JOINT, j, "joint") for j in joints),
-        joint_types=tuple(_JOINT_TYPES[int(model.jnt_type[j])] for j in joints),
-        screws=screws,
-        home=home,
-        limits=limits,
-        frame=name,
-        robot=robot,
-        qpos_indices=tuple(qpos_indices),
-    )
+    _, _, name = find_frame(model, frame)
+    return tree_from_model(model, robot=robot).chain(name)
 
 
 def load(source: str | os.PathLike[str] | LoadedModel, frame: str | None = None) -> Chain:
@@ -173,3 +181,15 @@ def load(source: str | os.PathLike[str] | LoadedModel, frame: str | None = None)
     """
     loaded = source if isinstance(source, LoadedModel) else load_model(source)
     return chain_from_model(loaded.model, frame, robot=loaded.robot)
+
+
+def load_tree(source: str | os.PathLike[str] | LoadedModel) -> Tree:
+    """Load the whole kinematic tree of a Menagerie robot name or an MJCF path.
+
+    Example:
+        >>> tree = poekin.load_tree("unitree_go2")  # free base + 12 hinges
+        >>> tree.fk(tree.qpos0).shape               # every body and site
+        (14, 4, 4)
+    """
+    loaded = source if isinstance(source, LoadedModel) else load_model(source)
+    return tree_from_model(loaded.model, robot=loaded.robot)

@@ -50,7 +50,10 @@ __all__ = [
     "log_so3",
     "matrix_exp_se3",
     "matrix_exp_so3",
+    "quat_normalize",
+    "quat_to_rotation",
     "rotation_angle",
+    "rotation_to_quat",
     "vec_to_se3",
     "vec_to_so3",
     "vee_se3",
@@ -341,6 +344,81 @@ def inverse(T: ArrayLike) -> Array:
     M = _as_float_array(T, (4, 4), "inverse", "T")
     R_t = _transpose(M[..., :3, :3])
     return _homogeneous(R_t, -_matvec(R_t, M[..., :3, 3]))
+
+
+# --------------------------------------------------------------------------------------------
+# unit quaternions, wxyz (MuJoCo's order)
+
+# MuJoCo's mjMINVAL: a quaternion shorter than this normalises to the identity.
+_QUAT_MIN_NORM = 1e-15
+
+
+def quat_normalize(quat: ArrayLike) -> Array:
+    """Quaternions ``wxyz`` scaled to unit length, exactly as MuJoCo's ``mju_normalize4``.
+
+    A quaternion whose norm is below ``1e-15`` (zero included) becomes the identity
+    ``[1, 0, 0, 0]``; one whose norm is within ``1e-15`` of 1 is returned unchanged. This is how
+    MuJoCo reads a ball or free joint's ``qpos``, so an unnormalised quaternion means the same
+    rotation in poekin and in ``mj_forward``. Shapes: ``(..., 4) -> (..., 4)``.
+    """
+    qt = _as_float_array(quat, (4,), "quat_normalize", "quat")
+    w, x, y, z = (qt[..., k : k + 1] for k in range(4))
+    norm = np.sqrt(w * w + x * x + y * y + z * z)  # summed in MuJoCo's order
+    tiny = norm < _QUAT_MIN_NORM
+    unchanged = np.abs(norm - 1) <= _QUAT_MIN_NORM
+    scaled = qt * (1 / np.where(tiny | unchanged, 1, norm))  # as MuJoCo: times 1/norm
+    identity = np.array([1, 0, 0, 0], dtype=qt.dtype)
+    return np.where(tiny, identity, scaled)
+
+
+def quat_to_rotation(quat: ArrayLike) -> Array:
+    """Rotation matrix of a unit quaternion ``[w, x, y, z]`` (MuJoCo's ``mju_quat2Mat`` formula).
+
+    The quaternion is used as given; see :func:`quat_normalize`.
+    Shapes: ``(..., 4) -> (..., 3, 3)``.
+    """
+    qt = _as_float_array(quat, (4,), "quat_to_rotation", "quat")
+    w, x, y, z = (qt[..., k] for k in range(4))
+    ww, xx, yy, zz = w * w, x * x, y * y, z * z
+    wx, wy, wz, xy, xz, yz = w * x, w * y, w * z, x * y, x * z, y * z
+    rows = [
+        np.stack([ww + xx - yy - zz, 2 * (xy - wz), 2 * (xz + wy)], axis=-1),
+        np.stack([2 * (xy + wz), ww - xx + yy - zz, 2 * (yz - wx)], axis=-1),
+        np.stack([2 * (xz - wy), 2 * (yz + wx), ww - xx - yy + zz], axis=-1),
+    ]
+    return np.stack(rows, axis=-2)
+
+
+def rotation_to_quat(R: ArrayLike) -> Array:
+    """Unit quaternion ``[w, x, y, z]`` with ``w >= 0`` of a rotation matrix (Shepperd's method:
+    the largest of ``w, x, y, z`` is taken from the diagonal, so no division is ill-conditioned).
+
+    Inverse of :func:`quat_to_rotation` up to the sign of the quaternion.
+    Shapes: ``(..., 3, 3) -> (..., 4)``.
+    """
+    M = _as_float_array(R, (3, 3), "rotation_to_quat", "R")
+    d0, d1, d2 = M[..., 0, 0], M[..., 1, 1], M[..., 2, 2]
+    a = M[..., 2, 1] - M[..., 1, 2]  # 4 w x
+    b = M[..., 0, 2] - M[..., 2, 0]  # 4 w y
+    c = M[..., 1, 0] - M[..., 0, 1]  # 4 w z
+    xy = M[..., 0, 1] + M[..., 1, 0]  # 4 x y
+    xz = M[..., 0, 2] + M[..., 2, 0]  # 4 x z
+    yz = M[..., 1, 2] + M[..., 2, 1]  # 4 y z
+    diag = np.stack([1 + d0 + d1 + d2, 1 + d0 - d1 - d2, 1 - d0 + d1 - d2, 1 - d0 - d1 + d2], -1)
+    big = np.sqrt(np.maximum(diag, 0.25)) * 2  # 4 * (the chosen component); >= 1 where chosen
+    cases = np.stack(
+        [
+            np.stack([big[..., 0] / 4, a / big[..., 0], b / big[..., 0], c / big[..., 0]], -1),
+            np.stack([a / big[..., 1], big[..., 1] / 4, xy / big[..., 1], xz / big[..., 1]], -1),
+            np.stack([b / big[..., 2], xy / big[..., 2], big[..., 2] / 4, yz / big[..., 2]], -1),
+            np.stack([c / big[..., 3], xz / big[..., 3], yz / big[..., 3], big[..., 3] / 4], -1),
+        ],
+        axis=-2,
+    )
+    k = np.argmax(diag, axis=-1)[..., None, None]
+    quat = np.take_along_axis(cases, k, axis=-2)[..., 0, :]
+    out: Array = np.where(quat[..., :1] < 0, -quat, quat)
+    return out
 
 
 # --------------------------------------------------------------------------------------------

@@ -10,7 +10,7 @@ Errors between a reference pose ``T_ref`` (MuJoCo) and a pose ``T`` (PoE):
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from typing import Any
 
 import mujoco
@@ -22,16 +22,19 @@ from poekin import lie
 from poekin.chain import Chain
 from poekin.dh import DHTable
 from poekin.errors import InputError
-from poekin.import_mujoco import chain_from_model, find_frame, frame_pose
+from poekin.import_mujoco import FrameKind, find_frame, frame_pose, tree_from_model
 from poekin.sources import LoadedModel
+from poekin.tree import Tree
 
 __all__ = [
     "DEFAULT_ORI_TOL",
     "DEFAULT_POS_TOL",
     "VerifyReport",
+    "mujoco_frame_poses",
     "mujoco_poses",
     "pose_errors",
     "sample_joint_values",
+    "sample_qpos",
     "verify",
 ]
 
@@ -52,15 +55,51 @@ def sample_joint_values(
     """
     assert chain.limits is not None
     revolute = np.array([t == "revolute" for t in chain.joint_types], dtype=bool)
-    lo = np.where(revolute, -2 * np.pi, chain.limits[:, 0])
-    hi = np.where(revolute, 2 * np.pi, chain.limits[:, 1])
-    if within_limits:
-        lo = np.where(np.isfinite(chain.limits[:, 0]), chain.limits[:, 0], lo)
-        hi = np.where(np.isfinite(chain.limits[:, 1]), chain.limits[:, 1], hi)
-    lo = np.where(np.isfinite(lo), lo, UNLIMITED_SLIDE_RANGE[0])
-    hi = np.where(np.isfinite(hi), hi, UNLIMITED_SLIDE_RANGE[1])
+    lo, hi = _uniform_ranges(revolute, chain.limits, within_limits)
     rng = np.random.default_rng(seed)
     return rng.uniform(lo, hi, size=(n, chain.n_joints))
+
+
+def _uniform_ranges(
+    revolute: NDArray[np.bool_], limits: FloatArray, within_limits: bool
+) -> tuple[FloatArray, FloatArray]:
+    """Per-joint sampling range: see :func:`sample_joint_values`."""
+    lo = np.where(revolute, -2 * np.pi, limits[:, 0])
+    hi = np.where(revolute, 2 * np.pi, limits[:, 1])
+    if within_limits:
+        lo = np.where(np.isfinite(limits[:, 0]), limits[:, 0], lo)
+        hi = np.where(np.isfinite(limits[:, 1]), limits[:, 1], hi)
+    lo = np.where(np.isfinite(lo), lo, UNLIMITED_SLIDE_RANGE[0])
+    hi = np.where(np.isfinite(hi), hi, UNLIMITED_SLIDE_RANGE[1])
+    return lo, hi
+
+
+def sample_qpos(tree: Tree, n: int, *, seed: int = 0, within_limits: bool = False) -> FloatArray:
+    """``(n, nq)`` random configurations of a whole tree, in MuJoCo's qpos layout.
+
+    Hinge and slide joints as in :func:`sample_joint_values`. A ball joint gets a uniformly
+    random unit quaternion; a free joint a position uniform in ``[-1, 1]^3`` m and a uniformly
+    random unit quaternion.
+    """
+    rng = np.random.default_rng(seed)
+    q = np.tile(tree.qpos0, (n, 1))
+    for k, kind in enumerate(tree.joint_types):
+        a = int(tree.qpos_adr[k])
+        if tree.mimics[k] is not None:
+            continue
+        if kind in ("ball", "free"):
+            quat = rng.normal(size=(n, 4))
+            quat /= np.linalg.norm(quat, axis=-1, keepdims=True)
+            if kind == "free":
+                q[:, a : a + 3] = rng.uniform(-1.0, 1.0, size=(n, 3))
+                a += 3
+            q[:, a : a + 4] = quat
+        else:
+            lo, hi = _uniform_ranges(
+                np.array([kind == "revolute"]), tree.joint_limits[k : k + 1], within_limits
+            )
+            q[:, a] = rng.uniform(lo[0], hi[0], size=n)
+    return q
 
 
 def pose_errors(T_ref: FloatArray, T: FloatArray) -> tuple[FloatArray, FloatArray]:
@@ -68,6 +107,33 @@ def pose_errors(T_ref: FloatArray, T: FloatArray) -> tuple[FloatArray, FloatArra
     pos = np.linalg.norm(T_ref[..., :3, 3] - T[..., :3, 3], axis=-1)
     ori = lie.rotation_angle(T_ref[..., :3, :3] @ np.swapaxes(T[..., :3, :3], -1, -2))
     return pos, np.asarray(ori, dtype=np.float64)
+
+
+def mujoco_frame_poses(
+    model: mujoco.MjModel,
+    qpos: FloatArray,
+    frames: Sequence[tuple[FrameKind, int]],
+    *,
+    progress: bool = False,
+) -> FloatArray:
+    """``(N, len(frames), 4, 4)`` poses of sites/bodies ``(kind, id)`` from ``mj_forward``,
+    for ``qpos`` of shape ``(N, nq)``."""
+    data = mujoco.MjData(model)
+    out = np.zeros((len(qpos), len(frames), 4, 4))
+    rows = tqdm(
+        range(len(qpos)),
+        desc="mj_forward",
+        unit="q",
+        disable=None if progress else True,
+        delay=0.5,
+        leave=False,
+    )
+    for k in rows:
+        data.qpos[:] = qpos[k]
+        mujoco.mj_forward(model, data)
+        for f, (kind, fid) in enumerate(frames):
+            frame_pose(data, kind, fid, out=out[k, f])
+    return out
 
 
 def mujoco_poses(
@@ -80,24 +146,9 @@ def mujoco_poses(
     if chain.qpos_indices is None:
         raise ValueError("the chain was not imported from a MuJoCo model")
     kind, fid, _ = find_frame(model, chain.frame)
-    idx = list(chain.qpos_indices)
-    data = mujoco.MjData(model)
-    out = np.zeros((len(q), 4, 4))
-    out[:, 3, 3] = 1.0
-    rows = tqdm(
-        range(len(q)),
-        desc="mj_forward",
-        unit="q",
-        disable=None if progress else True,
-        delay=0.5,
-        leave=False,
-    )
-    for k in rows:
-        data.qpos[:] = model.qpos0
-        data.qpos[idx] = q[k]
-        mujoco.mj_forward(model, data)
-        frame_pose(data, kind, fid, out=out[k])
-    return out
+    qpos = np.tile(model.qpos0, (len(q), 1))
+    qpos[:, list(chain.qpos_indices)] = q
+    return mujoco_frame_poses(model, qpos, [(kind, fid)], progress=progress)[:, 0]
 
 
 @dataclasses.dataclass(frozen=True)
@@ -105,8 +156,9 @@ class VerifyReport:
     """The outcome of :func:`verify`.
 
     ``pos_err`` / ``ori_err`` map a method (``"space PoE"``, ``"body PoE"``, ``"DH table"``) to
-    ``(N,)`` errors
-    in m / rad. The ``max_*`` and ``median_*`` figures are the worst over the methods.
+    ``(N,)`` errors in m / rad (with several frames, the worst frame of each sample). The
+    ``max_*`` and ``median_*`` figures are the worst over the methods. ``frame_errors`` maps
+    each frame checked to its ``(max position, max orientation)`` error over all methods.
     """
 
     robot: str
@@ -118,6 +170,7 @@ class VerifyReport:
     ori_tol: float
     pos_err: Mapping[str, FloatArray]
     ori_err: Mapping[str, FloatArray]
+    frame_errors: Mapping[str, tuple[float, float]] = dataclasses.field(default_factory=dict)
 
     def _worst(self, stat: str) -> float:
         return max((m[stat] for m in self.per_method().values()), default=0.0)
@@ -154,6 +207,14 @@ class VerifyReport:
             "max_ori_err_rad": self.max_ori_err_rad,
             "median_ori_err_rad": self.median_ori_err_rad,
             "passed": self.passed,
+            **({"frames": self.per_frame()} if len(self.frame_errors) > 1 else {}),
+        }
+
+    def per_frame(self) -> dict[str, dict[str, float]]:
+        """``{frame: {max_pos_err_m, max_ori_err_rad}}`` over every method that covers it."""
+        return {
+            f: {"max_pos_err_m": pos, "max_ori_err_rad": ori}
+            for f, (pos, ori) in self.frame_errors.items()
         }
 
     def per_method(self) -> dict[str, dict[str, float]]:
@@ -173,6 +234,7 @@ def verify(
     loaded: LoadedModel,
     frame: str | None = None,
     *,
+    all_frames: bool = False,
     chain: Chain | None = None,
     params: Chain | DHTable | None = None,
     samples: int = 1000,
@@ -182,11 +244,18 @@ def verify(
     ori_tol: float = DEFAULT_ORI_TOL,
     progress: bool = False,
 ) -> VerifyReport:
-    """Compare space- and body-form PoE with ``mj_forward`` on random joint values.
+    """Compare poekin's FK with ``mj_forward`` on random joint values.
+
+    For one frame reached by hinge and slide joints, the space- and body-form PoE of its chain
+    are checked, on random values of the chain's joints (the others stay at ``qpos0``). For a
+    frame behind a ball or free joint, and for ``all_frames``, the whole tree is checked on
+    random ``qpos`` (:func:`sample_qpos`): ``"tree FK"`` covers every frame, and with
+    ``all_frames`` the space and body PoE of every frame that has a chain are checked too.
 
     Args:
         loaded: the model (see :func:`poekin.sources.load_model`).
         frame: site or body name; None means the model's only site.
+        all_frames: check every body and site in one run (``frame`` must then be None).
         chain: the model's chain, which says which joints move; by default the one derived
             from ``loaded``. A chain given here must carry ``qpos_indices``.
         params: the parameters to check, in the model's joint order: a PoE chain (its space and
@@ -197,7 +266,71 @@ def verify(
         pos_tol, ori_tol: pass/fail thresholds for the maxima (m, rad).
         progress: show a progress bar on a terminal.
     """
-    chain = chain or chain_from_model(loaded.model, frame, robot=loaded.robot)
+    model = loaded.model
+    tree = tree_from_model(model, robot=loaded.robot)
+    if all_frames:
+        if frame is not None or chain is not None or params is not None:
+            raise InputError("all_frames checks the model's own FK: give no frame or parameters")
+        names = list(tree.frame_names)
+    else:
+        names = [find_frame(model, frame)[2]]
+        if chain is not None or params is not None or not _has_ball_or_free(tree, names[0]):
+            report = _verify_chain(
+                loaded,
+                chain or tree.chain(names[0]),
+                params,
+                sampling=(samples, seed, within_limits, progress),
+            )
+            return dataclasses.replace(report, pos_tol=pos_tol, ori_tol=ori_tol)
+    qpos = sample_qpos(tree, samples, seed=seed, within_limits=within_limits)
+    mj_ids = [find_frame(model, n)[:2] for n in names]
+    T_ref = mujoco_frame_poses(model, qpos, mj_ids, progress=progress)
+    idx = [tree.frame_index(n) for n in names]
+    per_frame = {"tree FK": pose_errors(T_ref, tree.fk(qpos)[:, idx])}
+    chains = [(f, tree.chain(n)) for f, n in enumerate(names) if not _has_ball_or_free(tree, n)]
+    if all_frames and chains:
+        for method, fk in (("space PoE", Chain.fk), ("body PoE", Chain.fk_body)):
+            pos = np.zeros((samples, len(names)))
+            ori = np.zeros((samples, len(names)))
+            for f, c in chains:
+                q = qpos[:, list(c.qpos_indices or ())]
+                pos[:, f], ori[:, f] = pose_errors(T_ref[:, f], fk(c, q))
+            per_frame[method] = (pos, ori)
+    frame_errors = {
+        n: (
+            max(float(np.max(p[:, f], initial=0.0)) for p, _ in per_frame.values()),
+            max(float(np.max(o[:, f], initial=0.0)) for _, o in per_frame.values()),
+        )
+        for f, n in enumerate(names)
+    }
+    return VerifyReport(
+        robot=loaded.robot,
+        frame="all frames" if all_frames else names[0],
+        samples=samples,
+        seed=seed,
+        within_limits=within_limits,
+        pos_tol=pos_tol,
+        ori_tol=ori_tol,
+        pos_err={m: np.max(e[0], axis=1, initial=0.0) for m, e in per_frame.items()},
+        ori_err={m: np.max(e[1], axis=1, initial=0.0) for m, e in per_frame.items()},
+        frame_errors=frame_errors,
+    )
+
+
+def _has_ball_or_free(tree: Tree, frame: str) -> bool:
+    return any(tree.joint_types[k] in ("ball", "free") for k in tree.path_joints(frame))
+
+
+def _verify_chain(
+    loaded: LoadedModel,
+    chain: Chain,
+    params: Chain | DHTable | None,
+    *,
+    sampling: tuple[int, int, bool, bool],
+) -> VerifyReport:
+    """:func:`verify` for one frame's chain: its space and body PoE (and a DH table's FK).
+    ``sampling`` is ``(samples, seed, within_limits, progress)``; the tolerances are defaults."""
+    samples, seed, within_limits, progress = sampling
     checked = chain if params is None else params
     if checked.n_joints != chain.n_joints:
         raise InputError(
@@ -212,14 +345,22 @@ def verify(
         checked = checked.to_chain()
     errors["space PoE"] = pose_errors(T_ref, checked.fk(q))
     errors["body PoE"] = pose_errors(T_ref, checked.fk_body(q))
+    pos_err = {m: e[0] for m, e in errors.items()}
+    ori_err = {m: e[1] for m, e in errors.items()}
     return VerifyReport(
         robot=loaded.robot,
         frame=chain.frame,
         samples=samples,
         seed=seed,
         within_limits=within_limits,
-        pos_tol=pos_tol,
-        ori_tol=ori_tol,
-        pos_err={m: e[0] for m, e in errors.items()},
-        ori_err={m: e[1] for m, e in errors.items()},
+        pos_tol=DEFAULT_POS_TOL,
+        ori_tol=DEFAULT_ORI_TOL,
+        pos_err=pos_err,
+        ori_err=ori_err,
+        frame_errors={
+            chain.frame: (
+                max(float(np.max(e, initial=0.0)) for e in pos_err.values()),
+                max(float(np.max(e, initial=0.0)) for e in ori_err.values()),
+            )
+        },
     )

@@ -1,0 +1,510 @@
+"""The kinematic tree: every body and site of a model, every joint type, all poses in one pass.
+
+A :class:`Tree` is the whole model, where a :class:`~poekin.chain.Chain` is one path of it.
+Bodies come parent before child. Each body sits at a fixed pose in its parent (``body_pos``,
+``body_rot``), then its joints move it, in order, exactly as MuJoCo's ``mj_kinematics`` does:
+
+* revolute (hinge): a rotation by ``position - ref`` about ``axis`` through ``anchor``;
+* prismatic (slide): a translation by ``position - ref`` along ``axis``;
+* ball: a rotation by the unit quaternion ``qpos[a:a+4]`` (``wxyz``) about ``anchor``;
+* free: the body's world pose is ``qpos[a:a+3]`` and the quaternion ``qpos[a+3:a+7]``; the body's
+  fixed pose is then not used (MuJoCo allows free joints on top-level bodies only).
+
+``axis`` and ``anchor`` are in the body frame. Quaternions in ``qpos`` are normalised the way
+MuJoCo normalises them (:func:`poekin.lie.quat_normalize`): an unnormalised quaternion means
+the rotation of its unit version, and a zero one the identity.
+
+``qpos`` uses MuJoCo's layout: the independent joints in order, 7 numbers for a free joint,
+4 for a ball joint, 1 for a hinge or slide. A *mimic* joint (from URDF) has no entry: its
+position is ``multiplier * qpos[leader] + offset``.
+
+Frames: every body, then every site. A site sits at a fixed pose in its body (or the world).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Sequence
+from typing import Any, Literal
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from poekin import lie
+from poekin.chain import Chain, JointType, as_joint_values, readonly_array
+from poekin.errors import InputError, ModelError, UnknownFrameError, did_you_mean
+
+__all__ = ["Mimic", "Tree", "TreeJointType"]
+
+TreeJointType = Literal["revolute", "prismatic", "ball", "free"]
+FloatArray = NDArray[np.float64]
+IntArray = NDArray[np.intp]
+
+_QPOS_SIZE: dict[str, int] = {"revolute": 1, "prismatic": 1, "ball": 4, "free": 7}
+_DOF: dict[str, int] = {"revolute": 1, "prismatic": 1, "ball": 3, "free": 6}
+_QPOS_WORDS = {"ball": "qw qx qy qz", "free": "x y z qw qx qy qz"}
+_IDENTITY_QUAT = (1.0, 0.0, 0.0, 0.0)
+# Axes and fixed rotations from a model file are unit / orthonormal to ~1e-16; hand-made ones
+# (URDF rpy, typed axes) to ~1e-12. Beyond this the model is wrong, not rounded.
+_UNIT_TOL = 1e-9
+
+
+@dataclasses.dataclass(frozen=True)
+class Mimic:
+    """A joint that follows another: ``position = multiplier * leader + offset`` (URDF mimic)."""
+
+    leader: str
+    multiplier: float = 1.0
+    offset: float = 0.0
+
+
+def _index_array(a: ArrayLike, n: int, name: str) -> IntArray:
+    arr = np.array(a, dtype=np.intp).reshape(-1)
+    if arr.shape != (n,):
+        raise InputError(f"{name} must have {n} entries, got {arr.shape[0]}")
+    arr.flags.writeable = False
+    return arr
+
+
+def _unit_rows(a: FloatArray, name: str, labels: Sequence[str]) -> None:
+    norms = np.linalg.norm(a, axis=-1)
+    for label, norm in zip(labels, norms, strict=True):
+        if abs(norm - 1.0) > _UNIT_TOL:
+            raise InputError(f"{name} of {label!r} must be a unit vector, got norm {norm:.6g}")
+
+
+def _rotations(a: FloatArray, name: str, labels: Sequence[str]) -> None:
+    for label, R in zip(labels, a, strict=True):
+        if not np.allclose(R.T @ R, np.eye(3), atol=_UNIT_TOL) or np.linalg.det(R) < 0:
+            raise InputError(f"{name} of {label!r} is not a rotation (orthonormal, det +1)")
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class Tree:
+    """A kinematic tree of bodies, joints and sites. Immutable; build it with
+    :func:`poekin.load_tree`, or directly from arrays.
+
+    Attributes:
+        body_names: ``nb`` body names, parents before children (the world is not a body).
+        body_parents: ``(nb,)`` index of each body's parent, ``-1`` for the world.
+        body_pos: ``(nb, 3)`` body origin in its parent's frame (m).
+        body_rot: ``(nb, 3, 3)`` body orientation in its parent's frame.
+        joint_names: ``nj`` joint names, grouped by body in body order.
+        joint_types: ``"revolute"``, ``"prismatic"``, ``"ball"`` or ``"free"`` each.
+        joint_bodies: ``(nj,)`` the body each joint moves.
+        joint_axes: ``(nj, 3)`` unit axis in the body frame (unused for ball and free).
+        joint_anchors: ``(nj, 3)`` the point the joint turns about, in the body frame.
+        joint_refs: ``(nj,)`` the hinge/slide position at which the joint is at its home pose
+            (MuJoCo's ``ref``, the joint's ``qpos0``); 0 for ball and free joints.
+        joint_limits: ``(nj, 2)`` hinge/slide limits (rad, m), ``-inf``/``inf`` if none.
+        mimics: ``nj`` entries, a :class:`Mimic` for a joint that follows another, else None.
+        site_names: ``ns`` site names.
+        site_bodies: ``(ns,)`` the body each site is fixed to, ``-1`` for the world.
+        site_pos, site_rot: ``(ns, 3)``, ``(ns, 3, 3)`` site pose in its body's frame.
+        qpos0: ``(nq,)`` the default configuration (MuJoCo's ``qpos0``); if not given (empty),
+            the home pose: hinges and slides at ``ref``, ball joints at the identity, a free
+            joint at its body's fixed pose.
+        robot: the model's name or file.
+        qpos_adr: ``(nj,)`` where each joint's numbers start in ``qpos`` (a mimic joint: its
+            leader's) (derived).
+    """
+
+    body_names: tuple[str, ...]
+    body_parents: IntArray
+    body_pos: FloatArray
+    body_rot: FloatArray
+    joint_names: tuple[str, ...]
+    joint_types: tuple[TreeJointType, ...]
+    joint_bodies: IntArray
+    joint_axes: FloatArray
+    joint_anchors: FloatArray
+    joint_refs: FloatArray
+    joint_limits: FloatArray
+    mimics: tuple[Mimic | None, ...]
+    site_names: tuple[str, ...] = ()
+    site_bodies: IntArray = dataclasses.field(default_factory=lambda: np.zeros(0, np.intp))
+    site_pos: FloatArray = dataclasses.field(default_factory=lambda: np.zeros((0, 3)))
+    site_rot: FloatArray = dataclasses.field(default_factory=lambda: np.zeros((0, 3, 3)))
+    qpos0: FloatArray = dataclasses.field(default_factory=lambda: np.zeros(0))
+    robot: str = ""
+    qpos_adr: IntArray = dataclasses.field(init=False, repr=False)
+    _slots: IntArray = dataclasses.field(init=False, repr=False)
+    _slot_scale: FloatArray = dataclasses.field(init=False, repr=False)
+    _slot_offset: FloatArray = dataclasses.field(init=False, repr=False)
+    _body_joints: tuple[tuple[int, ...], ...] = dataclasses.field(init=False, repr=False)
+    _nq: int = dataclasses.field(init=False, repr=False)
+
+    def __post_init__(self) -> None:
+        set_ = object.__setattr__
+        nb, nj, ns = len(self.body_names), len(self.joint_names), len(self.site_names)
+        for name in ("body_names", "joint_names", "joint_types", "mimics", "site_names"):
+            set_(self, name, tuple(getattr(self, name)))
+        if len(self.joint_types) != nj or len(self.mimics) != nj:
+            raise InputError(f"{nj} joint names need {nj} joint types and {nj} mimic entries")
+        set_(self, "body_parents", _index_array(self.body_parents, nb, "body_parents"))
+        set_(self, "body_pos", readonly_array(self.body_pos, (nb, 3), "body_pos"))
+        set_(self, "body_rot", readonly_array(self.body_rot, (nb, 3, 3), "body_rot"))
+        set_(self, "joint_bodies", _index_array(self.joint_bodies, nj, "joint_bodies"))
+        set_(self, "joint_axes", readonly_array(self.joint_axes, (nj, 3), "joint_axes"))
+        set_(self, "joint_anchors", readonly_array(self.joint_anchors, (nj, 3), "joint_anchors"))
+        set_(self, "joint_refs", readonly_array(self.joint_refs, (nj,), "joint_refs"))
+        limits = np.array(self.joint_limits, dtype=np.float64)
+        if (
+            limits.shape != (nj, 2)
+            or np.any(np.isnan(limits))
+            or np.any(limits[:, 0] > limits[:, 1])
+        ):
+            raise InputError(f"joint_limits must be ({nj}, 2) with lower <= upper")
+        limits.flags.writeable = False
+        set_(self, "joint_limits", limits)
+        set_(self, "site_bodies", _index_array(self.site_bodies, ns, "site_bodies"))
+        set_(self, "site_pos", readonly_array(self.site_pos, (ns, 3), "site_pos"))
+        set_(self, "site_rot", readonly_array(self.site_rot, (ns, 3, 3), "site_rot"))
+        self._check_topology()
+        _rotations(self.body_rot, "body_rot", self.body_names)
+        _rotations(self.site_rot, "site_rot", self.site_names)
+        hinges = [k for k, t in enumerate(self.joint_types) if t in ("revolute", "prismatic")]
+        _unit_rows(self.joint_axes[hinges], "the axis", [self.joint_names[k] for k in hinges])
+        self._layout()
+        qpos0 = self._default_qpos() if np.size(self.qpos0) == 0 else self.qpos0
+        set_(self, "qpos0", readonly_array(qpos0, (self.nq,), "qpos0"))
+
+    def _check_topology(self) -> None:
+        for b, parent in enumerate(self.body_parents):
+            if not -1 <= parent < b:
+                raise InputError(
+                    f"body {self.body_names[b]!r}: parent index {parent} must come before it "
+                    "(bodies are ordered parent before child; -1 is the world)"
+                )
+        if np.any(np.diff(self.joint_bodies) < 0) or np.any(
+            (self.joint_bodies < 0) | (self.joint_bodies >= len(self.body_names))
+        ):
+            raise InputError("joint_bodies must be valid body indices, grouped in body order")
+        if np.any((self.site_bodies < -1) | (self.site_bodies >= len(self.body_names))):
+            raise InputError("site_bodies must be body indices or -1 (the world)")
+        for k, (name, kind) in enumerate(zip(self.joint_names, self.joint_types, strict=True)):
+            if kind not in _QPOS_SIZE:
+                raise InputError(
+                    f"joint {name!r}: unknown type {kind!r}; use one of {sorted(_QPOS_SIZE)}"
+                )
+            b = self.joint_bodies[k]
+            if kind == "free" and (
+                np.count_nonzero(self.joint_bodies == b) != 1 or self.body_parents[b] != -1
+            ):
+                raise InputError(
+                    f"free joint {name!r} must be the only joint of a body whose parent is "
+                    "the world"
+                )
+
+    def _layout(self) -> None:
+        """qpos addresses, and the gather that expands qpos to one slot set per joint."""
+        set_ = object.__setattr__
+        names = {n: k for k, n in enumerate(self.joint_names)}
+        adr = np.zeros(len(self.joint_names), dtype=np.intp)
+        slots: list[int] = []
+        scale: list[float] = []
+        offset: list[float] = []
+        nq = 0
+        for k, (name, kind, mimic) in enumerate(
+            zip(self.joint_names, self.joint_types, self.mimics, strict=True)
+        ):
+            size = _QPOS_SIZE[kind]
+            if mimic is None:
+                adr[k] = nq
+                nq += size
+                slots.extend(range(adr[k], adr[k] + size))
+                scale.extend([1.0] * size)
+                offset.extend([0.0] * size)
+                continue
+            leader = names.get(mimic.leader)
+            if leader is None or leader >= k or self.mimics[leader] is not None:
+                raise InputError(
+                    f"joint {name!r} mimics {mimic.leader!r}, which must be an earlier joint that "
+                    f"mimics none: {did_you_mean(mimic.leader, list(names))}"
+                )
+            if kind not in ("revolute", "prismatic") or self.joint_types[leader] not in (
+                "revolute",
+                "prismatic",
+            ):
+                raise InputError(f"mimic joint {name!r}: leader and follower must be hinge/slide")
+            adr[k] = adr[leader]
+            slots.append(int(adr[leader]))
+            scale.append(float(mimic.multiplier))
+            offset.append(float(mimic.offset))
+        adr.flags.writeable = False
+        set_(self, "qpos_adr", adr)
+        set_(self, "_slots", np.array(slots, dtype=np.intp))
+        set_(self, "_slot_scale", np.array(scale))
+        set_(self, "_slot_offset", np.array(offset))
+        set_(self, "_nq", nq)
+        set_(
+            self,
+            "_body_joints",
+            tuple(
+                tuple(int(k) for k in np.flatnonzero(self.joint_bodies == b))
+                for b in range(len(self.body_names))
+            ),
+        )
+
+    def _default_qpos(self) -> FloatArray:
+        q = np.zeros(self.nq)
+        for k, kind in enumerate(self.joint_types):
+            a = self.qpos_adr[k]
+            if self.mimics[k] is not None:
+                continue
+            if kind == "free":
+                b = self.joint_bodies[k]
+                q[a : a + 3] = self.body_pos[b]
+                q[a + 3 : a + 7] = lie.rotation_to_quat(self.body_rot[b])
+            elif kind == "ball":
+                q[a : a + 4] = _IDENTITY_QUAT
+            else:
+                q[a] = self.joint_refs[k]
+        return q
+
+    # --- sizes and names ------------------------------------------------------------------
+
+    @property
+    def nq(self) -> int:
+        """Length of ``qpos``."""
+        return self._nq
+
+    @property
+    def nv(self) -> int:
+        """Degrees of freedom (MuJoCo's ``nv``): 6 per free, 3 per ball, 1 per hinge/slide."""
+        return sum(_DOF[t] for t, m in zip(self.joint_types, self.mimics, strict=True) if m is None)
+
+    @property
+    def frame_names(self) -> tuple[str, ...]:
+        """Every body, then every site: the frames :meth:`fk` returns, in that order."""
+        return self.body_names + self.site_names
+
+    @property
+    def n_frames(self) -> int:
+        return len(self.body_names) + len(self.site_names)
+
+    def qpos_layout(self) -> str:
+        """The qpos layout in words: ``qpos = [base (free: x y z qw qx qy qz), j1, ...]``."""
+        parts = [
+            name if kind in ("revolute", "prismatic") else f"{name} ({kind}: {_QPOS_WORDS[kind]})"
+            for name, kind, mimic in zip(
+                self.joint_names, self.joint_types, self.mimics, strict=True
+            )
+            if mimic is None
+        ]
+        return f"qpos = [{', '.join(parts)}]"
+
+    def frame_index(self, frame: str) -> int:
+        """Index of ``frame`` in :attr:`frame_names`; a site wins over a body of the same name.
+
+        Raises:
+            UnknownFrameError: no such body or site; the message lists them.
+        """
+        if frame in self.site_names:
+            return len(self.body_names) + self.site_names.index(frame)
+        if frame in self.body_names:
+            return self.body_names.index(frame)
+        raise UnknownFrameError(
+            f"no site or body named {frame!r}: {did_you_mean(frame, list(self.frame_names))}"
+        )
+
+    # --- forward kinematics ---------------------------------------------------------------
+
+    def _expand(self, qpos: FloatArray) -> FloatArray:
+        """One set of slots per joint: mimic joints get ``multiplier * leader + offset``."""
+        return qpos[..., self._slots] * self._slot_scale + self._slot_offset
+
+    def _slot_adr(self) -> IntArray:
+        sizes = [_QPOS_SIZE[t] for t in self.joint_types]
+        return np.concatenate([[0], np.cumsum(sizes)[:-1]]).astype(np.intp)
+
+    def _body_poses(
+        self, x: FloatArray, joints_out: tuple[FloatArray, FloatArray] | None = None
+    ) -> tuple[FloatArray, FloatArray]:
+        """World ``R (..., nb + 1, 3, 3)`` and ``p (..., nb + 1, 3)`` from expanded slots ``x``.
+
+        Index 0 is the world, body ``b`` is at ``b + 1``. With ``joints_out = (axes, anchors)``
+        (each ``(..., nj, 3)``) the joints' world axes and anchors are written there, taken
+        before each joint moves, as MuJoCo's ``xaxis`` and ``xanchor``.
+        """
+        batch = x.shape[:-1]
+        nb = len(self.body_names)
+        R = np.empty((*batch, nb + 1, 3, 3))
+        p = np.empty((*batch, nb + 1, 3))
+        R[..., 0, :, :] = np.eye(3)
+        p[..., 0, :] = 0.0
+        slot = self._slot_adr()
+        for b in range(nb):
+            parent = self.body_parents[b] + 1
+            R_b = R[..., parent, :, :] @ self.body_rot[b]
+            p_b = p[..., parent, :] + R[..., parent, :, :] @ self.body_pos[b]
+            for k in self._body_joints[b]:
+                kind, a = self.joint_types[k], slot[k]
+                axis, anchor = self.joint_axes[k], self.joint_anchors[k]
+                if joints_out is not None:
+                    joints_out[0][..., k, :] = R_b @ axis
+                    joints_out[1][..., k, :] = p_b + R_b @ anchor
+                if kind == "free":
+                    p_b = x[..., a : a + 3]
+                    R_b = lie.quat_to_rotation(lie.quat_normalize(x[..., a + 3 : a + 7]))
+                    continue
+                if kind == "prismatic":
+                    p_b = p_b + (R_b @ axis) * (x[..., a] - self.joint_refs[k])[..., None]
+                    continue
+                if kind == "ball":
+                    R_j = lie.quat_to_rotation(lie.quat_normalize(x[..., a : a + 4]))
+                else:
+                    R_j = _axis_rotation(axis, x[..., a] - self.joint_refs[k])
+                p_b = p_b + (R_b @ (anchor - R_j @ anchor)[..., None])[..., 0]
+                R_b = R_b @ R_j
+            R[..., b + 1, :, :] = R_b
+            p[..., b + 1, :] = p_b
+        return R, p
+
+    def fk(self, qpos: ArrayLike) -> FloatArray:
+        """World poses of every frame (bodies, then sites) in one pass.
+
+        Args:
+            qpos: ``(..., nq)`` in MuJoCo's qpos layout (rad, m, quaternions ``wxyz``).
+
+        Returns:
+            ``(..., n_frames, 4, 4)``: ``T_world_frame`` for each of :attr:`frame_names`.
+        """
+        q = as_joint_values(qpos, self.nq, what="qpos values", layout=self.qpos_layout())
+        R, p = self._body_poses(self._expand(q))
+        site_parent = self.site_bodies + 1
+        R_s = R[..., site_parent, :, :] @ self.site_rot
+        p_s = (
+            p[..., site_parent, :] + (R[..., site_parent, :, :] @ self.site_pos[..., None])[..., 0]
+        )
+        T = np.zeros((*q.shape[:-1], self.n_frames, 4, 4))
+        nb = len(self.body_names)
+        T[..., :nb, :3, :3] = R[..., 1:, :, :]
+        T[..., :nb, :3, 3] = p[..., 1:, :]
+        T[..., nb:, :3, :3] = R_s
+        T[..., nb:, :3, 3] = p_s
+        T[..., 3, 3] = 1.0
+        return T
+
+    # --- serial chains --------------------------------------------------------------------
+
+    def _frame_body(self, index: int) -> int:
+        nb = len(self.body_names)
+        return index if index < nb else int(self.site_bodies[index - nb])
+
+    def path_joints(self, frame: str) -> tuple[int, ...]:
+        """Indices of the joints between the world and ``frame``, base to tip."""
+        body = self._frame_body(self.frame_index(frame))
+        path = []
+        while body >= 0:
+            path.append(body)
+            body = int(self.body_parents[body])
+        return tuple(k for b in reversed(path) for k in self._body_joints[b])
+
+    def chain(self, frame: str) -> Chain:
+        """The serial PoE chain from the world to ``frame`` (a body or site name).
+
+        The chain's joint values are the positions of the joints on the path, as stored in
+        ``qpos`` (a mimic joint becomes an independent joint of the chain). Joints off the path
+        do not move ``frame``.
+
+        Raises:
+            UnknownFrameError: no such frame.
+            ModelError: a ball or free joint lies on the path (PoE chains are hinge/slide);
+                use :meth:`fk` for such frames.
+        """
+        index = self.frame_index(frame)
+        joints = self.path_joints(frame)
+        for k in joints:
+            if self.joint_types[k] in ("ball", "free"):
+                raise ModelError(
+                    f"joint {self.joint_names[k]!r} on the path to {frame!r} is a "
+                    f"{self.joint_types[k]} joint; a PoE chain holds hinge and slide joints only: "
+                    "pose it with the whole tree, poekin.load_tree(...).fk(qpos) or "
+                    "'poekin fk SOURCE --all-frames', or choose a frame whose path has none"
+                )
+        x = self._expand(self.qpos0)
+        slot = self._slot_adr()
+        x[slot[list(joints)]] = 0.0  # every chain joint at position 0
+        axes = np.zeros((len(self.joint_names), 3))
+        anchors = np.zeros_like(axes)
+        R, p = self._body_poses(x, (axes, anchors))
+        home = np.eye(4)
+        nb = len(self.body_names)
+        body = self._frame_body(index) + 1
+        if index < nb:
+            home[:3, :3], home[:3, 3] = R[body], p[body]
+        else:
+            s = index - nb
+            home[:3, :3] = R[body] @ self.site_rot[s]
+            home[:3, 3] = p[body] + R[body] @ self.site_pos[s]
+        screws = np.zeros((len(joints), 6))
+        types: list[JointType] = []
+        for row, k in enumerate(joints):
+            if self.joint_types[k] == "revolute":
+                screws[row, :3] = axes[k]
+                screws[row, 3:] = -np.cross(axes[k], anchors[k])
+                types.append("revolute")
+            else:
+                screws[row, 3:] = axes[k]
+                types.append("prismatic")
+        independent = all(self.mimics[k] is None for k in joints)
+        return Chain(
+            joint_names=tuple(self.joint_names[k] for k in joints),
+            joint_types=tuple(types),
+            screws=screws,
+            home=home,
+            limits=self.joint_limits[list(joints)],
+            frame=frame,
+            robot=self.robot,
+            qpos_indices=tuple(int(self.qpos_adr[k]) for k in joints) if independent else None,
+        )
+
+    def __repr__(self) -> str:
+        source = f"{self.robot!r}, " if self.robot else ""
+        return (
+            f"Tree({source}{len(self.body_names)} bodies, {len(self.joint_names)} joints, "
+            f"{len(self.site_names)} sites, nq={self.nq}, nv={self.nv})"
+        )
+
+    def describe(self) -> dict[str, Any]:
+        """A JSON-ready summary: bodies with parents, joints with types and qpos addresses."""
+        return {
+            "robot": self.robot,
+            "nq": self.nq,
+            "nv": self.nv,
+            "bodies": [
+                {"name": n, "parent": self.body_names[p] if p >= 0 else "world"}
+                for n, p in zip(self.body_names, self.body_parents, strict=True)
+            ],
+            "joints": [
+                {
+                    "name": n,
+                    "type": t,
+                    "body": self.body_names[b],
+                    "qpos_adr": int(a),
+                    **({"mimic": dataclasses.asdict(m)} if m is not None else {}),
+                }
+                for n, t, b, a, m in zip(
+                    self.joint_names,
+                    self.joint_types,
+                    self.joint_bodies,
+                    self.qpos_adr,
+                    self.mimics,
+                    strict=True,
+                )
+            ],
+            "sites": [
+                {"name": n, "body": self.body_names[b] if b >= 0 else "world"}
+                for n, b in zip(self.site_names, self.site_bodies, strict=True)
+            ],
+        }
+
+
+def _axis_rotation(axis: FloatArray, angle: FloatArray) -> FloatArray:
+    """``(..., 3, 3)`` rotation by ``angle (...)`` about the unit ``axis (3,)`` (Rodrigues)."""
+    W = lie.hat_so3(axis)
+    s = np.sin(angle)[..., None, None]
+    c = (1.0 - np.cos(angle))[..., None, None]
+    out: FloatArray = np.eye(3) + s * W + c * (W @ W)
+    return out

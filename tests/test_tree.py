@@ -1,0 +1,353 @@
+"""Trees: every body and site of a model against mj_kinematics, all joint types, chains of a
+tree, mimic joints, and the errors a user sees."""
+
+from __future__ import annotations
+
+import dataclasses
+import pathlib
+
+import mujoco
+import numpy as np
+import pytest
+from helpers import MJ_TOL, assert_close, load_quiet
+
+import poekin
+from poekin import InputError, ModelError, UnknownFrameError
+from poekin.import_mujoco import tree_from_model
+from poekin.tree import Mimic, Tree
+from poekin.verify import sample_qpos
+
+MENAGERIE = [
+    "universal_robots_ur5e",
+    "universal_robots_ur10e",
+    "franka_emika_panda",
+    "franka_fr3",
+    "ufactory_lite6",
+    "rethink_robotics_sawyer",
+    "trs_so_arm100",
+    "unitree_go2",
+    "aloha",
+]
+N_SAMPLES = 10_000  # issue #4: every frame on 10,000 random qpos
+BATCH_SHAPES = [(), (1,), (3, 1, 2, 1)]
+
+# A model that uses every feature MuJoCo resolves at compile time: default classes, childclass,
+# euler / axisangle / xyaxes frames in degrees, non-unit axes, joint anchors, non-zero ref,
+# several joints in one body, ball and free joints, sites on the world and on bodies, a mocap
+# body, and a second free-floating tree.
+FEATURES_XML = """
+<mujoco>
+  <compiler angle="degree"/>
+  <default>
+    <joint axis="0 1 1" damping="1"/>
+    <default class="slider"><joint type="slide" axis="1 0 0.5" range="-0.3 0.2"/></default>
+    <default class="arm"><joint pos="0 0 0.05" ref="15"/><geom size="0.02"/></default>
+  </default>
+  <worldbody>
+    <site name="world_site" pos="0.1 0.2 0.3" euler="10 20 30"/>
+    <body name="base" pos="0.1 0 0.2" euler="0 0 45" childclass="arm">
+      <joint name="yaw" type="hinge" axis="0 0 2"/>
+      <geom/>
+      <body name="upper" pos="0 0.1 0.3" axisangle="1 1 0 30">
+        <joint name="pitch"/>
+        <joint name="extend" class="slider" ref="0.05"/>
+        <geom/>
+        <body name="wrist" pos="0.2 0 0" xyaxes="0 1 0 -1 0 0">
+          <joint name="wrist_ball" type="ball" pos="0.01 0.02 0.03"/>
+          <geom/>
+          <site name="tool" pos="0 0 0.1" quat="0.5 0.5 0.5 0.5"/>
+          <body name="finger" pos="0.05 0 0">
+            <joint name="finger_slide" class="slider"/>
+            <joint name="finger_roll" type="hinge" axis="1 0 0" ref="-40"/>
+            <geom/>
+          </body>
+        </body>
+      </body>
+    </body>
+    <body name="floater" pos="1 2 3" quat="0 1 0 0">
+      <freejoint name="float"/>
+      <geom size="0.1"/>
+      <body name="pendulum" pos="0 0 -0.4">
+        <joint name="swing" type="hinge" axis="1 0 0" pos="0 0 0.4"/>
+        <geom size="0.05"/>
+        <site name="bob"/>
+      </body>
+    </body>
+    <body name="target" mocap="true" pos="0 0 1"><site name="target_site"/></body>
+  </worldbody>
+</mujoco>
+"""
+
+
+def mj_frames(model: mujoco.MjModel, qpos: np.ndarray) -> np.ndarray:
+    """``(N, nbody - 1 + nsite, 4, 4)`` body then site poses from mj_kinematics."""
+    data = mujoco.MjData(model)
+    nb = model.nbody - 1
+    out = np.zeros((len(qpos), nb + model.nsite, 4, 4))
+    out[..., 3, 3] = 1.0
+    for k, q in enumerate(qpos):
+        data.qpos[:] = q
+        mujoco.mj_kinematics(model, data)
+        out[k, :nb, :3, :3] = data.xmat[1:].reshape(nb, 3, 3)
+        out[k, :nb, :3, 3] = data.xpos[1:]
+        out[k, nb:, :3, :3] = data.site_xmat.reshape(-1, 3, 3)
+        out[k, nb:, :3, 3] = data.site_xpos
+    return out
+
+
+def check_tree(model: mujoco.MjModel, qpos: np.ndarray, what: str) -> None:
+    tree = tree_from_model(model)
+    expected = mj_frames(model, qpos)
+    got = tree.fk(qpos)
+    for f, name in enumerate(tree.frame_names):
+        assert_close(f"{what} / {name}", got[:, f], expected[:, f], MJ_TOL)
+
+
+@pytest.fixture(scope="module")
+def features() -> mujoco.MjModel:
+    return mujoco.MjModel.from_xml_string(FEATURES_XML)
+
+
+# --- against MuJoCo -----------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("robot", MENAGERIE)
+def test_menagerie_every_frame_matches_mj_kinematics(robot: str) -> None:
+    model = load_quiet(robot).model
+    tree = poekin.load_tree(load_quiet(robot))
+    assert (tree.nq, tree.nv, tree.n_frames) == (model.nq, model.nv, model.nbody - 1 + model.nsite)
+    assert list(tree.qpos_adr) == list(model.jnt_qposadr)
+    check_tree(model, sample_qpos(tree, N_SAMPLES, seed=4), robot)
+
+
+def test_features_model_matches_mj_kinematics(features: mujoco.MjModel) -> None:
+    tree = tree_from_model(features)
+    assert tree.joint_types == (
+        "revolute",
+        "revolute",
+        "prismatic",
+        "ball",
+        "prismatic",
+        "revolute",
+        "free",
+        "revolute",
+    )
+    check_tree(features, sample_qpos(tree, 2000, seed=1), "features")
+
+
+@pytest.mark.parametrize("scale", [1e-3, 0.7, 3.0, 1e4])
+def test_unnormalised_quaternions_mean_what_mujoco_makes_of_them(
+    features: mujoco.MjModel, scale: float
+) -> None:
+    tree = tree_from_model(features)
+    qpos = sample_qpos(tree, 500, seed=2)
+    for k, kind in enumerate(tree.joint_types):
+        a = tree.qpos_adr[k] + (3 if kind == "free" else 0)
+        if kind in ("ball", "free"):
+            qpos[:, a : a + 4] *= scale
+    check_tree(features, qpos, f"quaternions x {scale}")
+
+
+def test_zero_quaternion_is_the_identity_as_in_mujoco(features: mujoco.MjModel) -> None:
+    tree = tree_from_model(features)
+    qpos = sample_qpos(tree, 3, seed=3)
+    ball = tree.qpos_adr[tree.joint_names.index("wrist_ball")]
+    free = tree.qpos_adr[tree.joint_names.index("float")]
+    qpos[:, ball : ball + 4] = 0.0
+    qpos[:, free + 3 : free + 7] = [0.0, 0.0, 0.0, 1e-16]
+    check_tree(features, qpos, "zero quaternions")
+
+
+def test_default_qpos_is_mujocos_home(features: mujoco.MjModel) -> None:
+    tree = tree_from_model(features)
+    assert_close("qpos0", tree.qpos0, features.qpos0, 0.0)
+    check_tree(features, tree.qpos0[None], "qpos0")
+
+
+# --- shapes -------------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("batch", BATCH_SHAPES)
+def test_fk_keeps_batch_axes(features: mujoco.MjModel, batch: tuple[int, ...]) -> None:
+    tree = tree_from_model(features)
+    n = int(np.prod(batch))
+    flat = sample_qpos(tree, n, seed=5)
+    T = tree.fk(flat.reshape(*batch, tree.nq))
+    assert T.shape == (*batch, tree.n_frames, 4, 4)
+    assert_close("batched vs flat", T.reshape(n, tree.n_frames, 4, 4), tree.fk(flat), 0.0)
+
+
+def test_empty_batch_returns_empty(features: mujoco.MjModel) -> None:
+    tree = tree_from_model(features)
+    assert tree.fk(np.zeros((0, tree.nq))).shape == (0, tree.n_frames, 4, 4)
+
+
+def test_integer_and_float32_qpos_are_accepted(features: mujoco.MjModel) -> None:
+    tree = tree_from_model(features)
+    q = np.round(sample_qpos(tree, 4, seed=6))
+    assert_close("int qpos", tree.fk(q.astype(int)), tree.fk(q), 0.0)
+    assert_close("float32 qpos", tree.fk(q.astype(np.float32)), tree.fk(q), 0.0)
+
+
+@pytest.mark.parametrize(
+    ("qpos", "message"),
+    [
+        (
+            np.zeros(5),
+            r"expected 17 qpos values .* qpos = \[yaw, pitch, extend, "
+            r"wrist_ball \(ball: qw qx qy qz\)",
+        ),
+        ([0.0] * 16 + [np.nan], "NaN or inf"),
+        (["a"] * 17, "must be numbers"),
+    ],
+)
+def test_bad_qpos_is_an_input_error(features: mujoco.MjModel, qpos: object, message: str) -> None:
+    with pytest.raises(InputError, match=message):
+        tree_from_model(features).fk(qpos)  # type: ignore[arg-type]
+
+
+# --- chains of a tree ---------------------------------------------------------------------------
+
+
+def _chain_frames(tree: Tree) -> list[str]:
+    kinds = {"ball", "free"}
+    return [
+        f
+        for f in tree.frame_names
+        if not any(tree.joint_types[k] in kinds for k in tree.path_joints(f))
+    ]
+
+
+@pytest.mark.parametrize("robot", ["aloha", "franka_emika_panda", "trs_so_arm100"])
+def test_every_chain_of_a_tree_equals_the_tree(robot: str) -> None:
+    tree = poekin.load_tree(load_quiet(robot))
+    qpos = sample_qpos(tree, 300, seed=7)
+    T = tree.fk(qpos)
+    for frame in _chain_frames(tree):
+        chain = tree.chain(frame)
+        q = qpos[:, list(chain.qpos_indices or ())]
+        assert_close(
+            f"{robot} / {frame}: space", chain.fk(q), T[:, tree.frame_index(frame)], MJ_TOL
+        )
+        assert_close(
+            f"{robot} / {frame}: body", chain.fk_body(q), T[:, tree.frame_index(frame)], MJ_TOL
+        )
+
+
+def test_chain_behind_a_free_joint_points_to_load_tree() -> None:
+    tree = poekin.load_tree(load_quiet("unitree_go2"))
+    with pytest.raises(ModelError, match=r"free joint; .*load_tree"):
+        tree.chain("imu")
+    with pytest.raises(ModelError, match="load_tree"):
+        poekin.load(load_quiet("unitree_go2"), "FL_calf")
+
+
+def test_chain_behind_a_ball_joint_is_refused(features: mujoco.MjModel) -> None:
+    with pytest.raises(ModelError, match="'wrist_ball' on the path to 'tool' is a ball joint"):
+        tree_from_model(features).chain("tool")
+
+
+def test_chain_of_a_hinge_after_the_world_site(features: mujoco.MjModel) -> None:
+    tree = tree_from_model(features)
+    chain = tree.chain("upper")
+    assert chain.joint_names == ("yaw", "pitch", "extend")
+    assert chain.joint_types == ("revolute", "revolute", "prismatic")
+    qpos = sample_qpos(tree, 200, seed=8)
+    q = qpos[:, list(chain.qpos_indices or ())]
+    assert_close("upper", chain.fk(q), tree.fk(qpos)[:, tree.frame_index("upper")], MJ_TOL)
+    world = tree.chain("world_site")
+    assert world.n_joints == 0
+    assert_close(
+        "world_site",
+        world.fk(np.zeros(0)),
+        tree.fk(tree.qpos0)[tree.frame_index("world_site")],
+        0.0,
+    )
+
+
+def test_unknown_frame_suggests_the_near_miss(features: mujoco.MjModel) -> None:
+    with pytest.raises(UnknownFrameError, match="did you mean 'finger'"):
+        tree_from_model(features).frame_index("fingr")
+
+
+def test_load_tree_from_a_path(tmp_path: pathlib.Path) -> None:
+    path = tmp_path / "features.xml"
+    path.write_text(FEATURES_XML)
+    tree = poekin.load_tree(path)
+    assert tree.robot == "features.xml"
+    assert repr(tree) == "Tree('features.xml', 7 bodies, 8 joints, 4 sites, nq=17, nv=15)"
+    described = tree.describe()
+    assert described["joints"][3] == {
+        "name": "wrist_ball",
+        "type": "ball",
+        "body": "wrist",
+        "qpos_adr": 3,
+    }
+
+
+# --- mimic joints and hand-built trees ----------------------------------------------------------
+
+
+def _two_link(mimics: tuple[Mimic | None, ...]) -> Tree:
+    return Tree(
+        body_names=("a", "b"),
+        body_parents=[-1, 0],
+        body_pos=[[0.0, 0.0, 0.1], [0.3, 0.0, 0.0]],
+        body_rot=[np.eye(3), np.eye(3)],
+        joint_names=("j1", "j2"),
+        joint_types=("revolute", "revolute"),
+        joint_bodies=[0, 1],
+        joint_axes=[[0.0, 0.0, 1.0], [0.0, 0.0, 1.0]],
+        joint_anchors=np.zeros((2, 3)),
+        joint_refs=np.zeros(2),
+        joint_limits=[[-np.inf, np.inf]] * 2,
+        mimics=mimics,
+        site_names=("tip",),
+        site_bodies=[1],
+        site_pos=[[0.2, 0.0, 0.0]],
+        site_rot=[np.eye(3)],
+    )
+
+
+def test_mimic_follower_is_multiplier_times_leader_plus_offset() -> None:
+    free = _two_link((None, None))
+    mimic = _two_link((None, Mimic("j1", multiplier=-2.0, offset=0.25)))
+    assert (mimic.nq, mimic.nv, free.nq) == (1, 1, 2)
+    q1 = np.linspace(-3, 3, 13)
+    expected = free.fk(np.stack([q1, -2.0 * q1 + 0.25], axis=-1))
+    assert_close("mimic", mimic.fk(q1[:, None]), expected, 0.0)
+    # hand check: planar two-link arm, tip at l1 (cos q1, sin q1) + l2 (cos(q1+q2), sin(q1+q2))
+    q2 = -2.0 * q1 + 0.25
+    tip = mimic.fk(q1[:, None])[:, mimic.frame_index("tip"), :3, 3]
+    hand = np.stack(
+        [0.3 * np.cos(q1) + 0.2 * np.cos(q1 + q2), 0.3 * np.sin(q1) + 0.2 * np.sin(q1 + q2)], -1
+    )
+    assert_close("tip x, y", tip[:, :2], hand, 1e-15)
+    assert_close("tip z", tip[:, 2], np.full(13, 0.1), 0.0)
+    chain = mimic.chain("tip")  # the follower becomes an independent chain joint
+    assert chain.qpos_indices is None
+    assert_close("chain", chain.fk(np.stack([q1, q2], -1)), expected[:, 2], 1e-15)
+
+
+@pytest.mark.parametrize(
+    ("change", "message"),
+    [
+        ({"body_parents": [1, -1]}, "must come before it"),
+        ({"joint_types": ("revolute", "screw")}, "unknown type 'screw'"),
+        ({"joint_axes": [[0.0, 0.0, 2.0], [0.0, 0.0, 1.0]]}, "'j1' must be a unit vector"),
+        ({"mimics": (None, Mimic("j0"))}, "mimics 'j0'.*Valid names: 'j1'"),
+        ({"mimics": (Mimic("j2"), None)}, "must be an earlier joint"),
+        ({"body_rot": [np.eye(3), 2 * np.eye(3)]}, "body_rot of 'b' is not a rotation"),
+        ({"joint_types": ("revolute", "free")}, "free joint 'j2' must be the only joint"),
+        ({"joint_limits": [[1.0, -1.0]] * 2}, "lower <= upper"),
+        ({"site_bodies": [5]}, "site_bodies must be body indices"),
+        ({"body_pos": np.zeros((3, 3))}, r"body_pos must have shape \(2, 3\)"),
+    ],
+)
+def test_invalid_trees_are_refused(change: dict[str, object], message: str) -> None:
+    fields = {
+        f.name: getattr(_two_link((None, None)), f.name) for f in dataclasses.fields(Tree) if f.init
+    }
+    fields.update(change)
+    with pytest.raises(InputError, match=message):
+        Tree(**fields)  # type: ignore[arg-type]
