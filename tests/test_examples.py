@@ -46,3 +46,17 @@ def test_ur5e_lab_example_without_menagerie_is_one_line(tmp_path: pathlib.Path) 
     assert proc.returncode == 1
     assert proc.stderr.startswith("ur5e_lab: Menagerie robot 'universal_robots_ur5e'")
     assert "Traceback" not in proc.stderr
+
+
+def test_whole_robot_example() -> None:
+    proc = subprocess.run(
+        [sys.executable, str(REPO / "examples" / "whole_robot.py"), "--samples", "100"],
+        capture_output=True,
+        text=True,
+        check=False,
+    )
+    assert proc.returncode == 0, proc.stderr
+    assert "unitree_go2: Tree('unitree_go2', 13 bodies, 13 joints, 1 sites, nq=19, nv=18)" in (
+        proc.stdout
+    )
+    assert "aloha: " in proc.stdout and "passed: True" in proc.stdout
