@@ -5,16 +5,20 @@ from __future__ import annotations
 import hashlib
 import os
 import pathlib
+import re
 import shutil
+import struct
 import warnings
+import zlib
 
 import mujoco
 import numpy as np
 import pytest
-from helpers import assert_close, load_quiet
+from helpers import MJ_TOL, assert_close, load_quiet
 
 from poekin import (
     AssetsStrippedWarning,
+    LoadedModel,
     MenagerieUnavailableError,
     ModelError,
     UnknownRobotError,
@@ -96,16 +100,453 @@ def test_included_files_are_part_of_the_model_files() -> None:
     assert {"aloha.xml", "joint_position_actuators.xml", "keyframe_ctrl.xml"} <= names
 
 
-def test_missing_texture_is_stripped(tmp_path: pathlib.Path) -> None:
-    (tmp_path / "m.xml").write_text(
-        """<mujoco><asset><texture name="t" type="2d" file="gone.png"/>
-        <material name="m" texture="t"/></asset><worldbody><body>
-        <joint axis="0 0 1"/><geom size=".1" material="m"/><site name="s"/></body>
-        </worldbody></mujoco>"""
+# --- Kinematics-only loading of incomplete model folders -------------------------------------
+# Each case is a complete model folder, written by the test (the first file is the model), the
+# asset files to delete from a copy of it, and what the one-line note must say about the copy.
+# "{dir}" in a file stands for the folder's absolute path.
+
+# A tetrahedron whose centroid and principal axes are off the body frame, so a stub changes inertia.
+TET_OBJ = "v 0 0 0\nv 0.1 0 0\nv 0 0.12 0\nv 0 0 0.15\nf 1 3 2\nf 1 2 4\nf 1 4 3\nf 2 3 4\n"
+ARM = """<body name="arm" pos="0.1 0 0.5" euler="10 20 30"><joint axis="0 1 0" ref="0.2"/>{geoms}
+  <site name="tip" pos="0.2 0.01 0"/></body>"""
+
+
+def _png(width: int = 2, height: int = 2) -> bytes:
+    """A tiny RGB PNG image."""
+
+    def chunk(kind: bytes, data: bytes) -> bytes:
+        return (
+            struct.pack(">I", len(data)) + kind + data + struct.pack(">I", zlib.crc32(kind + data))
+        )
+
+    rows = b"".join(b"\0" + bytes([200, 120, 40] * width) for _ in range(height))
+    header = struct.pack(">IIBBBBB", width, height, 8, 2, 0, 0, 0)
+    pixels = chunk(b"IDAT", zlib.compress(rows))
+    return b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", header) + pixels + chunk(b"IEND", b"")
+
+
+def _hfield() -> bytes:
+    """A 2 x 2 height field in MuJoCo's binary format."""
+    return struct.pack("<2i4f", 2, 2, 0.0, 0.5, 1.0, 0.2)
+
+
+def _skin(body: str) -> bytes:
+    """A one-triangle SKN skin bound to ``body``."""
+    head = struct.pack("<4i9f3i", 3, 0, 1, 1, 0, 0, 0, 0.1, 0, 0, 0, 0.1, 0, 0, 1, 2)
+    bone = body.encode().ljust(40, b"\0") + struct.pack(
+        "<7fi3i3f", 0, 0, 0, 1, 0, 0, 0, 3, 0, 1, 2, 1, 1, 1
     )
-    with pytest.warns(AssetsStrippedWarning, match="1 missing texture"):
-        loaded = load_model(tmp_path / "m.xml")
-    assert loaded.model.ntex == 0
+    return head + bone
+
+
+def _mjcf(body: str, asset: str = "", compiler: str = "", extra: str = "") -> str:
+    return (
+        f"<mujoco><compiler {compiler}/><asset>{asset}</asset>"
+        f"<worldbody>{body}</worldbody>{extra}</mujoco>"
+    )
+
+
+CASES: dict[str, tuple[dict[str, str | bytes], tuple[str, ...], str]] = {
+    "mesh geoms, a fitted box and a mesh site": (
+        {
+            "robot.xml": _mjcf(
+                compiler='meshdir="assets"',
+                asset='<mesh name="tet" file="tet.obj"/>'
+                '<mesh name="wedge" file="wedge.obj" scale="1 2 1"/>',
+                body='<geom type="mesh" mesh="wedge"/>'
+                '<body name="upper" pos="0 0 0.3" euler="10 20 30"><joint type="ball"/>'
+                '<geom type="mesh" mesh="tet"/><geom type="box" size="1 1 1" mesh="wedge"/>'
+                '<site name="marker" type="mesh" mesh="tet" pos="0.01 0 0"/>'
+                '<body name="lower" pos="0.2 0 0" quat="0.9 0.1 0.3 0.2">'
+                '<joint axis="0 1 0" ref="0.3"/><joint type="slide" axis="1 0 0"/>'
+                '<geom type="mesh" mesh="tet" pos="0.05 0 0"/><site name="tip" pos="0.3 0.01 0"/>'
+                "</body></body>",
+            ),
+            "assets/tet.obj": TET_OBJ,
+            "assets/wedge.obj": TET_OBJ,
+        },
+        ("assets/tet.obj", "assets/wedge.obj"),
+        r"2 missing mesh files \(4 geoms and 1 site made tiny spheres\)$",
+    ),
+    "textures, cube textures, materials and a light": (
+        {
+            "robot.xml": _mjcf(
+                compiler='texturedir="textures"',
+                asset='<texture name="wood" type="2d" file="wood.png"/>'
+                '<texture name="cube" type="cube" fileright="r.png" fileleft="l.png" fileup="u.png"'
+                ' filedown="d.png" filefront="f.png" fileback="b.png"/>'
+                '<texture name="sky" type="skybox" file="sky.png"/>'
+                '<texture name="grid" type="2d" builtin="checker" width="8" height="8"/>'
+                '<material name="m1" texture="wood"/><material name="m2" texture="cube"/>'
+                '<material name="m3" texture="grid"/>',
+                body='<light type="spot" texture="wood" pos="0 0 2"/>'
+                + ARM.format(
+                    geoms='<geom size="0.1" material="m1"/><geom size="0.05" material="m2"/>'
+                ),
+            ),
+            **{f"textures/{n}.png": _png() for n in ("wood", "r", "l", "u", "d", "f", "b", "sky")},
+        },
+        ("textures/wood.png", "textures/u.png"),
+        r"stripped 2 missing texture files$",
+    ),
+    "height field (meshdir)": (
+        {
+            "robot.xml": _mjcf(
+                compiler='meshdir="terrain"',
+                asset='<hfield name="ground" file="ground.bin" size="1 1 0.1 0.05"/>',
+                body='<geom type="hfield" hfield="ground"/>'
+                + ARM.format(geoms='<geom size="0.1"/>'),
+            ),
+            "terrain/ground.bin": _hfield(),
+        },
+        ("terrain/ground.bin",),
+        r"stripped 1 missing height field file \(1 geom made a tiny sphere\)$",
+    ),
+    "skin (meshdir)": (
+        {
+            "robot.xml": _mjcf(
+                compiler='meshdir="skins"',
+                body=ARM.format(geoms='<geom size="0.1"/>'),
+                extra='<deformable><skin name="cloth" file="cloth.skn"/></deformable>',
+            ),
+            "skins/cloth.skn": _skin("arm"),
+        },
+        ("skins/cloth.skn",),
+        r"stripped 1 missing skin file$",
+    ),
+    "assets declared in an include, nested include": (
+        {
+            "robot.xml": '<mujoco><compiler meshdir="assets"/><include file="parts/assets.xml"/>'
+            '<worldbody><include file="parts/arm.xml"/></worldbody></mujoco>',
+            # Asset paths in an included file are relative to the main model's folder.
+            "parts/assets.xml": '<mujoco><asset><mesh name="tet" file="tet.obj"/></asset></mujoco>',
+            # A nested include not found next to the main model is looked up next to its includer.
+            "parts/arm.xml": '<mujoco><body name="arm" pos="0 0 0.5"><joint axis="0 1 0"/>'
+            '<geom type="mesh" mesh="tet"/><include file="hand.xml"/></body></mujoco>',
+            "parts/hand.xml": '<mujoco><body name="hand" pos="0.1 0 0"><joint axis="1 0 0"/>'
+            '<geom type="mesh" mesh="tet"/><site name="tip"/></body></mujoco>',
+            "assets/tet.obj": TET_OBJ,
+        },
+        ("assets/tet.obj",),
+        r"stripped 1 missing mesh file \(2 geoms made tiny spheres\)$",
+    ),
+    "assetdir with texturedir": (
+        {
+            "robot.xml": _mjcf(
+                compiler='assetdir="shared" texturedir="pictures"',
+                asset='<mesh name="tet" file="tet.obj"/><material name="m" texture="wood"/>'
+                '<texture name="wood" type="2d" file="wood.png"/>',
+                body=ARM.format(geoms='<geom type="mesh" mesh="tet" material="m"/>'),
+            ),
+            "shared/tet.obj": TET_OBJ,
+            "pictures/wood.png": _png(),
+        },
+        ("shared/tet.obj", "pictures/wood.png"),
+        r"1 missing mesh file \(1 geom made a tiny sphere\); 1 missing texture file$",
+    ),
+    "relative meshdir out of the model's folder": (
+        {
+            "model/robot.xml": _mjcf(
+                compiler='meshdir="../meshes"',
+                asset='<mesh name="tet" file="tet.obj"/>',
+                body=ARM.format(geoms='<geom type="mesh" mesh="tet"/>'),
+            ),
+            "meshes/tet.obj": TET_OBJ,
+        },
+        ("meshes/tet.obj",),
+        r"1 missing mesh file",
+    ),
+    "absolute meshdir": (
+        {
+            "robot.xml": _mjcf(
+                compiler='meshdir="{dir}/meshes"',
+                asset='<mesh name="tet" file="tet.obj"/>',
+                body=ARM.format(geoms='<geom type="mesh" mesh="tet"/>'),
+            ),
+            "meshes/tet.obj": TET_OBJ,
+        },
+        ("meshes/tet.obj",),
+        r"1 missing mesh file",
+    ),
+    "absolute mesh file": (
+        {
+            "robot.xml": _mjcf(
+                compiler='meshdir="meshes"',
+                asset='<mesh name="tet" file="{dir}/elsewhere/tet.obj"/>',
+                body=ARM.format(geoms='<geom type="mesh" mesh="tet"/>'),
+            ),
+            "elsewhere/tet.obj": TET_OBJ,
+        },
+        ("elsewhere/tet.obj",),
+        r"1 missing mesh file",
+    ),
+    "strippath": (
+        {
+            "robot.xml": _mjcf(
+                compiler='strippath="true" meshdir="assets"',
+                asset='<mesh name="tet" file="C:\\cad\\export/tet.obj"/>',
+                body=ARM.format(geoms='<geom type="mesh" mesh="tet"/>'),
+            ),
+            "assets/tet.obj": TET_OBJ,
+        },
+        ("assets/tet.obj",),
+        r"1 missing mesh file",
+    ),
+    "attached sub-model with its own meshdir": (
+        {
+            "scene.xml": _mjcf(
+                asset='<model name="hand" file="hand/hand.xml"/>',
+                body=ARM.format(
+                    geoms='<geom size="0.05"/><attach model="hand" body="palm" prefix="h-"/>'
+                ),
+            ),
+            "hand/hand.xml": _mjcf(
+                compiler='meshdir="meshes"',
+                asset='<mesh name="tet" file="tet.obj"/>',
+                body='<body name="palm" pos="0.2 0 0"><joint axis="1 0 0"/>'
+                '<geom type="mesh" mesh="tet" density="0.001"/><site name="s"/></body>',
+            ),
+            "hand/meshes/tet.obj": TET_OBJ,
+        },
+        ("hand/meshes/tet.obj",),
+        r"1 missing mesh file \(1 geom made a tiny sphere\)$",
+    ),
+    # A light mesh: its tiny sphere stub would be below MuJoCo's minimum mass without a floor.
+    "body left massless": (
+        {
+            "robot.xml": _mjcf(
+                asset='<mesh name="tet" file="tet.obj"/>',
+                body=ARM.format(geoms='<geom type="mesh" mesh="tet" density="0.001"/>'),
+            ),
+            "tet.obj": TET_OBJ,
+        },
+        ("tet.obj",),
+        r"1 missing mesh file",
+    ),
+}
+
+FREE_MESH = '<geom type="mesh" mesh="tet"/>'
+
+
+def _free_body_files(compiler: str, joint: str, inside: str) -> dict[str, str | bytes]:
+    """A model with one free body named obj, and its mesh."""
+    site = '<site name="s" pos="0.05 0.02 0.01"/>'
+    body = f'<body name="obj" pos="0.3 0.2 1" euler="10 20 30">{joint}{inside}{site}</body>'
+    mesh = '<mesh name="tet" file="tet.obj"/>'
+    return {"robot.xml": _mjcf(compiler=compiler, asset=mesh, body=body), "tet.obj": TET_OBJ}
+
+
+# Free bodies whose frame MuJoCo would not align with a stripped geom's inertia: they load.
+ALIGN_OK = {
+    "explicit inertial": (
+        'alignfree="true"',
+        "<freejoint/>",
+        FREE_MESH
+        + '<inertial pos="0.01 0.02 0.03" quat="0.9 0.1 0.2 0.3" mass="1" diaginertia="1 2 3"/>',
+    ),
+    "geom outside inertiagrouprange": (
+        'alignfree="true" inertiagrouprange="0 1"',
+        "<freejoint/>",
+        '<geom size="0.02" pos="0.1 0 0"/><geom type="mesh" mesh="tet" group="2"/>',
+    ),
+    "massless visual geom": (
+        'alignfree="true"',
+        "<freejoint/>",
+        '<geom size="0.02" pos="0.1 0 0"/><geom type="mesh" mesh="tet" density="0"/>',
+    ),
+    "freejoint align false": ('alignfree="true"', '<freejoint align="false"/>', FREE_MESH),
+    "alignfree off": ("", "<freejoint/>", FREE_MESH),
+    "free body with a child": (
+        'alignfree="true"',
+        "<freejoint/>",
+        FREE_MESH + '<body pos="0.1 0 0"><joint axis="0 0 1"/><geom size="0.01"/></body>',
+    ),
+}
+CASES.update(
+    {
+        f"alignfree: {name}": (_free_body_files(*parts), ("tet.obj",), r"1 missing mesh file")
+        for name, parts in ALIGN_OK.items()
+    }
+)
+
+# Free bodies that MuJoCo aligns with an inertial frame that the missing mesh shapes: refused.
+ALIGN_REFUSED = {
+    "compiler alignfree": ('alignfree="true"', "<freejoint/>", FREE_MESH),
+    "freejoint align": ("", '<freejoint align="true"/>', FREE_MESH),
+    "fitted primitive": ('alignfree="true"', "<freejoint/>", '<geom type="box" mesh="tet"/>'),
+    "static child fused into it": (
+        'alignfree="true" fusestatic="true"',
+        "<freejoint/>",
+        '<geom size="0.02"/><body pos="0.1 0 0">' + FREE_MESH + "</body>",
+    ),
+}
+
+
+def _write(folder: pathlib.Path, files: dict[str, str | bytes]) -> pathlib.Path:
+    """Write ``files`` under ``folder``; return the first (the model)."""
+    for name, content in files.items():
+        path = folder / name
+        path.parent.mkdir(parents=True, exist_ok=True)
+        if isinstance(content, bytes):
+            path.write_bytes(content)
+        else:
+            path.write_text(content.replace("{dir}", str(folder)))
+    return folder / next(iter(files))
+
+
+def _complete_and_bare(
+    root: pathlib.Path, files: dict[str, str | bytes], removed: tuple[str, ...]
+) -> tuple[pathlib.Path, pathlib.Path]:
+    """The model in a complete folder, and in a copy of it without the ``removed`` files."""
+    full = _write(root / "full", files)
+    bare = _write(root / "bare", files)
+    for name in removed:
+        (root / "bare" / name).unlink()
+    return full, bare
+
+
+def _all_files(folder: pathlib.Path) -> set[pathlib.Path]:
+    return {p.resolve() for p in folder.rglob("*") if p.is_file()}
+
+
+def _random_qpos(model: mujoco.MjModel, rng: np.random.Generator) -> np.ndarray:
+    """Joint values far from ``qpos0``, with unit quaternions for ball and free joints."""
+    qpos = model.qpos0 + rng.uniform(-3, 3, size=model.nq)
+    quat_at = {mujoco.mjtJoint.mjJNT_FREE: 3, mujoco.mjtJoint.mjJNT_BALL: 0}
+    for j in range(model.njnt):
+        if model.jnt_type[j] in quat_at:
+            quat = rng.normal(size=4)
+            adr = model.jnt_qposadr[j] + quat_at[model.jnt_type[j]]
+            qpos[adr : adr + 4] = quat / np.linalg.norm(quat)
+    return qpos
+
+
+def _assert_same_frames(full: mujoco.MjModel, bare: mujoco.MjModel) -> None:
+    """Every body and site pose of ``bare`` equals ``full``'s at ``qpos0`` and random joints."""
+    names = [[m.body(i).name for i in range(m.nbody)] for m in (full, bare)]
+    assert names[0] == names[1]
+    assert (bare.nq, bare.nsite) == (full.nq, full.nsite) and full.nsite > 0
+    assert_close("qpos0", bare.qpos0, full.qpos0, 0.0)
+    d_full, d_bare = mujoco.MjData(full), mujoco.MjData(bare)
+    rng = np.random.default_rng(7)
+    for i in range(6):
+        d_full.qpos[:] = d_bare.qpos[:] = full.qpos0 if i == 0 else _random_qpos(full, rng)
+        mujoco.mj_forward(full, d_full)
+        mujoco.mj_forward(bare, d_bare)
+        for field in ("xpos", "xmat", "site_xpos", "site_xmat"):
+            assert_close(field, getattr(d_bare, field), getattr(d_full, field), MJ_TOL)
+
+
+def _load_complete(xml: pathlib.Path) -> LoadedModel:
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        return load_model(xml)
+
+
+@pytest.mark.parametrize("case", list(CASES))
+def test_incomplete_folder_keeps_every_frame(tmp_path: pathlib.Path, case: str) -> None:
+    """The copy loads with one note saying what was stripped, the complete model's frames, and
+    its files untouched; the complete model loads without a note. Both list exactly their files."""
+    files, removed, note = CASES[case]
+    full_xml, bare_xml = _complete_and_bare(tmp_path, files, removed)
+    before = _digest(tmp_path)
+    full = _load_complete(full_xml)
+    with pytest.warns(AssetsStrippedWarning) as record:
+        bare = load_model(bare_xml)
+    assert len(record) == 1, [str(r.message) for r in record]
+    message = str(record[0].message)
+    assert "\n" not in message and message.startswith(f"{bare_xml.name}: loaded for kinematics")
+    assert re.search(note, message), message
+    assert set(full.files) == _all_files(tmp_path / "full")
+    assert set(bare.files) == _all_files(tmp_path / "bare")
+    assert _digest(tmp_path) == before
+    _assert_same_frames(full.model, bare.model)
+
+
+def test_stripped_textures_leave_materials(tmp_path: pathlib.Path) -> None:
+    """Materials and lights stay, without the textures whose files are gone; the others stay."""
+    files, removed, _ = CASES["textures, cube textures, materials and a light"]
+    _, bare_xml = _complete_and_bare(tmp_path, files, removed)
+    with pytest.warns(AssetsStrippedWarning):
+        bare = load_model(bare_xml).model
+    assert {bare.texture(i).name for i in range(bare.ntex)} == {"sky", "grid"}
+    texids = {m: int(bare.mat_texid[bare.material(m).id].max()) for m in ("m1", "m2", "m3")}
+    assert texids == {"m1": -1, "m2": -1, "m3": bare.texture("grid").id}
+    assert bare.light_texid.tolist() == [-1]
+
+
+@pytest.mark.parametrize("case", list(ALIGN_REFUSED))
+def test_free_body_aligned_with_missing_inertia_is_refused(
+    tmp_path: pathlib.Path, case: str
+) -> None:
+    """Its frame (and what its qpos means) came from the missing mesh: no pose to keep."""
+    files = _free_body_files(*ALIGN_REFUSED[case])
+    full_xml, bare_xml = _complete_and_bare(tmp_path, files, ("tet.obj",))
+    full = _load_complete(full_xml).model
+    assert not np.allclose(full.body("obj").pos, [0.3, 0.2, 1])  # MuJoCo did align it
+    before = _digest(tmp_path)
+    with pytest.raises(ModelError, match=r"free body 'obj' is aligned with its inertial frame"):
+        load_model(bare_xml)
+    assert _digest(tmp_path) == before
+
+
+def test_nested_include_prefers_the_main_models_folder(tmp_path: pathlib.Path) -> None:
+    """MuJoCo looks for a nested include next to the main model first, then next to its includer."""
+    xml = _write(
+        tmp_path,
+        {
+            "m.xml": '<mujoco><worldbody><include file="parts/a.xml"/></worldbody></mujoco>',
+            "parts/a.xml": '<mujoco><include file="b.xml"/></mujoco>',
+            "b.xml": '<mujoco><body name="main_folder"/></mujoco>',
+            "parts/b.xml": '<mujoco><body name="includer_folder"/></mujoco>',
+        },
+    )
+    loaded = _load_complete(xml)
+    assert loaded.model.body(1).name == "main_folder"
+    names = {p.relative_to(tmp_path.resolve()).as_posix() for p in loaded.files}
+    assert names == {"m.xml", "parts/a.xml", "b.xml"}
+
+
+@pytest.mark.parametrize(
+    ("files", "message"),
+    [
+        (
+            {"m.xml": '<mujoco><include file="parts/gone.xml"/></mujoco>'},
+            r"^m\.xml: included file 'parts/gone\.xml' named in m\.xml is missing",
+        ),
+        (
+            {
+                "m.xml": '<mujoco><include file="parts/a.xml"/></mujoco>',
+                "parts/a.xml": '<mujoco><include file="gone.xml"/></mujoco>',
+            },
+            r"included file 'gone\.xml' named in a\.xml is missing \(looked for \S+/gone\.xml "
+            r"or \S+/parts/gone\.xml\); restore",
+        ),
+        (
+            {"m.xml": '<mujoco><asset><model name="k" file="kid.xml"/></asset></mujoco>'},
+            r"sub-model file 'kid\.xml' named in m\.xml is missing",
+        ),
+    ],
+)
+def test_missing_xml_file_is_an_error(
+    tmp_path: pathlib.Path, files: dict[str, str | bytes], message: str
+) -> None:
+    xml = _write(tmp_path, files)
+    with pytest.raises(ModelError, match=message) as info:
+        load_model(xml)
+    assert "\n" not in str(info.value)
+
+
+def test_every_menagerie_model_compiles() -> None:
+    """Every full model (not an include-only fragment) of every robot folder, no manual steps."""
+    models = sorted(p for p in MENAGERIE.glob("*/*.xml") if "<worldbody" in p.read_text())
+    folders = {p.parent for p in MENAGERIE.glob("*/*.xml")}
+    assert {p.parent for p in models} == folders
+    before = _digest(MENAGERIE)
+    for xml in models:
+        model = load_quiet(str(xml)).model
+        assert model.nbody > 1 and model.njnt > 0, xml
+    assert _digest(MENAGERIE) == before
 
 
 def test_unknown_robot_suggests_near_miss() -> None:
