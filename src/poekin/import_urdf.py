@@ -1,0 +1,369 @@
+"""Reading a :class:`~poekin.tree.Tree` from a URDF file.
+
+The file is parsed with `yourdfpy <https://github.com/clemense/yourdfpy>`_ (``pip install
+'poekin[urdf]'``) without loading any mesh, so ``package://`` URIs and missing mesh files never
+matter: kinematics needs links and joints only.
+
+Every link is a body named after it, posed in its parent link by its parent joint's
+``<origin xyz rpy>`` (``R = Rz(yaw) Ry(pitch) Rx(roll)``). URDF joints turn about the child
+link's origin, so anchors and ``ref`` are 0:
+
+========================  ===========================================================
+URDF joint                tree joint
+========================  ===========================================================
+revolute                  ``"revolute"``, limits from ``<limit lower upper>``
+continuous                ``"revolute"``, no limits
+prismatic                 ``"prismatic"``, limits from ``<limit lower upper>``
+fixed                     none: the child link stays a body (a frame)
+floating                  ``"free"``, on a child of a root link named ``world`` only
+planar                    refused (:class:`~poekin.errors.ModelError`)
+========================  ===========================================================
+
+``<axis>`` defaults to ``1 0 0`` and is divided by its norm, as MuJoCo does. A ``<limit>``
+without both ``lower`` and ``upper`` leaves the joint unlimited, as MuJoCo does. ``<mimic>``
+makes a :class:`~poekin.tree.Mimic` joint with no ``qpos`` entry.
+
+This is how MuJoCo compiles the same URDF with ``compiler.fusestatic = False``: the same bodies
+in the same order (a root link named ``world`` is MuJoCo's world body, not a body), the same
+joint names; MuJoCo's ``qpos`` holds mimic followers too, tied by equality constraints.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import xml.etree.ElementTree as ET
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from poekin.errors import InputError, ModelError, did_you_mean
+from poekin.tree import Mimic, Tree, TreeJointType
+
+__all__ = ["FLOATING_BASE", "tree_from_urdf"]
+
+FLOATING_BASE = "floating_base"
+"""Name of the free joint that ``floating_base=True`` puts on the root link."""
+
+WORLD_LINK = "world"
+"""A root link of this name is the world frame itself (as in ROS and MuJoCo), not a body."""
+
+# MuJoCo refuses shorter joint axes ("axis too small"); so do we.
+_MIN_AXIS_NORM = 1e-14
+_MOVING: dict[str, TreeJointType] = {
+    "revolute": "revolute",
+    "continuous": "revolute",
+    "prismatic": "prismatic",
+    "floating": "free",
+}
+_URDF_TYPES = (*_MOVING, "fixed", "planar")
+FloatArray = NDArray[np.float64]
+IntArray = NDArray[np.intp]
+
+
+def tree_from_urdf(
+    path: str | os.PathLike[str], *, floating_base: bool = False, robot: str = ""
+) -> Tree:
+    """The kinematic tree of a URDF file: every link a body, every moving joint a joint.
+
+    Bodies are the links depth first from the root, a link's children in the order of their
+    ``<joint>`` elements in the file: the order MuJoCo gives the same URDF. ``qpos`` is::
+
+        qpos = [floating_base (x y z qw qx qy qz, with floating_base=True),
+                the revolute, continuous, prismatic (1 each) and floating (7) joints
+                in body order, mimic followers left out]
+
+    :attr:`Tree.joint_names` lists every joint, followers included, and :attr:`Tree.qpos_adr`
+    where each one's value is (a follower: its leader's). A follower of a follower is tied to
+    the independent joint at the end of the chain (multipliers and offsets composed).
+
+    Args:
+        path: the ``.urdf`` file.
+        floating_base: put a free joint named ``"floating_base"`` on the root link, so ``qpos``
+            starts with its world position and orientation.
+        robot: a label stored in the tree; default: the URDF's ``<robot name>``.
+
+    Raises:
+        ModelError: yourdfpy is not installed; the file is missing, not XML, not a URDF, or
+            an unexpanded xacro; its links do not form one tree; a planar joint, a floating
+            joint below the root, a zero axis, ``lower > upper``, or a mimic of an unknown,
+            fixed, later or cyclic joint.
+    """
+    where = os.fspath(path)
+    urdf_robot = _parse(where)
+    link_names = [link.name for link in urdf_robot.links]
+    parent_joint = _parent_joints(urdf_robot.joints, link_names, where)
+    root = _root_link(link_names, parent_joint, where)
+    order = _body_order(root, urdf_robot.joints, link_names, where)
+    if root == WORLD_LINK:
+        if floating_base:
+            raise ModelError(
+                f"{where}: the root link is 'world', which fixes the robot to the world; "
+                "drop floating_base, or remove the 'world' link to let the robot float"
+            )
+        order = order[1:]
+    parents, poses, joints = _bodies(order, parent_joint, floating_base, where)
+    names = [name for name, _, _, _ in joints]
+    if floating_base and names.count(FLOATING_BASE) > 1:
+        raise ModelError(
+            f"{where}: a joint is already named {FLOATING_BASE!r}; rename it to use floating_base"
+        )
+    urdf_joints = [joint for _, _, _, joint in joints]
+    try:
+        return Tree(
+            body_names=tuple(order),
+            body_parents=parents,
+            body_pos=poses[:, :3, 3],
+            body_rot=poses[:, :3, :3],
+            joint_names=tuple(names),
+            joint_types=tuple(kind for _, kind, _, _ in joints),
+            joint_bodies=np.array([b for _, _, b, _ in joints], dtype=np.intp),
+            joint_axes=np.array([_axis(joint, where) for joint in urdf_joints]).reshape(-1, 3),
+            joint_anchors=np.zeros((len(joints), 3)),
+            joint_refs=np.zeros(len(joints)),
+            joint_limits=np.array([_limits(j, where) for j in urdf_joints]).reshape(-1, 2),
+            mimics=_mimics(urdf_joints, urdf_robot.joints, where),
+            robot=robot or urdf_robot.name,
+        )
+    except InputError as exc:  # e.g. a NaN in an <origin>
+        raise ModelError(f"{where}: {exc}") from exc
+
+
+def _bodies(
+    order: list[str], parent_joint: dict[str, Any], floating_base: bool, where: str
+) -> tuple[IntArray, FloatArray, list[tuple[str, TreeJointType, int, Any]]]:
+    """Parent indices ``(nb,)`` (-1: the world), poses in the parent ``(nb, 4, 4)``, and the
+    tree joints as ``(name, type, body, URDF joint or None for the floating base)``."""
+    body_index = {name: b for b, name in enumerate(order)}
+    poses = np.tile(np.eye(4), (len(order), 1, 1))
+    parents = np.full(len(order), -1, dtype=np.intp)
+    joints: list[tuple[str, TreeJointType, int, Any]] = []
+    for b, link in enumerate(order):
+        joint = parent_joint.get(link)
+        if joint is None:
+            if floating_base:
+                joints.append((FLOATING_BASE, "free", b, None))
+            continue
+        parents[b] = body_index.get(joint.parent, -1)  # the 'world' link is no body
+        if joint.origin is not None:
+            poses[b] = joint.origin
+        kind = _tree_joint_type(joint, where)
+        if kind is not None:
+            joints.append((joint.name, kind, b, joint))
+    return parents, poses, joints
+
+
+def _parse(path: str) -> Any:
+    """The ``yourdfpy.Robot`` of the URDF at ``path``, meshes not loaded."""
+    try:
+        import yourdfpy  # type: ignore[import-untyped]
+    except ImportError as exc:
+        raise ModelError("reading URDF needs yourdfpy: pip install 'poekin[urdf]'") from exc
+    if not os.path.isfile(path):
+        raise ModelError(f"{path}: no such URDF file; check the path")
+    try:
+        root = ET.parse(path).getroot()
+    except ET.ParseError as exc:
+        raise ModelError(f"{path}: not well-formed XML ({exc}); fix the file") from exc
+    except OSError as exc:
+        raise ModelError(f"{path}: cannot read the URDF file ({exc.strerror})") from exc
+    _check_structure(root, path)
+    try:
+        urdf = yourdfpy.URDF.load(
+            path, build_scene_graph=False, load_meshes=False, load_collision_meshes=False
+        )
+    except (ValueError, TypeError, KeyError, AttributeError, IndexError) as exc:
+        raise ModelError(f"{path}: malformed URDF ({type(exc).__name__}: {exc})") from exc
+    return urdf.robot
+
+
+def _check_structure(root: ET.Element, path: str) -> None:
+    """The required elements and attributes yourdfpy would fail on with a bare KeyError."""
+    if root.tag != "robot":
+        hint = "; load an MJCF file with poekin.load_tree" if root.tag == "mujoco" else ""
+        raise ModelError(f"{path}: not a URDF: the root element is <{root.tag}>, not <robot>{hint}")
+    if any(elem.tag.startswith("{") and "xacro" in elem.tag for elem in root.iter()):
+        raise ModelError(f"{path}: an unexpanded xacro file; run 'xacro {path} > robot.urdf' first")
+    required = [(root, "name")]
+    required += [(link, "name") for link in root.findall("link")]
+    for joint in root.findall("joint"):
+        required += [(joint, "name"), (joint, "type")]
+        for tag in ("parent", "child"):
+            elem = joint.find(tag)
+            if elem is None:
+                name = joint.get("name", "?")
+                raise ModelError(f"{path}: joint {name!r} has no <{tag} link=...>; add it")
+            required.append((elem, "link"))
+    for elem, attribute in required:
+        if not elem.get(attribute):
+            raise ModelError(f"{path}: a <{elem.tag}> has no {attribute!r} attribute; add it")
+
+
+def _parent_joints(joints: Sequence[Any], links: list[str], where: str) -> dict[str, Any]:
+    """Each child link's joint; every joint joins known links, no link has two parents."""
+    if len(set(links)) < len(links):
+        twice = sorted({name for name in links if links.count(name) > 1})
+        raise ModelError(f"{where}: links named more than once: {twice}; rename them")
+    names = [joint.name for joint in joints]
+    if len(set(names)) < len(names):
+        twice = sorted({name for name in names if names.count(name) > 1})
+        raise ModelError(f"{where}: joints named more than once: {twice}; rename them")
+    parent_joint: dict[str, Any] = {}
+    for joint in joints:
+        for link in (joint.parent, joint.child):
+            if link not in links:
+                raise ModelError(
+                    f"{where}: joint {joint.name!r} names link {link!r}, which is not defined: "
+                    f"{did_you_mean(link, links)}"
+                )
+        if joint.child in parent_joint:
+            raise ModelError(
+                f"{where}: link {joint.child!r} is the child of both joints "
+                f"{parent_joint[joint.child].name!r} and {joint.name!r}; a URDF is a tree"
+            )
+        parent_joint[joint.child] = joint
+    return parent_joint
+
+
+def _root_link(links: list[str], parent_joint: dict[str, Any], where: str) -> str:
+    """The only link that is no joint's child."""
+    roots = [name for name in links if name not in parent_joint]
+    if len(roots) == 1:
+        return roots[0]
+    if roots:
+        raise ModelError(
+            f"{where}: {len(roots)} root links (no joint's child): {roots}; a URDF has one, "
+            "so join the others to it with joints"
+        )
+    raise ModelError(f"{where}: no root link: the joints form a cycle through every link")
+
+
+def _body_order(root: str, joints: Sequence[Any], links: list[str], where: str) -> list[str]:
+    """Links depth first from ``root``, children in file order of their joints."""
+    children: dict[str, list[str]] = {name: [] for name in links}
+    for joint in joints:
+        children[joint.parent].append(joint.child)
+    order: list[str] = []
+    stack = [root]
+    while stack:
+        link = stack.pop()
+        order.append(link)
+        stack.extend(reversed(children[link]))
+    if len(order) < len(links):
+        cut = [name for name in links if name not in set(order)]
+        raise ModelError(
+            f"{where}: links {cut} are not reachable from the root link {root!r}: their joints "
+            "form a cycle; a URDF is a tree"
+        )
+    return order
+
+
+def _tree_joint_type(joint: Any, where: str) -> TreeJointType | None:
+    """The tree joint a URDF joint becomes (None: fixed); refuses planar and deep floating."""
+    if joint.type not in _URDF_TYPES:
+        raise ModelError(
+            f"{where}: joint {joint.name!r} has type {joint.type!r}; a URDF joint is one of "
+            f"{list(_URDF_TYPES)}"
+        )
+    if joint.type == "planar":
+        raise ModelError(
+            f"{where}: joint {joint.name!r} is planar (3 degrees of freedom in a plane), which "
+            "the tree's hinge/slide/ball/free joints cannot hold as one joint (MuJoCo splits it "
+            "into _TX, _TY slides and an _RZ hinge); model it as two prismatic joints and a "
+            "revolute joint through intermediate links"
+        )
+    if joint.type == "floating" and joint.parent != WORLD_LINK:
+        raise ModelError(
+            f"{where}: floating joint {joint.name!r} hangs below link {joint.parent!r}; a free "
+            "joint must join a link to the world: make its parent the root link 'world', or "
+            "remove it and pass floating_base=True"
+        )
+    return _MOVING.get(joint.type)
+
+
+def _axis(joint: Any | None, where: str) -> tuple[float, float, float]:
+    """Unit joint axis in the child link frame: ``<axis xyz>`` (default ``1 0 0``) over its norm."""
+    if joint is None or joint.type == "floating":
+        return (1.0, 0.0, 0.0)
+    axis = np.asarray(joint.axis, dtype=np.float64).reshape(-1)
+    if axis.shape != (3,) or not np.all(np.isfinite(axis)):
+        raise ModelError(f"{where}: joint {joint.name!r}: <axis xyz> must be 3 finite numbers")
+    x, y, z = (float(v) for v in axis)
+    norm = math.sqrt(x * x + y * y + z * z)
+    if norm < _MIN_AXIS_NORM:
+        raise ModelError(
+            f"{where}: joint {joint.name!r} has a zero <axis xyz>; give the direction it moves in"
+        )
+    return (x / norm, y / norm, z / norm)
+
+
+def _limits(joint: Any | None, where: str) -> tuple[float, float]:
+    """``(lower, upper)`` of a revolute or prismatic joint with both given, else unlimited."""
+    limit = None if joint is None else joint.limit
+    if (
+        joint is None
+        or joint.type not in ("revolute", "prismatic")
+        or limit is None
+        or limit.lower is None
+        or limit.upper is None
+    ):
+        return (-math.inf, math.inf)
+    if limit.lower > limit.upper:
+        raise ModelError(
+            f"{where}: joint {joint.name!r} has <limit lower={limit.lower:g} "
+            f"upper={limit.upper:g}>; lower must not exceed upper"
+        )
+    return (float(limit.lower), float(limit.upper))
+
+
+def _mimics(
+    urdf_joints: list[Any | None], all_joints: Sequence[Any], where: str
+) -> tuple[Mimic | None, ...]:
+    """One entry per tree joint (``urdf_joints``; None: the floating base): for a follower,
+    its independent leader with the multipliers and offsets along the way composed."""
+    names = [j.name for j in urdf_joints if j is not None]
+    hinges = {j.name: j for j in urdf_joints if j is not None and j.type != "floating"}
+    out: list[Mimic | None] = []
+    for joint in urdf_joints:
+        if joint is None or joint.mimic is None:
+            out.append(None)
+            continue
+        multiplier, offset, leader = 1.0, 0.0, joint
+        seen = [joint.name]
+        while leader.mimic is not None:
+            m = leader.mimic
+            if leader.name not in hinges or m.joint not in hinges:
+                raise ModelError(f"{where}: {_bad_mimic(leader.name, m.joint, all_joints)}")
+            offset += multiplier * (0.0 if m.offset is None else float(m.offset))
+            multiplier *= 1.0 if m.multiplier is None else float(m.multiplier)
+            leader = hinges[m.joint]
+            if leader.name in seen:
+                raise ModelError(
+                    f"{where}: mimic joints form a cycle: {' -> '.join([*seen, leader.name])}; "
+                    "one of them must move on its own"
+                )
+            seen.append(leader.name)
+        if names.index(leader.name) > names.index(joint.name):
+            raise ModelError(
+                f"{where}: joint {joint.name!r} mimics {leader.name!r}, which comes after it in "
+                "the body order (depth first, children in <joint> file order); the tree needs "
+                "leaders first: move the <joint> elements of the leader's branch earlier"
+            )
+        out.append(Mimic(leader.name, multiplier, offset))
+    return tuple(out)
+
+
+def _bad_mimic(follower: str, leader: str, all_joints: Sequence[Any]) -> str:
+    """Why ``follower`` cannot mimic ``leader``: one of them is no hinge/slide, or no joint."""
+    types = {j.name: j.type for j in all_joints}
+    if leader not in types:
+        return f"joint {follower!r} mimics {leader!r}, which is not a joint: " + did_you_mean(
+            leader, list(types)
+        )
+    odd = follower if types[follower] == "floating" else leader
+    return (
+        f"joint {follower!r} mimics {leader!r}, but {odd!r} is a {types[odd]} joint; "
+        "mimic joints must be revolute, continuous or prismatic"
+    )

@@ -1,0 +1,436 @@
+"""Trees from URDF files: poses checked by hand, every body against MuJoCo compiling the same
+URDF, fixed links, mimic joints, meshes that do not exist, floating bases, and the errors."""
+
+from __future__ import annotations
+
+import logging
+import pathlib
+import sys
+
+import mujoco
+import numpy as np
+import pytest
+from helpers import MJ_TOL, assert_close
+
+from poekin import ModelError, PoekinError
+from poekin.import_urdf import FLOATING_BASE, tree_from_urdf
+from poekin.tree import Mimic, Tree
+
+DATA = pathlib.Path(__file__).parent / "data" / "urdf"
+N_SAMPLES = 1000
+HAND_TOL = 1e-14  # closed form vs tree.fk: a few roundings of numbers of order 1
+
+# (fixture, floating_base): every URDF fixture, and the serial arm on a floating base.
+MUJOCO_CASES = [
+    ("serial_arm.urdf", False),
+    ("serial_arm.urdf", True),
+    ("two_arms.urdf", False),
+    ("planar_2link.urdf", False),
+    ("package_meshes.urdf", False),
+    ("world_floating.urdf", False),
+]
+
+
+def Rx(a: float) -> np.ndarray:
+    return np.array([[1, 0, 0], [0, np.cos(a), -np.sin(a)], [0, np.sin(a), np.cos(a)]])
+
+
+def Ry(a: float) -> np.ndarray:
+    return np.array([[np.cos(a), 0, np.sin(a)], [0, 1, 0], [-np.sin(a), 0, np.cos(a)]])
+
+
+def Rz(a: float) -> np.ndarray:
+    return np.array([[np.cos(a), -np.sin(a), 0], [np.sin(a), np.cos(a), 0], [0, 0, 1]])
+
+
+def _quat_matrix(q: np.ndarray) -> np.ndarray:
+    """``(3, 3)`` rotation of the unit quaternion ``q = (w, x, y, z)``."""
+    w, x, y, z = q
+    return np.array(
+        [
+            [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
+            [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
+            [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
+        ]
+    )
+
+
+def compile_with_mujoco(path: pathlib.Path, floating_base: bool) -> mujoco.MjModel:
+    """MuJoCo's model of the same URDF, one body per link: the recipe ``poekin verify`` needs.
+
+    fusestatic=False keeps fixed-joint links as bodies (MuJoCo's URDF default fuses them, and
+    the root link too, into their parents); the meshes go, since MuJoCo opens ``package://``
+    URIs as files when it compiles; boundmass/boundinertia give massless moving links (their
+    mass lived in a deleted mesh or was never given) the mass MuJoCo insists on.
+    """
+    spec = mujoco.MjSpec.from_file(str(path))
+    spec.compiler.fusestatic = False
+    spec.compiler.boundmass = 1e-6
+    spec.compiler.boundinertia = 1e-9
+    for geom in list(spec.geoms):
+        if geom.type == mujoco.mjtGeom.mjGEOM_MESH:
+            spec.delete(geom)
+    for mesh in list(spec.meshes):
+        spec.delete(mesh)
+    if floating_base:
+        spec.worldbody.first_body().add_freejoint(name=FLOATING_BASE)
+    return spec.compile()
+
+
+def random_qpos(tree: Tree, n: int, seed: int) -> np.ndarray:
+    """``(n, nq)``: hinges in [-2 pi, 2 pi], slides within limits (else +-1 m), free joints at a
+    random position with a random, unnormalised quaternion."""
+    rng = np.random.default_rng(seed)
+    q = np.empty((n, tree.nq))
+    for k, kind in enumerate(tree.joint_types):
+        if tree.mimics[k] is not None:
+            continue
+        a = int(tree.qpos_adr[k])
+        if kind == "free":
+            q[:, a : a + 3] = rng.uniform(-2.0, 2.0, size=(n, 3))
+            q[:, a + 3 : a + 7] = rng.normal(size=(n, 4)) * rng.uniform(0.1, 10.0, size=(n, 1))
+        elif kind == "revolute":
+            q[:, a] = rng.uniform(-2 * np.pi, 2 * np.pi, size=n)
+        else:
+            lo, hi = tree.joint_limits[k]
+            q[:, a] = rng.uniform(lo, hi, size=n) if np.isfinite(lo + hi) else rng.uniform(-1, 1, n)
+    return q
+
+
+def joint_positions(tree: Tree, qpos: np.ndarray, joints: tuple[int, ...]) -> np.ndarray:
+    """``(n, len(joints))`` hinge/slide positions of ``joints``, followers from their leader."""
+    out = np.empty((qpos.shape[0], len(joints)))
+    for col, k in enumerate(joints):
+        mimic = tree.mimics[k]
+        leader = qpos[:, tree.qpos_adr[k]]
+        out[:, col] = leader if mimic is None else mimic.multiplier * leader + mimic.offset
+    return out
+
+
+def mujoco_body_poses(model: mujoco.MjModel, tree: Tree, qpos: np.ndarray) -> np.ndarray:
+    """``(n, nb, 4, 4)`` MuJoCo's pose of each tree body (by name) after ``mj_kinematics``,
+    each MuJoCo joint (by name) set from the tree's qpos; followers set by hand."""
+    data = mujoco.MjData(model)
+    ids = [mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, b) for b in tree.body_names]
+    adr = [model.jnt_qposadr[model.joint(name).id] for name in tree.joint_names]
+    hinges = [k for k, t in enumerate(tree.joint_types) if t != "free"]
+    frees = [k for k, t in enumerate(tree.joint_types) if t == "free"]
+    positions = joint_positions(tree, qpos, tuple(hinges))
+    out = np.zeros((qpos.shape[0], len(ids), 4, 4))
+    out[..., 3, 3] = 1.0
+    for i in range(qpos.shape[0]):
+        for k in frees:
+            data.qpos[adr[k] : adr[k] + 7] = qpos[i, tree.qpos_adr[k] : tree.qpos_adr[k] + 7]
+        data.qpos[[adr[k] for k in hinges]] = positions[i]
+        mujoco.mj_kinematics(model, data)
+        out[i, :, :3, :3] = data.xmat[ids].reshape(-1, 3, 3)
+        out[i, :, :3, 3] = data.xpos[ids]
+    return out
+
+
+# --- by hand --------------------------------------------------------------------------------
+
+
+def test_planar_two_link_matches_closed_form() -> None:
+    tree = tree_from_urdf(DATA / "planar_2link.urdf")
+    l1, l2, height = 0.4, 0.3, 0.5
+    q = np.random.default_rng(0).uniform(-2 * np.pi, 2 * np.pi, size=(200, 2))
+    T = tree.fk(q)
+    for (q1, q2), poses in zip(q, T, strict=True):
+        forearm = poses[tree.frame_index("forearm")]
+        tool = poses[tree.frame_index("tool")]
+        elbow = np.array([l1 * np.cos(q1), l1 * np.sin(q1), height])
+        tip = elbow + np.array([l2 * np.cos(q1 + q2), l2 * np.sin(q1 + q2), 0.0])
+        assert_close("forearm position", forearm[:3, 3], elbow, HAND_TOL)
+        assert_close("forearm rotation", forearm[:3, :3], Rz(q1 + q2), HAND_TOL)
+        assert_close("tool position", tool[:3, 3], tip, HAND_TOL)
+        rpy = Rz(0.5) @ Ry(-0.2) @ Rx(0.3)  # URDF rpy = (0.3, -0.2, 0.5): fixed axes X, Y, Z
+        assert_close("tool rotation", tool[:3, :3], Rz(q1 + q2) @ rpy, HAND_TOL)
+
+
+def test_rpy_rotation_written_out() -> None:
+    """tool0's rpy = (0.25, 0.5, -0.75) as the explicit product of the three matrices."""
+    tree = tree_from_urdf(DATA / "serial_arm.urdf")
+    r, p, y = 0.25, 0.5, -0.75
+    cr, sr, cp, sp, cy, sy = np.cos(r), np.sin(r), np.cos(p), np.sin(p), np.cos(y), np.sin(y)
+    expected = [
+        [cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr],
+        [sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr],
+        [-sp, cp * sr, cp * cr],
+    ]
+    tool = tree.body_names.index("tool0")
+    assert_close("tool0 body_rot", tree.body_rot[tool], expected, HAND_TOL)
+    assert_close("tool0 body_pos", tree.body_pos[tool], [0, 0, 0.12], 0.0)
+
+
+def test_serial_arm_joints() -> None:
+    tree = tree_from_urdf(DATA / "serial_arm.urdf")
+    assert tree.robot == "serial_arm"
+    assert tree.joint_types == ("revolute",) * 6
+    s = np.sqrt(0.5)
+    axes = [[0, 0, 1], [1, 0, 0], [0, 0.6, 0.8], [0, 0, -1], [s, s, 0], [0, 1, 0]]
+    assert_close("axes (j2: default x; j3, j5: normalised)", tree.joint_axes, axes, 2e-16)
+    assert_close("anchors", tree.joint_anchors, np.zeros((6, 3)), 0.0)
+    assert_close("refs", tree.joint_refs, np.zeros(6), 0.0)
+    limits = [[-3.1, 3.1], [-2, 2], [-2.5, 2.5], [-np.inf, np.inf], [-2, 2], [-6.28, 6.28]]
+    np.testing.assert_array_equal(tree.joint_limits, limits)  # j4 is continuous
+    assert tree.qpos_layout() == "qpos = [j1, j2, j3, j4, j5, j6]"
+
+
+def test_label_overrides_robot_name() -> None:
+    assert tree_from_urdf(DATA / "serial_arm.urdf", robot="arm.urdf").robot == "arm.urdf"
+
+
+def test_fixed_links_stay_frames() -> None:
+    tree = tree_from_urdf(DATA / "two_arms.urdf")
+    flange, tool = tree.frame_index("left_flange"), tree.frame_index("left_tool")
+    assert tree.body_parents[tool] == flange
+    assert tree.body_names[tree.body_parents[flange]] == "left_wrist"
+    assert "left_flange_joint" not in tree.joint_names
+    q = random_qpos(tree, 50, seed=1)
+    T = tree.fk(q)
+    offset = np.eye(4)
+    offset[:3, :3] = Rz(0.3) @ Ry(0.2) @ Rx(0.1)
+    offset[:3, 3] = [0.01, 0, 0.1]
+    assert_close("tool = flange @ origin", T[:, tool], T[:, flange] @ offset, 1e-15)
+
+
+def test_prismatic_limits_and_bodies_follow_joint_order() -> None:
+    tree = tree_from_urdf(DATA / "two_arms.urdf")
+    # links are listed right arm first; the joints, and so the bodies, left arm first
+    assert tree.body_names[:2] == ("torso", "left_shoulder")
+    assert tree.body_names[6] == "right_shoulder"
+    k = tree.joint_names.index("left_extend")
+    assert tree.joint_types[k] == "prismatic"
+    np.testing.assert_array_equal(tree.joint_limits[k], [-0.05, 0.25])
+
+
+def test_mimic_chain_resolved_to_independent_joint() -> None:
+    tree = tree_from_urdf(DATA / "two_arms.urdf")
+    mimics = dict(zip(tree.joint_names, tree.mimics, strict=True))
+    assert mimics["right_finger_a_joint"] == Mimic("right_grip", 0.05, 0.001)
+    b = mimics["right_finger_b_joint"]  # -2 * (0.05 grip + 0.001) + 0.01
+    assert b is not None and b.leader == "right_grip"
+    assert_close("chained multiplier, offset", [b.multiplier, b.offset], [-0.1, 0.008], 1e-17)
+    assert mimics["right_finger_tip_joint"] == Mimic("right_grip", 1.0, 0.0)
+    assert (tree.nq, len(tree.joint_names)) == (6, 9)
+    grip = tree.qpos_adr[tree.joint_names.index("right_grip")]
+    assert tree.qpos_adr[tree.joint_names.index("right_finger_b_joint")] == grip
+
+
+def test_package_meshes_are_never_opened(caplog: pytest.LogCaptureFixture) -> None:
+    with caplog.at_level(logging.DEBUG, logger="yourdfpy"):
+        tree = tree_from_urdf(DATA / "package_meshes.urdf")
+    assert not caplog.records, "yourdfpy looked for a mesh"
+    assert tree.body_names == ("base_link", "arm", "hand")
+    assert_close("arm offset", tree.body_pos[1], [0, 0, 0.1], 0.0)
+
+
+def test_floating_base_layout() -> None:
+    fixed = tree_from_urdf(DATA / "serial_arm.urdf")
+    tree = tree_from_urdf(DATA / "serial_arm.urdf", floating_base=True)
+    assert tree.joint_names == (FLOATING_BASE, *fixed.joint_names)
+    assert (tree.joint_types[0], tree.joint_bodies[0], tree.nq) == ("free", 0, 13)
+    np.testing.assert_array_equal(tree.qpos0[:7], [0, 0, 0, 1, 0, 0, 0])
+    q = random_qpos(tree, 20, seed=2)
+    T_base = np.eye(4)
+    quat = q[:, 3:7] / np.linalg.norm(q[:, 3:7], axis=1, keepdims=True)
+    for i in range(20):
+        T_base[:3, :3] = _quat_matrix(quat[i])
+        T_base[:3, 3] = q[i, :3]
+        assert_close(
+            "floating tree = base @ fixed tree", tree.fk(q[i]), T_base @ fixed.fk(q[i, 7:]), 1e-14
+        )
+
+
+def test_world_root_link_is_the_world() -> None:
+    tree = tree_from_urdf(DATA / "world_floating.urdf")
+    assert "world" not in tree.body_names
+    assert tree.body_names[0] == "base" and tree.body_parents[0] == -1
+    assert tree.joint_names[0] == "base_float" and tree.joint_types[0] == "free"
+    expected = [0, 0, 0.4, np.cos(0.1), 0, 0, np.sin(0.1)]  # origin xyz, rpy (0, 0, 0.2)
+    assert_close("qpos0 of the floating joint = its origin", tree.qpos0[:7], expected, 2e-16)
+
+
+# --- against MuJoCo -------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize(("fixture", "floating_base"), MUJOCO_CASES)
+def test_same_bodies_joints_and_qpos_order_as_mujoco(fixture: str, floating_base: bool) -> None:
+    tree = tree_from_urdf(DATA / fixture, floating_base=floating_base)
+    model = compile_with_mujoco(DATA / fixture, floating_base)
+    bodies = tuple(model.body(i).name for i in range(1, model.nbody))
+    joints = tuple(model.joint(j).name for j in range(model.njnt))
+    assert tree.body_names == bodies
+    assert tree.joint_names == joints
+    parents = tuple(model.body_parentid[1:] - 1)
+    assert tuple(tree.body_parents) == parents
+    independent = [j for j, m in enumerate(tree.mimics) if m is None]
+    mj_adr = model.jnt_qposadr[independent]
+    assert np.all(np.diff(mj_adr) > 0), "independent joints in the same qpos order"
+    if all(m is None for m in tree.mimics):
+        np.testing.assert_array_equal(tree.qpos_adr, model.jnt_qposadr)
+        assert tree.nq == model.nq
+
+
+@pytest.mark.parametrize(("fixture", "floating_base"), MUJOCO_CASES)
+def test_every_body_matches_mujoco(fixture: str, floating_base: bool) -> None:
+    tree = tree_from_urdf(DATA / fixture, floating_base=floating_base)
+    model = compile_with_mujoco(DATA / fixture, floating_base)
+    q = random_qpos(tree, N_SAMPLES, seed=3)
+    expected = mujoco_body_poses(model, tree, q)
+    T = tree.fk(q)
+    for b, name in enumerate(tree.body_names):
+        assert_close(f"{fixture}: {name}", T[:, b], expected[:, b], MJ_TOL)
+
+
+@pytest.mark.parametrize(
+    ("fixture", "frame"),
+    [
+        ("serial_arm.urdf", "tool0"),
+        ("serial_arm.urdf", "link3"),
+        ("two_arms.urdf", "left_tool"),
+        ("two_arms.urdf", "right_finger_tip"),  # two followers on the path
+        ("planar_2link.urdf", "tool"),
+        ("package_meshes.urdf", "hand"),
+    ],
+)
+def test_chain_matches_tree_and_mujoco(fixture: str, frame: str) -> None:
+    tree = tree_from_urdf(DATA / fixture)
+    chain = tree.chain(frame)
+    q = random_qpos(tree, N_SAMPLES, seed=4)
+    T_chain = chain.fk(joint_positions(tree, q, tree.path_joints(frame)))
+    b = tree.frame_index(frame)
+    assert_close(f"{frame}: chain vs tree", T_chain, tree.fk(q)[:, b], MJ_TOL)
+    expected = mujoco_body_poses(compile_with_mujoco(DATA / fixture, False), tree, q)
+    assert_close(f"{frame}: chain vs MuJoCo", T_chain, expected[:, b], MJ_TOL)
+
+
+# --- errors ---------------------------------------------------------------------------------
+
+
+def _urdf(joints: str, links: str = "base a b") -> str:
+    """A URDF with the given links and joint elements."""
+    link_xml = "".join(f'<link name="{name}"/>' for name in links.split())
+    return f'<robot name="r">{link_xml}{joints}</robot>'
+
+
+def _joint(name: str, kind: str, parent: str, child: str, extra: str = "") -> str:
+    return (
+        f'<joint name="{name}" type="{kind}"><parent link="{parent}"/>'
+        f'<child link="{child}"/>{extra}</joint>'
+    )
+
+
+CHAIN = _joint("ja", "continuous", "base", "a")
+ERROR_CASES = {
+    "bad XML": ("<robot name='r'><link name='a'></robot>", "not well-formed XML"),
+    "MJCF": ("<mujoco><worldbody/></mujoco>", "not a URDF: the root element is <mujoco>"),
+    "not a robot": ("<html/>", "not a URDF"),
+    "xacro": (
+        '<robot name="r" xmlns:xacro="http://www.ros.org/wiki/xacro"><xacro:macro name="m"/>'
+        "</robot>",
+        "unexpanded xacro",
+    ),
+    "no child": (
+        _urdf('<joint name="j" type="fixed"><parent link="base"/></joint>'),
+        "joint 'j' has no <child",
+    ),
+    "unnamed link": ('<robot name="r"><link/></robot>', "a <link> has no 'name'"),
+    "planar": (_urdf(_joint("jp", "planar", "base", "a"), "base a"), "joint 'jp' is planar"),
+    "zero axis": (
+        _urdf(_joint("jz", "continuous", "base", "a", '<axis xyz="0 0 0"/>'), "base a"),
+        "joint 'jz' has a zero <axis",
+    ),
+    "bad number": (
+        _urdf(_joint("jn", "continuous", "base", "a", '<origin xyz="0 x 0"/>'), "base a"),
+        "malformed URDF",
+    ),
+    "NaN origin": (
+        _urdf(_joint("jn", "continuous", "base", "a", '<origin rpy="nan 0 0"/>'), "base a"),
+        "body_rot contains NaN or inf",
+    ),
+    "unknown type": (_urdf(_joint("ju", "hinge", "base", "a"), "base a"), "a URDF joint is one of"),
+    "unknown link": (_urdf(_joint("ja", "fixed", "base", "c")), "link 'c', which is not defined"),
+    "two parents": (
+        _urdf(CHAIN + _joint("jb", "fixed", "base", "a")),
+        "link 'a' is the child of both joints 'ja' and 'jb'",
+    ),
+    "two roots": (_urdf(CHAIN), "2 root links (no joint's child): ['base', 'b']"),
+    "cycle": (
+        _urdf(
+            CHAIN + _joint("jb", "fixed", "c", "b") + _joint("jc", "fixed", "b", "c"), "base a b c"
+        ),
+        "links ['b', 'c'] are not reachable",
+    ),
+    "deep floating": (
+        _urdf(CHAIN + _joint("jf", "floating", "a", "b")),
+        "floating joint 'jf' hangs below link 'a'",
+    ),
+    "inverted limits": (
+        _urdf(
+            CHAIN + _joint("jb", "revolute", "a", "b", '<limit lower="1" upper="-1"/>'),
+        ),
+        "joint 'jb' has <limit lower=1 upper=-1>",
+    ),
+    "mimic unknown joint": (
+        _urdf(CHAIN + _joint("jb", "continuous", "a", "b", '<mimic joint="jaa"/>')),
+        "joint 'jb' mimics 'jaa', which is not a joint: did you mean 'ja'?",
+    ),
+    "mimic fixed joint": (
+        _urdf(
+            _joint("ja", "fixed", "base", "a")
+            + _joint("jb", "continuous", "a", "b", '<mimic joint="ja"/>')
+        ),
+        "but 'ja' is a fixed joint",
+    ),
+    "mimic cycle": (
+        _urdf(
+            _joint("ja", "continuous", "base", "a", '<mimic joint="jb"/>')
+            + _joint("jb", "continuous", "a", "b", '<mimic joint="ja"/>')
+        ),
+        "mimic joints form a cycle: ja -> jb -> ja",
+    ),
+    "leader after follower": (
+        _urdf(
+            _joint("ja", "continuous", "base", "a", '<mimic joint="jb"/>')
+            + _joint("jb", "continuous", "a", "b")
+        ),
+        "joint 'ja' mimics 'jb', which comes after it",
+    ),
+}
+
+
+@pytest.mark.parametrize(("text", "phrase"), ERROR_CASES.values(), ids=ERROR_CASES.keys())
+def test_errors_are_one_line(tmp_path: pathlib.Path, text: str, phrase: str) -> None:
+    path = tmp_path / "robot.urdf"
+    path.write_text(text)
+    with pytest.raises(ModelError) as info:
+        tree_from_urdf(path)
+    message = str(info.value)
+    assert phrase in message
+    assert message.startswith(str(path)) and "\n" not in message
+
+
+def test_missing_file(tmp_path: pathlib.Path) -> None:
+    with pytest.raises(ModelError, match="no such URDF file; check the path"):
+        tree_from_urdf(tmp_path / "nope.urdf")
+
+
+def test_floating_base_on_world_root_refused() -> None:
+    with pytest.raises(ModelError, match="the root link is 'world'"):
+        tree_from_urdf(DATA / "world_floating.urdf", floating_base=True)
+
+
+def test_floating_base_name_taken(tmp_path: pathlib.Path) -> None:
+    path = tmp_path / "robot.urdf"
+    path.write_text(_urdf(_joint(FLOATING_BASE, "continuous", "base", "a"), "base a"))
+    with pytest.raises(ModelError, match="already named 'floating_base'"):
+        tree_from_urdf(path, floating_base=True)
+    assert tree_from_urdf(path).joint_names == (FLOATING_BASE,)
+
+
+def test_without_yourdfpy(monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setitem(sys.modules, "yourdfpy", None)  # import raises ImportError
+    with pytest.raises(PoekinError, match=r"needs yourdfpy: pip install 'poekin\[urdf\]'"):
+        tree_from_urdf(DATA / "serial_arm.urdf")
