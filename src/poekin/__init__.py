@@ -22,7 +22,8 @@ from poekin.errors import (
     UnknownParamsError,
     UnknownRobotError,
 )
-from poekin.import_mujoco import chain_from_model, load, load_tree, tree_from_model
+from poekin.import_mujoco import chain_from_model, tree_from_model
+from poekin.import_urdf import tree_from_urdf
 from poekin.lie import (
     adjoint,
     exp_se3,
@@ -44,6 +45,7 @@ from poekin.lie import (
     vee_se3,
     vee_so3,
 )
+from poekin.loading import load, load_tree
 from poekin.paramfile import load_params
 from poekin.params import (
     PARAM_SETS,
@@ -115,6 +117,7 @@ __all__ = [
     "sample_joint_values",
     "sample_qpos",
     "tree_from_model",
+    "tree_from_urdf",
     "ur5e_chain",
     "vec_to_se3",
     "vec_to_so3",

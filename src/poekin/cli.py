@@ -66,7 +66,7 @@ def _params(spec: str) -> Chain | DHTable:
 
 def _params_or_chain(args: argparse.Namespace) -> Chain | DHTable:
     """``--params`` if given, else the chain of the positional model SOURCE (not both)."""
-    from poekin.import_mujoco import load
+    from poekin.loading import load
 
     if args.params and args.source:
         raise InputError("give a model SOURCE or --params FILE|NAME, not both")
@@ -198,7 +198,7 @@ def _matrix_lines(M: np.ndarray[Any, Any]) -> list[str]:
 
 
 def _cmd_screws(args: argparse.Namespace, out: TextIO) -> int:
-    from poekin.import_mujoco import load
+    from poekin.loading import load
 
     chain = load(_model_source(args, None), args.frame)
     if args.json:
@@ -246,7 +246,7 @@ def _fk_function(args: argparse.Namespace) -> tuple[Callable[[Any], Any], tuple[
     if not args.all_frames:
         chain = _params_or_chain(args)
         return chain.fk, (chain.frame,)
-    from poekin.import_mujoco import load_tree
+    from poekin.loading import load_tree
 
     if args.params or args.frame:
         raise InputError(
@@ -349,7 +349,7 @@ def _cmd_dh(args: argparse.Namespace, out: TextIO) -> int:
 
 def _cmd_diagnose(args: argparse.Namespace, out: TextIO) -> int:
     from poekin.diagnose import diagnose
-    from poekin.import_mujoco import load
+    from poekin.loading import load
 
     _check_run_options(args)
     yours = _params(args.params)
@@ -431,7 +431,7 @@ def _build_parser() -> argparse.ArgumentParser:
             metavar="SOURCE",
             nargs="?",
             default=None,
-            help="Menagerie robot name or path to an MJCF file"
+            help="Menagerie robot name, or path to an MJCF or URDF file"
             + (f" (default: {default})" if default else ""),
         )
         p.add_argument(
@@ -587,7 +587,7 @@ def _build_parser() -> argparse.ArgumentParser:
     g.add_argument(
         "--against",
         metavar="SOURCE",
-        help=f"Menagerie robot name or MJCF path (default: {DEFAULT_ROBOT})",
+        help=f"Menagerie robot name, MJCF or URDF path (default: {DEFAULT_ROBOT})",
     )
     g.add_argument(
         "--frame", metavar="F", help="end frame: site or body name (default: the only site)"

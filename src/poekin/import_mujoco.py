@@ -17,7 +17,6 @@ pose for the same numbers.
 
 from __future__ import annotations
 
-import os
 from typing import Literal
 
 import mujoco
@@ -27,7 +26,6 @@ from numpy.typing import NDArray
 from poekin import lie
 from poekin.chain import Chain, JointType
 from poekin.errors import UnknownFrameError, did_you_mean
-from poekin.sources import LoadedModel, load_model
 from poekin.tree import Tree, TreeJointType
 
 __all__ = [
@@ -35,8 +33,6 @@ __all__ = [
     "chain_from_model",
     "find_frame",
     "frame_pose",
-    "load",
-    "load_tree",
     "site_and_body_names",
     "tree_from_model",
 ]
@@ -161,35 +157,3 @@ def chain_from_model(model: mujoco.MjModel, frame: str | None = None, *, robot: 
     """
     _, _, name = find_frame(model, frame)
     return tree_from_model(model, robot=robot).chain(name)
-
-
-def load(source: str | os.PathLike[str] | LoadedModel, frame: str | None = None) -> Chain:
-    """Load a PoE chain from a Menagerie robot name or an MJCF path.
-
-    Args:
-        source: e.g. ``"universal_robots_ur5e"`` (resolved by ``mujoco_menagerie``, which honours
-            ``MENAGERIE_ROOT``), a path to an MJCF file, or an already loaded model.
-        frame: the end frame, a site or body name; None means the model's only site.
-
-    Returns:
-        The chain of hinge and slide joints from the world to ``frame``.
-
-    Example:
-        >>> chain = poekin.load("universal_robots_ur5e")  # frame: attachment_site
-        >>> chain.fk([0.0, -1.57, 1.57, 0.0, 0.0, 0.0]).shape
-        (4, 4)
-    """
-    loaded = source if isinstance(source, LoadedModel) else load_model(source)
-    return chain_from_model(loaded.model, frame, robot=loaded.robot)
-
-
-def load_tree(source: str | os.PathLike[str] | LoadedModel) -> Tree:
-    """Load the whole kinematic tree of a Menagerie robot name or an MJCF path.
-
-    Example:
-        >>> tree = poekin.load_tree("unitree_go2")  # free base + 12 hinges
-        >>> tree.fk(tree.qpos0).shape               # every body and site
-        (14, 4, 4)
-    """
-    loaded = source if isinstance(source, LoadedModel) else load_model(source)
-    return tree_from_model(loaded.model, robot=loaded.robot)

@@ -380,7 +380,10 @@ def load_model(source: str | os.PathLike[str]) -> LoadedModel:
     """Resolve ``source`` and compile it with MuJoCo, kinematics-only if assets are missing.
 
     Args:
-        source: a Menagerie robot name (``"universal_robots_ur5e"``) or a path to an MJCF file.
+        source: a Menagerie robot name (``"universal_robots_ur5e"``) or a path to an MJCF or
+            URDF file. A URDF is compiled with ``fusestatic`` off, so that every link stays a
+            body (poekin reads URDF itself with :func:`poekin.import_urdf.tree_from_urdf`;
+            this compile is the reference it is verified against).
 
     Warns:
         AssetsStrippedWarning: asset files were missing; the one-line message says what was
@@ -396,6 +399,9 @@ def load_model(source: str | os.PathLike[str]) -> LoadedModel:
         spec = mujoco.MjSpec.from_file(str(xml_path))
     except Exception as e:  # MuJoCo raises ValueError for XML errors, but be robust
         raise ModelError(f"cannot read {xml_path}: {_first_line(e)}") from e
+    if xml_path.suffix.lower() == ".urdf":
+        spec.compiler.fusestatic = False  # keep fixed-joint links as bodies: they are frames
+        _floor_inertia(spec)  # URDF links often have no <inertial>
     found, missing = _scan_assets(spec, xml)
     files = tuple(sorted({p.resolve() for p in [*xml.files, *found]}))
     stripped, weighty = _strip_for_kinematics(spec, missing) if missing else ((), [])

@@ -310,13 +310,28 @@ class Tree:
 
     # --- forward kinematics ---------------------------------------------------------------
 
+    def full_qpos(self, qpos: ArrayLike) -> FloatArray:
+        """``qpos`` with an entry for every joint, mimic followers included.
+
+        ``(..., nq) -> (..., nq_full)``: each joint's numbers in joint order, starting at
+        :attr:`full_qpos_adr`; a follower's value is ``multiplier * leader + offset``. This is
+        MuJoCo's layout for a model where every joint has its own ``qpos`` entry (MuJoCo's
+        compile of the same URDF); without mimic joints it is ``qpos`` itself.
+        """
+        q = as_joint_values(qpos, self.nq, what="qpos values", layout=self.qpos_layout())
+        return self._expand(q)
+
+    @property
+    def full_qpos_adr(self) -> IntArray:
+        """``(nj,)`` where each joint's numbers start in :meth:`full_qpos`."""
+        sizes = [_QPOS_SIZE[t] for t in self.joint_types]
+        adr = np.concatenate([[0], np.cumsum(sizes)[:-1]]).astype(np.intp)
+        adr.flags.writeable = False
+        return adr
+
     def _expand(self, qpos: FloatArray) -> FloatArray:
         """One set of slots per joint: mimic joints get ``multiplier * leader + offset``."""
         return qpos[..., self._slots] * self._slot_scale + self._slot_offset
-
-    def _slot_adr(self) -> IntArray:
-        sizes = [_QPOS_SIZE[t] for t in self.joint_types]
-        return np.concatenate([[0], np.cumsum(sizes)[:-1]]).astype(np.intp)
 
     def _body_poses(
         self, x: FloatArray, joints_out: tuple[FloatArray, FloatArray] | None = None
@@ -333,7 +348,7 @@ class Tree:
         p = np.empty((*batch, nb + 1, 3))
         R[..., 0, :, :] = np.eye(3)
         p[..., 0, :] = 0.0
-        slot = self._slot_adr()
+        slot = self.full_qpos_adr
         for b in range(nb):
             parent = self.body_parents[b] + 1
             R_b = R[..., parent, :, :] @ self.body_rot[b]
@@ -424,7 +439,7 @@ class Tree:
                     "'poekin fk SOURCE --all-frames', or choose a frame whose path has none"
                 )
         x = self._expand(self.qpos0)
-        slot = self._slot_adr()
+        slot = self.full_qpos_adr
         x[slot[list(joints)]] = 0.0  # every chain joint at position 0
         axes = np.zeros((len(self.joint_names), 3))
         anchors = np.zeros_like(axes)

@@ -21,8 +21,9 @@ from tqdm import tqdm
 from poekin import lie
 from poekin.chain import Chain
 from poekin.dh import DHTable
-from poekin.errors import InputError
+from poekin.errors import InputError, ModelError
 from poekin.import_mujoco import FrameKind, find_frame, frame_pose, tree_from_model
+from poekin.loading import default_frame, is_urdf, load_tree
 from poekin.sources import LoadedModel
 from poekin.tree import Tree
 
@@ -267,14 +268,17 @@ def verify(
         progress: show a progress bar on a terminal.
     """
     model = loaded.model
-    tree = tree_from_model(model, robot=loaded.robot)
+    urdf = is_urdf(loaded)
+    tree = load_tree(loaded) if urdf else tree_from_model(model, robot=loaded.robot)
     if all_frames:
         if frame is not None or chain is not None or params is not None:
             raise InputError("all_frames checks the model's own FK: give no frame or parameters")
         names = list(tree.frame_names)
     else:
-        names = [find_frame(model, frame)[2]]
-        if chain is not None or params is not None or not _has_ball_or_free(tree, names[0]):
+        names = [_frame_name(model, tree, frame, urdf)]
+        if not urdf and (
+            chain is not None or params is not None or not _has_ball_or_free(tree, names[0])
+        ):
             report = _verify_chain(
                 loaded,
                 chain or tree.chain(names[0]),
@@ -282,19 +286,22 @@ def verify(
                 sampling=(samples, seed, within_limits, progress),
             )
             return dataclasses.replace(report, pos_tol=pos_tol, ori_tol=ori_tol)
+        if params is not None:
+            raise InputError("--params is checked against MJCF models and Menagerie robots")
     qpos = sample_qpos(tree, samples, seed=seed, within_limits=within_limits)
+    full = _mujoco_qpos(tree, model, qpos, loaded)
     mj_ids = [find_frame(model, n)[:2] for n in names]
-    T_ref = mujoco_frame_poses(model, qpos, mj_ids, progress=progress)
+    T_ref = mujoco_frame_poses(model, full, mj_ids, progress=progress)
     idx = [tree.frame_index(n) for n in names]
     per_frame = {"tree FK": pose_errors(T_ref, tree.fk(qpos)[:, idx])}
     chains = [(f, tree.chain(n)) for f, n in enumerate(names) if not _has_ball_or_free(tree, n)]
-    if all_frames and chains:
+    if chains:
         for method, fk in (("space PoE", Chain.fk), ("body PoE", Chain.fk_body)):
             pos = np.zeros((samples, len(names)))
             ori = np.zeros((samples, len(names)))
             for f, c in chains:
-                q = qpos[:, list(c.qpos_indices or ())]
-                pos[:, f], ori[:, f] = pose_errors(T_ref[:, f], fk(c, q))
+                path = list(tree.full_qpos_adr[list(tree.path_joints(names[f]))])
+                pos[:, f], ori[:, f] = pose_errors(T_ref[:, f], fk(c, full[:, path]))
             per_frame[method] = (pos, ori)
     frame_errors = {
         n: (
@@ -315,6 +322,33 @@ def verify(
         ori_err={m: np.max(e[1], axis=1, initial=0.0) for m, e in per_frame.items()},
         frame_errors=frame_errors,
     )
+
+
+def _frame_name(model: mujoco.MjModel, tree: Tree, frame: str | None, urdf: bool) -> str:
+    """The frame to check: ``frame``, or the model's only site (URDF: its only leaf link)."""
+    if urdf:
+        return frame if frame is not None else default_frame(tree)
+    return find_frame(model, frame)[2]
+
+
+def _mujoco_qpos(
+    tree: Tree, model: mujoco.MjModel, qpos: FloatArray, loaded: LoadedModel
+) -> FloatArray:
+    """MuJoCo's ``qpos`` for the tree's ``qpos``: mimic followers get their own entries.
+
+    Raises:
+        ModelError: MuJoCo compiled the model with other joints than poekin read.
+    """
+    mj_names = [
+        mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_JOINT, j) or "" for j in range(model.njnt)
+    ]
+    full = tree.full_qpos(qpos)
+    if full.shape[-1] != model.nq or (is_urdf(loaded) and mj_names != list(tree.joint_names)):
+        raise ModelError(
+            f"MuJoCo compiles {loaded.xml_path.name} with joints {mj_names} but poekin reads "
+            f"{list(tree.joint_names)}; the two cannot be compared"
+        )
+    return full
 
 
 def _has_ball_or_free(tree: Tree, frame: str) -> bool:

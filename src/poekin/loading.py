@@ -1,0 +1,99 @@
+"""``poekin.load`` and ``poekin.load_tree``: one entry point for Menagerie names, MJCF and URDF.
+
+MJCF models and Menagerie robots are compiled by MuJoCo (:mod:`poekin.sources`) and read from
+the compiled model (:mod:`poekin.import_mujoco`). A ``.urdf`` path is read by
+:mod:`poekin.import_urdf`, without meshes.
+"""
+
+from __future__ import annotations
+
+import os
+import pathlib
+
+from poekin.chain import Chain
+from poekin.errors import InputError, UnknownFrameError, did_you_mean
+from poekin.import_mujoco import chain_from_model, tree_from_model
+from poekin.sources import LoadedModel, load_model
+from poekin.tree import Tree
+
+__all__ = ["default_frame", "is_urdf", "load", "load_tree"]
+
+Source = str | os.PathLike[str] | LoadedModel
+
+
+def is_urdf(source: Source) -> bool:
+    """Whether ``source`` is a URDF file (by its ``.urdf`` suffix)."""
+    path = source.xml_path if isinstance(source, LoadedModel) else pathlib.Path(source)
+    return path.suffix.lower() == ".urdf"
+
+
+def _urdf_path(source: Source) -> pathlib.Path:
+    return source.xml_path if isinstance(source, LoadedModel) else pathlib.Path(source)
+
+
+def load_tree(source: Source, *, floating_base: bool = False) -> Tree:
+    """Load the whole kinematic tree of a Menagerie robot, an MJCF file or a URDF file.
+
+    Args:
+        source: e.g. ``"unitree_go2"`` (resolved by ``mujoco_menagerie``, which honours
+            ``MENAGERIE_ROOT``), a path to an MJCF or ``.urdf`` file, or a loaded model.
+        floating_base: URDF only: give the root link a free joint named ``floating_base``
+            (``qpos`` then starts with ``x y z qw qx qy qz``). An MJCF model says so itself
+            with ``<freejoint/>``.
+
+    Example:
+        >>> tree = poekin.load_tree("unitree_go2")  # free base + 12 hinges
+        >>> tree.fk(tree.qpos0).shape               # every body and site
+        (14, 4, 4)
+    """
+    if is_urdf(source):
+        from poekin.import_urdf import tree_from_urdf
+
+        return tree_from_urdf(_urdf_path(source), floating_base=floating_base)
+    if floating_base:
+        raise InputError(
+            "floating_base applies to URDF; an MJCF model declares a free base itself "
+            "(<freejoint/> in the root body)"
+        )
+    loaded = source if isinstance(source, LoadedModel) else load_model(source)
+    return tree_from_model(loaded.model, robot=loaded.robot)
+
+
+def default_frame(tree: Tree) -> str:
+    """The end frame of a URDF tree when none is named: its only leaf link.
+
+    Raises:
+        UnknownFrameError: the tree has several leaf links; the message lists them.
+    """
+    parents = set(tree.body_parents.tolist())
+    leaves = [b for k, b in enumerate(tree.body_names) if k not in parents]
+    if len(leaves) == 1:
+        return leaves[0]
+    raise UnknownFrameError(
+        f"the model has {len(leaves)} end links, so name the end frame with --frame / frame=: "
+        f"{did_you_mean('', leaves)}"
+    )
+
+
+def load(source: Source, frame: str | None = None) -> Chain:
+    """Load a PoE chain from a Menagerie robot name, an MJCF path or a URDF path.
+
+    Args:
+        source: e.g. ``"universal_robots_ur5e"``, a path to an MJCF or ``.urdf`` file, or an
+            already loaded model.
+        frame: the end frame, a site or body (URDF: link) name; None means the model's only
+            site (URDF: its only leaf link).
+
+    Returns:
+        The chain of hinge and slide joints from the world to ``frame``.
+
+    Example:
+        >>> chain = poekin.load("universal_robots_ur5e")  # frame: attachment_site
+        >>> chain.fk([0.0, -1.57, 1.57, 0.0, 0.0, 0.0]).shape
+        (4, 4)
+    """
+    if is_urdf(source):
+        tree = load_tree(source)
+        return tree.chain(frame if frame is not None else default_frame(tree))
+    loaded = source if isinstance(source, LoadedModel) else load_model(source)
+    return chain_from_model(loaded.model, frame, robot=loaded.robot)
