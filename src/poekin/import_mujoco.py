@@ -114,6 +114,7 @@ def tree_from_model(model: mujoco.MjModel, *, robot: str = "") -> Tree:
         return np.asarray(lie.quat_to_rotation(q), dtype=np.float64)
 
     joints = range(model.njnt)
+    site_names, body_names = site_and_body_names(model)
     hinge_like = [int(model.jnt_type[j]) in _JOINT_TYPES for j in joints]
     limits = np.where(
         (model.jnt_limited.astype(bool) & np.array(hinge_like, dtype=bool))[:, None],
@@ -122,7 +123,7 @@ def tree_from_model(model: mujoco.MjModel, *, robot: str = "") -> Tree:
     )
     refs = np.array([model.qpos0[model.jnt_qposadr[j]] if hinge_like[j] else 0.0 for j in joints])
     return Tree(
-        body_names=tuple(site_and_body_names(model)[1]),
+        body_names=tuple(body_names),
         body_parents=model.body_parentid[1:] - 1,
         body_pos=model.body_pos[1:],
         body_rot=quat(model.body_quat[1:]),
@@ -134,7 +135,7 @@ def tree_from_model(model: mujoco.MjModel, *, robot: str = "") -> Tree:
         joint_refs=refs,
         joint_limits=limits,
         mimics=(None,) * model.njnt,
-        site_names=tuple(site_and_body_names(model)[0]),
+        site_names=tuple(site_names),
         site_bodies=model.site_bodyid - 1,
         site_pos=model.site_pos,
         site_rot=quat(model.site_quat),

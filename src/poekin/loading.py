@@ -21,14 +21,13 @@ __all__ = ["default_frame", "is_urdf", "load", "load_tree"]
 Source = str | os.PathLike[str] | LoadedModel
 
 
+def _path(source: Source) -> pathlib.Path:
+    return source.xml_path if isinstance(source, LoadedModel) else pathlib.Path(source)
+
+
 def is_urdf(source: Source) -> bool:
     """Whether ``source`` is a URDF file (by its ``.urdf`` suffix)."""
-    path = source.xml_path if isinstance(source, LoadedModel) else pathlib.Path(source)
-    return path.suffix.lower() == ".urdf"
-
-
-def _urdf_path(source: Source) -> pathlib.Path:
-    return source.xml_path if isinstance(source, LoadedModel) else pathlib.Path(source)
+    return _path(source).suffix.lower() == ".urdf"
 
 
 def load_tree(source: Source, *, floating_base: bool = False) -> Tree:
@@ -49,7 +48,7 @@ def load_tree(source: Source, *, floating_base: bool = False) -> Tree:
     if is_urdf(source):
         from poekin.import_urdf import tree_from_urdf
 
-        return tree_from_urdf(_urdf_path(source), floating_base=floating_base)
+        return tree_from_urdf(_path(source), floating_base=floating_base)
     if floating_base:
         raise InputError(
             "floating_base applies to URDF; an MJCF model declares a free base itself "

@@ -24,6 +24,7 @@ Frames: every body, then every site. A site sits at a fixed pose in its body (or
 from __future__ import annotations
 
 import dataclasses
+import functools
 from collections.abc import Sequence
 from typing import Any, Literal
 
@@ -133,6 +134,7 @@ class Tree:
     _slot_offset: FloatArray = dataclasses.field(init=False, repr=False)
     _body_joints: tuple[tuple[int, ...], ...] = dataclasses.field(init=False, repr=False)
     _nq: int = dataclasses.field(init=False, repr=False)
+    _full_adr: IntArray = dataclasses.field(init=False, repr=False)
 
     def __post_init__(self) -> None:
         set_ = object.__setattr__
@@ -237,6 +239,10 @@ class Tree:
         set_(self, "_slot_scale", np.array(scale))
         set_(self, "_slot_offset", np.array(offset))
         set_(self, "_nq", nq)
+        sizes = [_QPOS_SIZE[t] for t in self.joint_types]
+        full_adr = np.concatenate([[0], np.cumsum(sizes)[:-1]]).astype(np.intp)
+        full_adr.flags.writeable = False
+        set_(self, "_full_adr", full_adr)
         set_(
             self,
             "_body_joints",
@@ -285,6 +291,10 @@ class Tree:
 
     def qpos_layout(self) -> str:
         """The qpos layout in words: ``qpos = [base (free: x y z qw qx qy qz), j1, ...]``."""
+        return self._layout_text
+
+    @functools.cached_property
+    def _layout_text(self) -> str:
         parts = [
             name if kind in ("revolute", "prismatic") else f"{name} ({kind}: {_QPOS_WORDS[kind]})"
             for name, kind, mimic in zip(
@@ -318,16 +328,12 @@ class Tree:
         MuJoCo's layout for a model where every joint has its own ``qpos`` entry (MuJoCo's
         compile of the same URDF); without mimic joints it is ``qpos`` itself.
         """
-        q = as_joint_values(qpos, self.nq, what="qpos values", layout=self.qpos_layout())
-        return self._expand(q)
+        return self._expand(self._as_qpos(qpos))
 
     @property
     def full_qpos_adr(self) -> IntArray:
         """``(nj,)`` where each joint's numbers start in :meth:`full_qpos`."""
-        sizes = [_QPOS_SIZE[t] for t in self.joint_types]
-        adr = np.concatenate([[0], np.cumsum(sizes)[:-1]]).astype(np.intp)
-        adr.flags.writeable = False
-        return adr
+        return self._full_adr
 
     def _expand(self, qpos: FloatArray) -> FloatArray:
         """One set of slots per joint: mimic joints get ``multiplier * leader + offset``."""
@@ -348,7 +354,7 @@ class Tree:
         p = np.empty((*batch, nb + 1, 3))
         R[..., 0, :, :] = np.eye(3)
         p[..., 0, :] = 0.0
-        slot = self.full_qpos_adr
+        slot = self._full_adr
         for b in range(nb):
             parent = self.body_parents[b] + 1
             R_b = R[..., parent, :, :] @ self.body_rot[b]
@@ -385,14 +391,19 @@ class Tree:
         Returns:
             ``(..., n_frames, 4, 4)``: ``T_world_frame`` for each of :attr:`frame_names`.
         """
-        q = as_joint_values(qpos, self.nq, what="qpos values", layout=self.qpos_layout())
-        R, p = self._body_poses(self._expand(q))
+        return self._frame_poses(*self._body_poses(self._expand(self._as_qpos(qpos))))
+
+    def _as_qpos(self, qpos: ArrayLike) -> FloatArray:
+        return as_joint_values(qpos, self.nq, what="qpos values", layout=self._layout_text)
+
+    def _frame_poses(self, R: FloatArray, p: FloatArray) -> FloatArray:
+        """``(..., n_frames, 4, 4)`` body then site poses from :meth:`_body_poses`' output."""
         site_parent = self.site_bodies + 1
         R_s = R[..., site_parent, :, :] @ self.site_rot
         p_s = (
             p[..., site_parent, :] + (R[..., site_parent, :, :] @ self.site_pos[..., None])[..., 0]
         )
-        T = np.zeros((*q.shape[:-1], self.n_frames, 4, 4))
+        T = np.zeros((*R.shape[:-3], self.n_frames, 4, 4))
         nb = len(self.body_names)
         T[..., :nb, :3, :3] = R[..., 1:, :, :]
         T[..., :nb, :3, 3] = p[..., 1:, :]
@@ -439,20 +450,10 @@ class Tree:
                     "'poekin fk SOURCE --all-frames', or choose a frame whose path has none"
                 )
         x = self._expand(self.qpos0)
-        slot = self.full_qpos_adr
-        x[slot[list(joints)]] = 0.0  # every chain joint at position 0
+        x[self._full_adr[list(joints)]] = 0.0  # every chain joint at position 0
         axes = np.zeros((len(self.joint_names), 3))
         anchors = np.zeros_like(axes)
-        R, p = self._body_poses(x, (axes, anchors))
-        home = np.eye(4)
-        nb = len(self.body_names)
-        body = self._frame_body(index) + 1
-        if index < nb:
-            home[:3, :3], home[:3, 3] = R[body], p[body]
-        else:
-            s = index - nb
-            home[:3, :3] = R[body] @ self.site_rot[s]
-            home[:3, 3] = p[body] + R[body] @ self.site_pos[s]
+        home = self._frame_poses(*self._body_poses(x, (axes, anchors)))[index]
         screws = np.zeros((len(joints), 6))
         types: list[JointType] = []
         for row, k in enumerate(joints):

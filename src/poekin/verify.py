@@ -276,40 +276,18 @@ def verify(
         names = list(tree.frame_names)
     else:
         names = [_frame_name(model, tree, frame, urdf)]
-        if not urdf and (
-            chain is not None or params is not None or not _has_ball_or_free(tree, names[0])
-        ):
-            report = _verify_chain(
-                loaded,
-                chain or tree.chain(names[0]),
-                params,
-                sampling=(samples, seed, within_limits, progress),
-            )
-            return dataclasses.replace(report, pos_tol=pos_tol, ori_tol=ori_tol)
-        if params is not None:
-            raise InputError("--params is checked against MJCF models and Menagerie robots")
-    qpos = sample_qpos(tree, samples, seed=seed, within_limits=within_limits)
-    full = _mujoco_qpos(tree, model, qpos, loaded)
-    mj_ids = [find_frame(model, n)[:2] for n in names]
-    T_ref = mujoco_frame_poses(model, full, mj_ids, progress=progress)
-    idx = [tree.frame_index(n) for n in names]
-    per_frame = {"tree FK": pose_errors(T_ref, tree.fk(qpos)[:, idx])}
-    chains = [(f, tree.chain(n)) for f, n in enumerate(names) if not _has_ball_or_free(tree, n)]
-    if chains:
-        for method, fk in (("space PoE", Chain.fk), ("body PoE", Chain.fk_body)):
-            pos = np.zeros((samples, len(names)))
-            ori = np.zeros((samples, len(names)))
-            for f, c in chains:
-                path = list(tree.full_qpos_adr[list(tree.path_joints(names[f]))])
-                pos[:, f], ori[:, f] = pose_errors(T_ref[:, f], fk(c, full[:, path]))
-            per_frame[method] = (pos, ori)
-    frame_errors = {
-        n: (
-            max(float(np.max(p[:, f], initial=0.0)) for p, _ in per_frame.values()),
-            max(float(np.max(o[:, f], initial=0.0)) for _, o in per_frame.values()),
-        )
-        for f, n in enumerate(names)
-    }
+    by_chain = not all_frames and not urdf
+    by_chain &= chain is not None or params is not None or not _has_ball_or_free(tree, names[0])
+    if by_chain:  # one frame reached by hinges and slides: its chain's joints move, as in the lab
+        chain = chain or tree.chain(names[0])
+        names = [chain.frame]
+        q = sample_joint_values(chain, samples, seed=seed, within_limits=within_limits)
+        errors = _chain_errors(loaded, chain, params, q, progress)
+    elif params is not None:
+        raise InputError("--params is checked against MJCF models and Menagerie robots")
+    else:  # the whole tree moves
+        qpos = sample_qpos(tree, samples, seed=seed, within_limits=within_limits)
+        errors = _tree_errors(loaded, tree, names, qpos, progress)
     return VerifyReport(
         robot=loaded.robot,
         frame="all frames" if all_frames else names[0],
@@ -318,10 +296,43 @@ def verify(
         within_limits=within_limits,
         pos_tol=pos_tol,
         ori_tol=ori_tol,
-        pos_err={m: np.max(e[0], axis=1, initial=0.0) for m, e in per_frame.items()},
-        ori_err={m: np.max(e[1], axis=1, initial=0.0) for m, e in per_frame.items()},
-        frame_errors=frame_errors,
+        pos_err={m: np.max(e[0], axis=1, initial=0.0) for m, e in errors.items()},
+        ori_err={m: np.max(e[1], axis=1, initial=0.0) for m, e in errors.items()},
+        frame_errors={
+            n: (
+                max(float(np.max(p[:, f], initial=0.0)) for p, _ in errors.values()),
+                max(float(np.max(o[:, f], initial=0.0)) for _, o in errors.values()),
+            )
+            for f, n in enumerate(names)
+        },
     )
+
+
+# Per method, ``(N, n_frames)`` position and orientation errors.
+_Errors = dict[str, tuple[FloatArray, FloatArray]]
+
+
+def _tree_errors(
+    loaded: LoadedModel, tree: Tree, names: list[str], qpos: FloatArray, progress: bool
+) -> _Errors:
+    """The tree's FK of ``names`` on ``qpos``, and the space and body PoE of each of those
+    frames that has a chain, against ``mj_forward``."""
+    model = loaded.model
+    full = _mujoco_qpos(tree, model, qpos, loaded)
+    mj_ids = [find_frame(model, n)[:2] for n in names]
+    T_ref = mujoco_frame_poses(model, full, mj_ids, progress=progress)
+    idx = [tree.frame_index(n) for n in names]
+    errors = {"tree FK": pose_errors(T_ref, tree.fk(qpos)[:, idx])}
+    chains = [(f, tree.chain(n)) for f, n in enumerate(names) if not _has_ball_or_free(tree, n)]
+    if chains:
+        for method, fk in (("space PoE", Chain.fk), ("body PoE", Chain.fk_body)):
+            pos = np.zeros((len(qpos), len(names)))
+            ori = np.zeros((len(qpos), len(names)))
+            for f, c in chains:
+                path = list(tree.full_qpos_adr[list(tree.path_joints(names[f]))])
+                pos[:, f], ori[:, f] = pose_errors(T_ref[:, f], fk(c, full[:, path]))
+            errors[method] = (pos, ori)
+    return errors
 
 
 def _frame_name(model: mujoco.MjModel, tree: Tree, frame: str | None, urdf: bool) -> str:
@@ -355,23 +366,21 @@ def _has_ball_or_free(tree: Tree, frame: str) -> bool:
     return any(tree.joint_types[k] in ("ball", "free") for k in tree.path_joints(frame))
 
 
-def _verify_chain(
+def _chain_errors(
     loaded: LoadedModel,
     chain: Chain,
     params: Chain | DHTable | None,
-    *,
-    sampling: tuple[int, int, bool, bool],
-) -> VerifyReport:
-    """:func:`verify` for one frame's chain: its space and body PoE (and a DH table's FK).
-    ``sampling`` is ``(samples, seed, within_limits, progress)``; the tolerances are defaults."""
-    samples, seed, within_limits, progress = sampling
+    q: FloatArray,
+    progress: bool,
+) -> _Errors:
+    """One frame's chain on joint values ``q``: the space and body PoE of ``params`` (default:
+    the chain), and a DH table's own FK, against ``mj_forward``."""
     checked = chain if params is None else params
     if checked.n_joints != chain.n_joints:
         raise InputError(
             f"the parameters have {checked.n_joints} joints but {loaded.robot}'s chain to "
             f"{chain.frame!r} has {chain.n_joints} ({', '.join(chain.joint_names)})"
         )
-    q = sample_joint_values(chain, samples, seed=seed, within_limits=within_limits)
     T_ref = mujoco_poses(loaded.model, chain, q, progress=progress)
     errors = {}
     if isinstance(checked, DHTable):
@@ -379,22 +388,4 @@ def _verify_chain(
         checked = checked.to_chain()
     errors["space PoE"] = pose_errors(T_ref, checked.fk(q))
     errors["body PoE"] = pose_errors(T_ref, checked.fk_body(q))
-    pos_err = {m: e[0] for m, e in errors.items()}
-    ori_err = {m: e[1] for m, e in errors.items()}
-    return VerifyReport(
-        robot=loaded.robot,
-        frame=chain.frame,
-        samples=samples,
-        seed=seed,
-        within_limits=within_limits,
-        pos_tol=DEFAULT_POS_TOL,
-        ori_tol=DEFAULT_ORI_TOL,
-        pos_err=pos_err,
-        ori_err=ori_err,
-        frame_errors={
-            chain.frame: (
-                max(float(np.max(e, initial=0.0)) for e in pos_err.values()),
-                max(float(np.max(e, initial=0.0)) for e in ori_err.values()),
-            )
-        },
-    )
+    return {m: (pos[:, None], ori[:, None]) for m, (pos, ori) in errors.items()}
