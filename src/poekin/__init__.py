@@ -9,6 +9,7 @@ exactly what MuJoCo stores in ``qpos``.
 >>> T_world_ee = chain.fk([0.0, -1.57, 1.57, 0.0, 0.0, 0.0])
 """
 
+from poekin._fast import Form, compiled_kernel, get_threads, set_threads
 from poekin.chain import Chain, JointType
 from poekin.dh import DHTable, dh_from_chain
 from poekin.diagnose import Diagnosis, diagnose
@@ -74,6 +75,7 @@ __all__ = [
     "Chain",
     "DHTable",
     "Diagnosis",
+    "Form",
     "InputError",
     "JointType",
     "LoadedModel",
@@ -90,11 +92,13 @@ __all__ = [
     "VerifyReport",
     "adjoint",
     "chain_from_model",
+    "compiled_kernel",
     "dh_from_chain",
     "diagnose",
     "exp_se3",
     "exp_so3",
     "fk_ur5e_poe",
+    "get_threads",
     "hat_se3",
     "hat_so3",
     "homogeneous",
@@ -116,6 +120,7 @@ __all__ = [
     "rotation_to_quat",
     "sample_joint_values",
     "sample_qpos",
+    "set_threads",
     "tree_from_model",
     "tree_from_urdf",
     "ur5e_chain",

@@ -20,10 +20,18 @@ from typing import Any, Literal
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from poekin import lie
+from poekin import _fast, lie
+from poekin._fast import Form
 from poekin.errors import InputError
 
-__all__ = ["Chain", "JointType", "as_joint_values", "check_pose", "poe", "readonly_array"]
+__all__ = [
+    "Chain",
+    "JointType",
+    "as_joint_values",
+    "check_pose",
+    "poe",
+    "readonly_array",
+]
 
 JointType = Literal["revolute", "prismatic"]
 FloatArray = NDArray[np.float64]
@@ -79,30 +87,39 @@ def as_joint_values(
 class _ScrewTerms:
     """Per-joint constants of ``exp([S] q)`` for unit screws ``S = [w; v]``, computed once.
 
-    With ``|w| = 1`` (or ``w = 0, |v| = 1``) Rodrigues needs no small-angle branch::
+    With ``|w| = 1`` (or ``w = 0, |v| = 1``), Rodrigues and the Murray-Li-Sastry form of the
+    translation need no small-angle branch::
 
         R = I + sin(q) W + (1 - cos q) W^2
-        p = (q I + (1 - cos q) W + (q - sin q) W^2) v
+        p = (r - R r) + q u,   r = w x v,   u = (w . v) w  (u = v if w = 0)
+
+    ``r`` is the point of the axis nearest the origin, so, unlike the textbook
+    ``G(q) v = (q I + (1 - cos q) W + (q - sin q) W^2) v``, no term grows with ``q`` and
+    cancels: the rounding stays at the size of the robot, not of ``q`` times it.
     """
 
     W: FloatArray  # (n, 3, 3) hat(w)
     W2: FloatArray  # (n, 3, 3) hat(w)^2
-    v: FloatArray  # (n, 3)
-    Wv: FloatArray  # (n, 3)
-    W2v: FloatArray  # (n, 3)
+    r: FloatArray  # (n, 3) w x v
+    u: FloatArray  # (n, 3) (w . v) w, or v for a prismatic screw
 
     @classmethod
     def of(cls, screws: FloatArray) -> _ScrewTerms:
-        W = np.asarray(lie.hat_so3(screws[:, :3]), dtype=np.float64)
-        W2 = W @ W
-        v = screws[:, 3:]
-        return cls(W, W2, v, (W @ v[..., None])[..., 0], (W2 @ v[..., None])[..., 0])
+        w, v = screws[:, :3], screws[:, 3:]
+        W = np.asarray(lie.hat_so3(w), dtype=np.float64)
+        revolute = np.linalg.norm(w, axis=-1, keepdims=True) > 0
+        u = np.where(revolute, np.sum(w * v, axis=-1, keepdims=True) * w, v)
+        W2: FloatArray = lie.rotate_compose(W, W).astype(np.float64)
+        return cls(W, W2, np.cross(w, v), u)
 
 
 def poe(
     terms: _ScrewTerms, q: FloatArray, *, left: FloatArray | None, right: FloatArray | None
 ) -> FloatArray:
     """``left @ exp([S_1] q_1) ... exp([S_n] q_n) @ right`` for unit screws.
+
+    The pure-NumPy reference path; the compiled kernel does the same arithmetic in the same
+    order.
 
     Args:
         terms: the screws' constants, see :class:`_ScrewTerms`.
@@ -113,25 +130,20 @@ def poe(
         ``(..., 4, 4)`` poses.
     """
     batch = q.shape[:-1]
-    s = np.sin(q)[..., None]
-    c = 1.0 - np.cos(q)[..., None]
-    qv = q[..., None]
-    R_i = np.eye(3) + s[..., None] * terms.W + c[..., None] * terms.W2  # (..., n, 3, 3)
-    p_i = qv * terms.v + c * terms.Wv + (qv - s) * terms.W2v  # (..., n, 3)
-    n = terms.v.shape[0]
-    if left is None and n > 0:  # start from the first factor: saves a 3x3 product
-        R, p, start = R_i[..., 0, :, :], p_i[..., 0, :], 1
-    else:
-        L = np.eye(4) if left is None else left
-        R = np.broadcast_to(L[:3, :3], (*batch, 3, 3))
-        p = np.broadcast_to(L[:3, 3], (*batch, 3))
-        start = 0
-    for i in range(start, n):
-        p = p + (R @ p_i[..., i, :, None])[..., 0]
-        R = R @ R_i[..., i, :, :]
+    s = np.sin(q)[..., None, None]
+    c = (1.0 - np.cos(q))[..., None, None]
+    R_i = (np.eye(3) + s * terms.W) + c * terms.W2  # (..., n, 3, 3)
+    p_i = (terms.r - lie.rotate(R_i, terms.r)) + q[..., None] * terms.u  # (..., n, 3)
+    R = np.broadcast_to(np.eye(3), (*batch, 3, 3))
+    p = np.zeros((*batch, 3))
+    factors = [(R_i[..., i, :, :], p_i[..., i, :]) for i in range(terms.r.shape[0])]
+    if left is not None:
+        factors.insert(0, (left[:3, :3], left[:3, 3]))
     if right is not None:
-        p = p + R @ right[:3, 3]
-        R = R @ right[:3, :3]
+        factors.append((right[:3, :3], right[:3, 3]))
+    for R_f, p_f in factors:
+        p = p + lie.rotate(R, p_f)
+        R = lie.rotate_compose(R, R_f).astype(np.float64, copy=False)
     T = np.zeros((*batch, 4, 4))
     T[..., :3, :3] = R
     T[..., :3, 3] = p
@@ -167,6 +179,8 @@ class Chain:
     body_screws: FloatArray = dataclasses.field(init=False, repr=False)
     _space: _ScrewTerms = dataclasses.field(init=False, repr=False)
     _body: _ScrewTerms = dataclasses.field(init=False, repr=False)
+    _space_kernel: Any = dataclasses.field(init=False, repr=False)
+    _body_kernel: Any = dataclasses.field(init=False, repr=False)
 
     def __post_init__(self) -> None:
         n = len(self.joint_names)
@@ -191,8 +205,12 @@ class Chain:
         body_screws = np.ascontiguousarray(body.T)
         body_screws.flags.writeable = False
         set_(self, "body_screws", body_screws)
-        set_(self, "_space", _ScrewTerms.of(self.screws))
-        set_(self, "_body", _ScrewTerms.of(self.body_screws))
+        space, body = _ScrewTerms.of(self.screws), _ScrewTerms.of(self.body_screws)
+        set_(self, "_space", space)
+        set_(self, "_body", body)
+        terms = dataclasses.astuple
+        set_(self, "_space_kernel", _fast.chain_program(*terms(space), left=None, right=self.home))
+        set_(self, "_body_kernel", _fast.chain_program(*terms(body), left=self.home, right=None))
 
     def _check_screws(self) -> None:
         for name, kind, S in zip(self.joint_names, self.joint_types, self.screws, strict=True):
@@ -217,25 +235,61 @@ class Chain:
         """Number of joints ``n``."""
         return len(self.joint_names)
 
-    def fk(self, q: ArrayLike) -> FloatArray:
+    def fk(self, q: ArrayLike, *, out: FloatArray | None = None, form: Form = "4x4") -> FloatArray:
         """Space-form PoE ``T_world_frame = exp([S_1] q_1) ... exp([S_n] q_n) M``.
 
         Args:
             q: ``(..., n)`` joint values, as MuJoCo stores them in ``qpos`` (rad, m).
+            out: a C-contiguous float64 array of the result's shape to write into (returned);
+                if an error is raised its contents are unspecified.
+            form: ``"4x4"`` homogeneous matrices ``(..., 4, 4)``; ``"3x4"`` their top three
+                rows ``[R | p]`` ``(..., 3, 4)``; ``"pos_quat"`` ``(..., 7)`` position then
+                quaternion ``wxyz`` with ``w >= 0``.
 
         Returns:
-            ``(..., 4, 4)`` pose of ``frame`` in the world (base) frame.
+            The pose of ``frame`` in the world (base) frame, for each configuration.
         """
-        q = as_joint_values(q, self.n_joints)
-        return poe(self._space, q, left=None, right=self.home)
+        kernel = self._space_kernel
+        if kernel is not None and out is None and form == "4x4":  # the fast path
+            T: FloatArray | None = kernel.run(q)
+            if T is not None:
+                return T
+        return _fast.evaluate(
+            kernel, q, out, form, validate=self._joint_values, reference=self._fk_numpy, frames=()
+        )
 
-    def fk_body(self, q: ArrayLike) -> FloatArray:
+    def fk_body(
+        self, q: ArrayLike, *, out: FloatArray | None = None, form: Form = "4x4"
+    ) -> FloatArray:
         """Body-form PoE ``T_world_frame = M exp([B_1] q_1) ... exp([B_n] q_n)``.
 
         Same arguments and result as :meth:`fk`; equal to it to float precision.
         """
-        q = as_joint_values(q, self.n_joints)
-        return poe(self._body, q, left=self.home, right=None)
+        kernel = self._body_kernel
+        if kernel is not None and out is None and form == "4x4":
+            T: FloatArray | None = kernel.run(q)
+            if T is not None:
+                return T
+        return _fast.evaluate(
+            kernel,
+            q,
+            out,
+            form,
+            validate=self._joint_values,
+            reference=self._fk_body_numpy,
+            frames=(),
+        )
+
+    def _joint_values(self, q: ArrayLike) -> FloatArray:
+        return as_joint_values(q, self.n_joints)
+
+    def _fk_numpy(self, q: ArrayLike) -> FloatArray:
+        """:meth:`fk` on the pure-NumPy reference path (the compiled kernel's specification)."""
+        return poe(self._space, self._joint_values(q), left=None, right=self.home)
+
+    def _fk_body_numpy(self, q: ArrayLike) -> FloatArray:
+        """:meth:`fk_body` on the pure-NumPy reference path."""
+        return poe(self._body, self._joint_values(q), left=self.home, right=None)
 
     def __repr__(self) -> str:
         joints = ", ".join(

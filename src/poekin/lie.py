@@ -52,6 +52,8 @@ __all__ = [
     "matrix_exp_so3",
     "quat_normalize",
     "quat_to_rotation",
+    "rotate",
+    "rotate_compose",
     "rotation_angle",
     "rotation_to_quat",
     "vec_to_se3",
@@ -418,6 +420,27 @@ def rotation_to_quat(R: ArrayLike) -> Array:
     k = np.argmax(diag, axis=-1)[..., None, None]
     quat = np.take_along_axis(cases, k, axis=-2)[..., 0, :]
     out: Array = np.where(quat[..., :1] < 0, -quat, quat)
+    return out
+
+
+def rotate(R: Array, v: Array) -> Array:
+    """``R @ v`` for ``(..., 3, 3)`` and ``(..., 3)``, summed left to right.
+
+    The FK reference path multiplies with this and :func:`rotate_compose` rather than ``@``,
+    so its bits do not depend on the BLAS build, and the compiled kernel, which sums in the
+    same order, can be held to it. No validation: for internal use on float arrays.
+    """
+    out: Array = (R[..., :, 0] * v[..., None, 0] + R[..., :, 1] * v[..., None, 1]) + R[
+        ..., :, 2
+    ] * v[..., None, 2]
+    return out
+
+
+def rotate_compose(A: Array, B: Array) -> Array:
+    """``A @ B`` for ``(..., 3, 3)`` matrices, summed left to right (see :func:`rotate`)."""
+    out: Array = (
+        A[..., :, 0, None] * B[..., None, 0, :] + A[..., :, 1, None] * B[..., None, 1, :]
+    ) + A[..., :, 2, None] * B[..., None, 2, :]
     return out
 
 

@@ -31,7 +31,8 @@ from typing import Any, Literal
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from poekin import lie
+from poekin import _fast, lie
+from poekin._fast import Form
 from poekin.chain import Chain, JointType, as_joint_values, readonly_array
 from poekin.errors import InputError, ModelError, UnknownFrameError, did_you_mean
 
@@ -135,6 +136,7 @@ class Tree:
     _body_joints: tuple[tuple[int, ...], ...] = dataclasses.field(init=False, repr=False)
     _nq: int = dataclasses.field(init=False, repr=False)
     _full_adr: IntArray = dataclasses.field(init=False, repr=False)
+    _kernel: Any = dataclasses.field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         set_ = object.__setattr__
@@ -170,6 +172,25 @@ class Tree:
         self._layout()
         qpos0 = self._default_qpos() if np.size(self.qpos0) == 0 else self.qpos0
         set_(self, "qpos0", readonly_array(qpos0, (self.nq,), "qpos0"))
+        kernel = _fast.tree_program(
+            nq=self.nq,
+            body_parents=self.body_parents.tolist(),
+            body_pos=self.body_pos,
+            body_rot=self.body_rot,
+            body_joints=self._body_joints,
+            joint_types=self.joint_types,
+            joint_axes=self.joint_axes,
+            joint_anchors=self.joint_anchors,
+            joint_refs=self.joint_refs,
+            slot_of_joint=self._full_adr.tolist(),
+            slots=self._slots.tolist(),
+            slot_scale=self._slot_scale.tolist(),
+            slot_offset=self._slot_offset.tolist(),
+            site_bodies=self.site_bodies.tolist(),
+            site_pos=self.site_pos,
+            site_rot=self.site_rot,
+        )
+        set_(self, "_kernel", kernel)
 
     def _check_topology(self) -> None:
         for b, parent in enumerate(self.body_parents):
@@ -355,42 +376,66 @@ class Tree:
         R[..., 0, :, :] = np.eye(3)
         p[..., 0, :] = 0.0
         slot = self._full_adr
+        rotate, compose = lie.rotate, lie.rotate_compose
         for b in range(nb):
             parent = self.body_parents[b] + 1
-            R_b = R[..., parent, :, :] @ self.body_rot[b]
-            p_b = p[..., parent, :] + R[..., parent, :, :] @ self.body_pos[b]
+            p_b = p[..., parent, :] + rotate(R[..., parent, :, :], self.body_pos[b])
+            R_b = compose(R[..., parent, :, :], self.body_rot[b])
             for k in self._body_joints[b]:
                 kind, a = self.joint_types[k], slot[k]
                 axis, anchor = self.joint_axes[k], self.joint_anchors[k]
                 if joints_out is not None:
-                    joints_out[0][..., k, :] = R_b @ axis
-                    joints_out[1][..., k, :] = p_b + R_b @ anchor
+                    joints_out[0][..., k, :] = rotate(R_b, axis)
+                    joints_out[1][..., k, :] = p_b + rotate(R_b, anchor)
                 if kind == "free":
                     p_b = x[..., a : a + 3]
                     R_b = lie.quat_to_rotation(lie.quat_normalize(x[..., a + 3 : a + 7]))
                     continue
                 if kind == "prismatic":
-                    p_b = p_b + (R_b @ axis) * (x[..., a] - self.joint_refs[k])[..., None]
+                    p_b = p_b + rotate(R_b, axis) * (x[..., a] - self.joint_refs[k])[..., None]
                     continue
                 if kind == "ball":
                     R_j = lie.quat_to_rotation(lie.quat_normalize(x[..., a : a + 4]))
                 else:
                     R_j = _axis_rotation(axis, x[..., a] - self.joint_refs[k])
-                p_b = p_b + (R_b @ (anchor - R_j @ anchor)[..., None])[..., 0]
-                R_b = R_b @ R_j
+                p_b = p_b + rotate(R_b, anchor - rotate(R_j, anchor))
+                R_b = compose(R_b, R_j)
             R[..., b + 1, :, :] = R_b
             p[..., b + 1, :] = p_b
         return R, p
 
-    def fk(self, qpos: ArrayLike) -> FloatArray:
+    def fk(
+        self, qpos: ArrayLike, *, out: FloatArray | None = None, form: Form = "4x4"
+    ) -> FloatArray:
         """World poses of every frame (bodies, then sites) in one pass.
 
         Args:
             qpos: ``(..., nq)`` in MuJoCo's qpos layout (rad, m, quaternions ``wxyz``).
+            out: a C-contiguous float64 array of the result's shape to write into (returned);
+                if an error is raised its contents are unspecified.
+            form: ``"4x4"``, ``"3x4"`` or ``"pos_quat"``, as for :meth:`Chain.fk`.
 
         Returns:
-            ``(..., n_frames, 4, 4)``: ``T_world_frame`` for each of :attr:`frame_names`.
+            ``(..., n_frames, 4, 4)`` (or ``(..., n_frames, 3, 4)``, ``(..., n_frames, 7)``):
+            ``T_world_frame`` for each of :attr:`frame_names`.
         """
+        kernel = self._kernel
+        if kernel is not None and out is None and form == "4x4":  # the fast path
+            T: FloatArray | None = kernel.run(qpos)
+            if T is not None:
+                return T
+        return _fast.evaluate(
+            kernel,
+            qpos,
+            out,
+            form,
+            validate=self._as_qpos,
+            reference=self._fk_numpy,
+            frames=(self.n_frames,),
+        )
+
+    def _fk_numpy(self, qpos: ArrayLike) -> FloatArray:
+        """:meth:`fk` on the pure-NumPy reference path (the compiled kernel's specification)."""
         return self._frame_poses(*self._body_poses(self._expand(self._as_qpos(qpos))))
 
     def _as_qpos(self, qpos: ArrayLike) -> FloatArray:
@@ -399,10 +444,8 @@ class Tree:
     def _frame_poses(self, R: FloatArray, p: FloatArray) -> FloatArray:
         """``(..., n_frames, 4, 4)`` body then site poses from :meth:`_body_poses`' output."""
         site_parent = self.site_bodies + 1
-        R_s = R[..., site_parent, :, :] @ self.site_rot
-        p_s = (
-            p[..., site_parent, :] + (R[..., site_parent, :, :] @ self.site_pos[..., None])[..., 0]
-        )
+        R_s = lie.rotate_compose(R[..., site_parent, :, :], self.site_rot)
+        p_s = p[..., site_parent, :] + lie.rotate(R[..., site_parent, :, :], self.site_pos)
         T = np.zeros((*R.shape[:-3], self.n_frames, 4, 4))
         nb = len(self.body_names)
         T[..., :nb, :3, :3] = R[..., 1:, :, :]
@@ -522,5 +565,5 @@ def _axis_rotation(axis: FloatArray, angle: FloatArray) -> FloatArray:
     W = lie.hat_so3(axis)
     s = np.sin(angle)[..., None, None]
     c = (1.0 - np.cos(angle))[..., None, None]
-    out: FloatArray = np.eye(3) + s * W + c * (W @ W)
+    out: FloatArray = (np.eye(3) + s * W) + c * lie.rotate_compose(W, W)
     return out

@@ -1,0 +1,287 @@
+"""The compiled FK path: models as programs for the C kernel ``poekin._kernel``, and its settings.
+
+A program is a list of pose operations, each ``(code, qpos address, parameter offset, slot)``,
+and one float64 array of parameters. :func:`chain_program` and :func:`tree_program` write them
+from the same constants the pure-NumPy reference path uses (:func:`poekin.chain.poe`,
+``Tree._body_poses``), with the same formulas in the same order, so both agree to ~1e-16.
+
+Without the extension (no C compiler at install time) every function here still works:
+kernels are None and callers use the NumPy path.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Callable, Sequence
+from typing import Any, Literal
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from poekin import lie
+from poekin.errors import InputError, did_you_mean
+
+try:
+    from poekin import _kernel  # type: ignore[attr-defined]
+except ImportError:  # built without a C compiler: the NumPy path serves
+    _kernel = None
+
+__all__ = [
+    "Form",
+    "compiled_kernel",
+    "evaluate",
+    "get_threads",
+    "result_shape",
+    "set_threads",
+]
+
+FloatArray = NDArray[np.float64]
+Form = Literal["4x4", "3x4", "pos_quat"]
+_FORM_CODES: dict[str, int] = {"4x4": 0, "3x4": 1, "pos_quat": 2}
+_FORM_SHAPES: dict[str, tuple[int, ...]] = {"4x4": (4, 4), "3x4": (3, 4), "pos_quat": (7,)}
+
+# operation codes, as in _kernel.c
+_IDENTITY, _LOAD, _STORE, _CONST, _SCREW, _HINGE, _SLIDE, _BALL, _FREE, _EMIT = range(10)
+
+
+def compiled_kernel() -> bool:
+    """Whether the compiled kernel is installed (else FK runs on the pure-NumPy path)."""
+    return _kernel is not None
+
+
+def _default_threads() -> int:
+    env = os.environ.get("POEKIN_NUM_THREADS", "")
+    if env.strip().isdigit() and int(env) >= 1:
+        return int(env)
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:  # not on Linux
+        return os.cpu_count() or 1
+
+
+_threads = _default_threads()
+if _kernel is not None:
+    _kernel.set_threads(_threads)
+
+
+def set_threads(n: int | None) -> None:
+    """Threads for big batches (``None``: the default, every core this process may use).
+
+    Batches smaller than about 16,000 configurations use one thread whatever this says, since
+    starting a thread costs more than it saves. The default is read once from the environment
+    variable ``POEKIN_NUM_THREADS`` if set, else the number of usable cores.
+    """
+    global _threads
+    if n is None:
+        n = _default_threads()
+    if isinstance(n, bool) or not isinstance(n, int | np.integer) or not 1 <= n <= 256:
+        raise InputError(f"threads must be an integer from 1 to 256 or None, got {n!r}")
+    _threads = int(n)
+    if _kernel is not None:
+        _kernel.set_threads(_threads)
+
+
+def get_threads() -> int:
+    """The thread count :func:`set_threads` set."""
+    return _threads
+
+
+# --- programs -------------------------------------------------------------------------------
+
+
+class _Program:
+    def __init__(self) -> None:
+        self.ops: list[tuple[int, int, int, int]] = []
+        self.params: list[float] = []
+        self.angles = 0
+
+    def op(self, code: int, qadr: int = 0, params: Sequence[Any] = (), slot: int = 0) -> None:
+        flat = np.asarray(params, dtype=np.float64).reshape(-1)
+        if code in (_SCREW, _HINGE):  # their slot numbers the angle
+            slot, self.angles = self.angles, self.angles + 1
+        self.ops.append((code, qadr, len(self.params), slot))
+        self.params.extend(flat.tolist())
+
+    def const(self, R: FloatArray, t: FloatArray) -> None:
+        self.op(_CONST, params=[*R.reshape(-1), *t])
+
+    def kernel(self, nq: int, n_slots: int, n_out: int, frame_axis: bool) -> Any:
+        assert _kernel is not None
+        ops = np.array(self.ops, dtype=np.int32).reshape(-1, 4)
+        params = np.array(self.params or [0.0], dtype=np.float64)
+        return _kernel.Kernel(ops, params, nq, n_slots, n_out, frame_axis)
+
+
+def chain_program(
+    W: FloatArray,
+    W2: FloatArray,
+    r: FloatArray,
+    u: FloatArray,
+    *,
+    left: FloatArray | None,
+    right: FloatArray | None,
+) -> Any:
+    """Kernel for ``left @ exp([S_1] q_1) ... exp([S_n] q_n) @ right`` (see ``chain.poe``).
+
+    The screws' constants are those of ``chain._ScrewTerms``; None if not compiled.
+    """
+    if _kernel is None:
+        return None
+    p = _Program()
+    p.op(_IDENTITY)
+    if left is not None:
+        p.const(left[:3, :3], left[:3, 3])
+    for i in range(r.shape[0]):
+        p.op(_SCREW, i, [*W[i].reshape(-1), *W2[i].reshape(-1), *r[i], *u[i]])
+    if right is not None:
+        p.const(right[:3, :3], right[:3, 3])
+    p.op(_EMIT, slot=0)
+    return p.kernel(r.shape[0], 0, 1, frame_axis=False)
+
+
+def tree_program(
+    *,
+    nq: int,
+    body_parents: Sequence[int],
+    body_pos: FloatArray,
+    body_rot: FloatArray,
+    body_joints: Sequence[Sequence[int]],
+    joint_types: Sequence[str],
+    joint_axes: FloatArray,
+    joint_anchors: FloatArray,
+    joint_refs: FloatArray,
+    slot_of_joint: Sequence[int],
+    slots: Sequence[int],
+    slot_scale: Sequence[float],
+    slot_offset: Sequence[float],
+    site_bodies: Sequence[int],
+    site_pos: FloatArray,
+    site_rot: FloatArray,
+) -> Any:
+    """Kernel for the world poses of every body then every site (see ``Tree._body_poses``).
+
+    ``slot_of_joint[k]`` is where joint ``k``'s numbers start in the expanded qpos, whose
+    entry ``j`` is ``qpos[slots[j]] * slot_scale[j] + slot_offset[j]``. None if not compiled.
+    """
+    if _kernel is None:
+        return None
+    nb = len(body_parents)
+    p = _Program()
+    held = -2  # the body whose pose the kernel's state holds right now (-1: the world)
+
+    def start_from(body: int) -> None:
+        nonlocal held
+        if body != held:
+            p.op(_IDENTITY) if body < 0 else p.op(_LOAD, slot=body)
+        held = -3  # about to change
+
+    for b in range(nb):
+        joints = body_joints[b]
+        start_from(int(body_parents[b]))
+        if not (joints and joint_types[joints[0]] == "free"):  # a free joint sets the pose
+            p.const(body_rot[b], body_pos[b])
+        for k in joints:
+            j = slot_of_joint[k]
+            kind, qadr = joint_types[k], int(slots[j])
+            if kind == "revolute":
+                W = lie.hat_so3(joint_axes[k])
+                scale = [slot_scale[j], slot_offset[j], joint_refs[k]]
+                p.op(
+                    _HINGE,
+                    qadr,
+                    [
+                        *scale,
+                        *W.reshape(-1),
+                        *lie.rotate_compose(W, W).reshape(-1),
+                        *joint_anchors[k],
+                    ],
+                )
+            elif kind == "prismatic":
+                p.op(_SLIDE, qadr, [slot_scale[j], slot_offset[j], joint_refs[k], *joint_axes[k]])
+            elif kind == "ball":
+                p.op(_BALL, qadr, joint_anchors[k])
+            else:
+                p.op(_FREE, qadr)
+        p.op(_STORE, slot=b)
+        p.op(_EMIT, slot=b)
+        held = b
+    for s, body in enumerate(site_bodies):
+        start_from(int(body))
+        p.const(site_rot[s], site_pos[s])
+        p.op(_EMIT, slot=nb + s)
+    return p.kernel(nq, nb, nb + len(site_bodies), frame_axis=True)
+
+
+# --- evaluation -----------------------------------------------------------------------------
+
+
+def result_shape(batch: tuple[int, ...], frames: tuple[int, ...], form: str) -> tuple[int, ...]:
+    """Shape of an FK result: batch axes, then the frame axis (trees), then the form's."""
+    return (*batch, *frames, *_FORM_SHAPES[form])
+
+
+def _check_form(form: object) -> str:
+    if not isinstance(form, str) or form not in _FORM_CODES:
+        raise InputError(f"unknown form {form!r}: {did_you_mean(str(form), list(_FORM_CODES))}")
+    return form
+
+
+def _check_out(out: object, shape: tuple[int, ...]) -> None:
+    if (
+        not isinstance(out, np.ndarray)
+        or out.dtype != np.float64
+        or out.shape != shape
+        or not out.flags.c_contiguous
+        or not out.flags.writeable
+        or not out.flags.aligned
+    ):
+        got = (
+            f"{out.dtype} array of shape {out.shape}"
+            if isinstance(out, np.ndarray)
+            else type(out).__name__
+        )
+        raise InputError(
+            f"out must be a writeable C-contiguous float64 array of shape {shape}, got {got}; "
+            f"make one with np.empty({shape})"
+        )
+
+
+def reformat(T: FloatArray, form: str) -> FloatArray:
+    """``(..., 4, 4)`` poses in ``form``: themselves, the top three rows, or position+quat."""
+    if form == "4x4":
+        return T
+    if form == "3x4":
+        return np.ascontiguousarray(T[..., :3, :])
+    return np.concatenate([T[..., :3, 3], lie.rotation_to_quat(T[..., :3, :3])], axis=-1)
+
+
+def evaluate(
+    kernel: Any,
+    q: ArrayLike,
+    out: FloatArray | None,
+    form: str,
+    *,
+    validate: Callable[[ArrayLike], FloatArray],
+    reference: Callable[[FloatArray], FloatArray],
+    frames: tuple[int, ...],
+) -> FloatArray:
+    """FK through ``kernel`` with full validation, or through ``reference`` without a kernel.
+
+    ``validate`` checks and converts ``q`` (raising InputError), ``reference`` is the NumPy
+    path (``(..., n) -> (..., *frames, 4, 4)``), ``frames`` the result's frame axis (``()`` for
+    a chain, ``(n_frames,)`` for a tree).
+    """
+    form = _check_form(form)
+    arr = np.require(validate(q), dtype=np.float64, requirements=["C", "A"])
+    shape = result_shape(arr.shape[:-1], frames, form)
+    if out is not None:
+        _check_out(out, shape)
+    if kernel is None:
+        result = reformat(reference(arr), form)
+        if out is None:
+            return result
+        out[...] = result
+        return out
+    result = kernel.run(arr, out, _FORM_CODES[form])
+    assert result is not None, "validated joint values were refused by the kernel"
+    return result  # type: ignore[no-any-return]

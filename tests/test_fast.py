@@ -1,0 +1,286 @@
+"""The compiled FK kernel against the pure-NumPy reference path, for every joint type and form,
+its batch, thread and ``out=`` behaviour, and the errors a user sees."""
+
+from __future__ import annotations
+
+import copy
+import os
+import pickle
+
+import mujoco
+import numpy as np
+import pytest
+from helpers import assert_close, load_quiet
+from test_chain import random_chain
+from test_tree import FEATURES_XML, MENAGERIE, _two_link
+
+import poekin
+from poekin import InputError, _fast
+from poekin.chain import Chain
+from poekin.import_mujoco import tree_from_model
+from poekin.tree import Mimic, Tree
+from poekin.verify import sample_qpos
+
+# Kernel vs reference. Both do the same arithmetic in the same order; they differ only in sin
+# and cos (the kernel's own, below 1 ulp, against the C library's), which moves a pose by a
+# few 1e-16 on metre-sized robots. Issue #5 asks for <= 1e-15.
+REF_TOL = 1e-15
+N_SAMPLES = 10_000
+BATCH_SHAPES = [(), (1,), (3, 1, 2, 1)]
+FORMS = ["4x4", "3x4", "pos_quat"]
+
+
+@pytest.fixture(scope="module")
+def ur5e() -> Chain:
+    return poekin.load(load_quiet("universal_robots_ur5e"))
+
+
+@pytest.fixture(scope="module")
+def features() -> Tree:
+    return tree_from_model(mujoco.MjModel.from_xml_string(FEATURES_XML))
+
+
+def test_the_compiled_kernel_is_installed() -> None:
+    """CI sets POEKIN_REQUIRE_COMPILED=1, so a silently failed build cannot pass as NumPy."""
+    if os.environ.get("POEKIN_REQUIRE_COMPILED") != "1" and not poekin.compiled_kernel():
+        pytest.skip("built without a C compiler: the NumPy path serves")
+    assert poekin.compiled_kernel()
+
+
+# --- the same results as the reference path ------------------------------------------------
+
+
+@pytest.mark.parametrize("form", ["fk", "fk_body"])
+def test_chain_equals_the_reference(ur5e: Chain, form: str) -> None:
+    q = np.random.default_rng(0).uniform(-2 * np.pi, 2 * np.pi, (N_SAMPLES, 6))
+    reference = ur5e._fk_numpy if form == "fk" else ur5e._fk_body_numpy
+    assert_close(f"UR5e {form}", getattr(ur5e, form)(q), reference(q), REF_TOL)
+
+
+@pytest.mark.parametrize("seed", range(5))
+def test_random_revolute_and_prismatic_chains_equal_the_reference(seed: int) -> None:
+    """Random chains reach ~10 m (prismatic joints at 2 pi m, random homes): the tolerance
+    scales with the largest coordinate, as rounding does."""
+    rng = np.random.default_rng(seed)
+    chain = random_chain(rng, 7)
+    q = rng.uniform(-2 * np.pi, 2 * np.pi, (2_000, 7))
+    for form in ("fk", "fk_body"):
+        expected = getattr(chain, f"_{form}_numpy")(q)
+        tol = REF_TOL * max(1.0, float(np.abs(expected).max()))
+        assert_close(form, getattr(chain, form)(q), expected, tol)
+
+
+@pytest.mark.parametrize("robot", MENAGERIE)
+def test_menagerie_trees_equal_the_reference(robot: str) -> None:
+    tree = poekin.load_tree(load_quiet(robot))
+    qpos = sample_qpos(tree, N_SAMPLES, seed=3)
+    assert_close(f"{robot} frames", tree.fk(qpos), tree._fk_numpy(qpos), REF_TOL)
+
+
+def test_every_joint_type_equals_the_reference(features: Tree) -> None:
+    """Hinge, slide, ball and free joints, refs and anchors, unnormalised and zero quaternions."""
+    rng = np.random.default_rng(4)
+    qpos = sample_qpos(features, N_SAMPLES, seed=4)
+    for name in ("wrist_ball", "float"):
+        k = features.joint_names.index(name)
+        a = features.qpos_adr[k] + (3 if name == "float" else 0)
+        qpos[: N_SAMPLES // 2, a : a + 4] *= rng.uniform(1e-3, 1e3, (N_SAMPLES // 2, 1))
+        qpos[:10, a : a + 4] = 0.0  # the identity, as in MuJoCo
+    assert_close("features", features.fk(qpos), features._fk_numpy(qpos), REF_TOL)
+
+
+def test_mimic_joints_equal_the_reference() -> None:
+    tree = _two_link((None, Mimic("j1", multiplier=-2.0, offset=0.25)))
+    q = np.random.default_rng(5).uniform(-10, 10, (1_000, 1))
+    assert_close("mimic", tree.fk(q), tree._fk_numpy(q), REF_TOL)
+
+
+@pytest.mark.parametrize("scale", [1e3, 1e5, 6e5, 1e6, 1e9])
+def test_huge_angles_equal_the_reference(ur5e: Chain, scale: float) -> None:
+    """Beyond 2^19 rad sin and cos come from the C library; below, from the kernel's own."""
+    q = np.random.default_rng(6).uniform(-scale, scale, (1_000, 6))
+    q[::7] = 0.5  # blocks that mix small and huge angles
+    assert_close(f"|q| <= {scale:g}", ur5e.fk(q), ur5e._fk_numpy(q), REF_TOL)
+
+
+# --- forms, batch axes, out= ---------------------------------------------------------------
+
+
+@pytest.mark.parametrize("form", FORMS)
+def test_forms_are_views_of_the_4x4_pose(ur5e: Chain, features: Tree, form: str) -> None:
+    q = np.random.default_rng(7).uniform(-6, 6, (500, 6))
+    qpos = sample_qpos(features, 500, seed=7)
+    for what, fk, x in (("chain", ur5e.fk, q), ("tree", features.fk, qpos)):
+        T = fk(x)
+        expected = _fast.reformat(T, form)
+        assert_close(f"{what} {form}", fk(x, form=form), expected, 1e-15)
+    quat = ur5e.fk(q, form="pos_quat")[..., 3:]
+    assert np.all(quat[..., 0] >= 0), "quaternions are wxyz with w >= 0"
+    # Shepperd's method does not renormalise: R's own rounding (~1e-15) shows in |quat|
+    assert_close("unit quaternions", np.linalg.norm(quat, axis=-1), np.ones(500), 1e-14)
+
+
+@pytest.mark.parametrize("batch", BATCH_SHAPES)
+@pytest.mark.parametrize("form", FORMS)
+def test_batch_axes_and_shapes(ur5e: Chain, features: Tree, batch: tuple, form: str) -> None:
+    rng = np.random.default_rng(8)
+    q = rng.uniform(-6, 6, (*batch, 6))
+    tail = {"4x4": (4, 4), "3x4": (3, 4), "pos_quat": (7,)}[form]
+    assert ur5e.fk(q, form=form).shape == (*batch, *tail)
+    assert ur5e.fk_body(q, form=form).shape == (*batch, *tail)
+    qpos = sample_qpos(features, int(np.prod(batch)), seed=8).reshape(*batch, features.nq)
+    assert features.fk(qpos, form=form).shape == (*batch, features.n_frames, *tail)
+
+
+def test_one_configuration_gives_the_same_bits_alone_or_in_a_batch(ur5e: Chain) -> None:
+    q = np.random.default_rng(9).uniform(-6, 6, (37, 6))
+    batch = ur5e.fk(q)
+    for i in range(len(q)):
+        assert np.array_equal(ur5e.fk(q[i]), batch[i]), f"configuration {i}"
+
+
+def test_thread_count_does_not_change_the_bits(ur5e: Chain, features: Tree) -> None:
+    q = np.random.default_rng(10).uniform(-6, 6, (50_003, 6))  # several threads' worth
+    qpos = sample_qpos(features, 40_001, seed=10)
+    before = poekin.get_threads()
+    try:
+        poekin.set_threads(1)
+        one = ur5e.fk(q), features.fk(qpos)
+        poekin.set_threads(4)
+        four = ur5e.fk(q), features.fk(qpos)
+    finally:
+        poekin.set_threads(before)
+    assert np.array_equal(one[0], four[0]) and np.array_equal(one[1], four[1])
+
+
+@pytest.mark.parametrize("form", FORMS)
+def test_out_is_filled_and_returned(ur5e: Chain, features: Tree, form: str) -> None:
+    q = np.random.default_rng(11).uniform(-6, 6, (3, 4, 6))
+    out = np.full(ur5e.fk(q, form=form).shape, np.nan)
+    assert ur5e.fk(q, out=out, form=form) is out
+    assert np.array_equal(out, ur5e.fk(q, form=form))
+    qpos = sample_qpos(features, 5, seed=11)
+    out_t = np.empty(features.fk(qpos, form=form).shape)
+    assert features.fk(qpos, out=out_t, form=form) is out_t
+    assert np.array_equal(out_t, features.fk(qpos, form=form))
+
+
+@pytest.mark.parametrize(
+    ("out", "message"),
+    [
+        (np.empty((5, 4, 4), dtype=np.float32), "float64"),
+        (np.empty((4, 5, 4)), "shape (5, 4, 4)"),
+        (np.empty((5, 4, 8))[..., ::2], "C-contiguous"),
+        ([[0.0] * 4] * 4, "got list"),
+    ],
+)
+def test_bad_out_is_an_input_error(ur5e: Chain, out: object, message: str) -> None:
+    with pytest.raises(InputError, match="out must be") as info:
+        ur5e.fk(np.zeros((5, 6)), out=out)  # type: ignore[arg-type]
+    assert message in str(info.value)
+
+
+def test_read_only_out_is_refused(ur5e: Chain) -> None:
+    out = np.empty((4, 4))
+    out.flags.writeable = False
+    with pytest.raises(InputError, match="writeable"):
+        ur5e.fk(np.zeros(6), out=out)
+
+
+def test_unknown_form_suggests_the_near_miss(ur5e: Chain) -> None:
+    with pytest.raises(InputError, match="'pos_quat'"):
+        ur5e.fk(np.zeros(6), form="posquat")  # type: ignore[arg-type]
+
+
+# --- inputs the fast path hands back to validation ------------------------------------------
+
+
+def test_inputs_that_need_converting_give_the_same_poses(ur5e: Chain) -> None:
+    q = np.random.default_rng(12).uniform(-3, 3, (10, 6))
+    expected = ur5e.fk(q)
+    for what, x in [
+        ("list", q.tolist()),
+        ("Fortran order", np.asfortranarray(q)),
+        ("strided", np.repeat(q, 2, axis=0)[::2]),
+        ("big-endian", q.astype(">f8")),
+    ]:
+        assert_close(what, ur5e.fk(x), expected, 0.0)
+    assert_close("int", ur5e.fk(np.ones(6, dtype=int)), ur5e.fk(np.ones(6)), 0.0)
+    q32 = q.astype(np.float32)
+    assert_close("float32", ur5e.fk(q32), ur5e.fk(q32.astype(np.float64)), 0.0)
+
+
+@pytest.mark.parametrize("bad", [np.nan, np.inf, -np.inf])
+def test_non_finite_values_are_refused_on_the_fast_path(ur5e: Chain, bad: float) -> None:
+    q = np.zeros((100, 6))
+    q[57, 3] = bad
+    with pytest.raises(InputError, match="NaN or inf"):
+        ur5e.fk(q)
+    with pytest.raises(InputError, match="NaN or inf"):
+        ur5e.fk(q[57])
+
+
+def test_wrong_length_is_refused_with_the_layout(features: Tree) -> None:
+    with pytest.raises(InputError, match=f"expected {features.nq} qpos values"):
+        features.fk(np.zeros(features.nq + 1))
+
+
+# --- settings, pickling, the NumPy fallback -------------------------------------------------
+
+
+@pytest.mark.parametrize("bad", [0, -1, 257, 2.0, True, "2"])
+def test_set_threads_refuses_nonsense(bad: object) -> None:
+    with pytest.raises(InputError, match="threads must be an integer from 1 to 256"):
+        poekin.set_threads(bad)  # type: ignore[arg-type]
+
+
+def test_set_threads_none_restores_the_default(monkeypatch: pytest.MonkeyPatch) -> None:
+    before = poekin.get_threads()
+    monkeypatch.setenv("POEKIN_NUM_THREADS", "3")
+    try:
+        poekin.set_threads(1)
+        assert poekin.get_threads() == 1
+        poekin.set_threads(None)
+        assert poekin.get_threads() == 3
+    finally:
+        poekin.set_threads(before)
+
+
+def test_chains_and_trees_pickle_and_copy(ur5e: Chain, features: Tree) -> None:
+    q = np.random.default_rng(13).uniform(-3, 3, (20, 6))
+    qpos = sample_qpos(features, 20, seed=13)
+    for clone in (pickle.loads(pickle.dumps(ur5e)), copy.deepcopy(ur5e)):
+        assert np.array_equal(clone.fk(q), ur5e.fk(q))
+    assert np.array_equal(pickle.loads(pickle.dumps(features)).fk(qpos), features.fk(qpos))
+
+
+def test_without_the_kernel_the_numpy_path_gives_the_same_poses(
+    ur5e: Chain, features: Tree, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    q = np.random.default_rng(14).uniform(-6, 6, (200, 6))
+    qpos = sample_qpos(features, 200, seed=14)
+    expected = {f: (ur5e.fk(q, form=f), features.fk(qpos, form=f)) for f in FORMS}
+    monkeypatch.setattr(_fast, "_kernel", None)
+    chain = Chain(ur5e.joint_names, ur5e.joint_types, ur5e.screws, ur5e.home)
+    tree = dataclasses_replace(features)
+    assert chain._space_kernel is None and tree._kernel is None
+    for f in FORMS:
+        assert_close(f"chain {f}", chain.fk(q, form=f), expected[f][0], REF_TOL)
+        assert_close(f"tree {f}", tree.fk(qpos, form=f), expected[f][1], REF_TOL)
+    out = np.empty((200, 4, 4))
+    assert chain.fk(q, out=out) is out
+
+
+def dataclasses_replace(tree: Tree) -> Tree:
+    """A new Tree with the same fields (built again, so with the current kernel setting)."""
+    import dataclasses
+
+    return dataclasses.replace(tree)
+
+
+def test_a_kernel_refuses_operations_out_of_range() -> None:
+    if not poekin.compiled_kernel():
+        pytest.skip("no compiled kernel")
+    ops = np.array([[_fast._LOAD, 0, 0, 5]], dtype=np.int32)  # slot 5 of 1
+    with pytest.raises(ValueError, match="operation 0 is out of range"):
+        _fast._kernel.Kernel(ops, np.zeros(1), 0, 1, 1, False)
