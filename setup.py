@@ -10,7 +10,7 @@ from setuptools.command.build_ext import build_ext
 
 # -ffp-contract=off: no fused multiply-add, so one configuration gives the same bits on every
 # instruction set the kernel picks at run time. -fno-math-errno lets sqrt vectorise.
-_UNIX_FLAGS = ["-O3", "-g", "-std=c11", "-ffp-contract=off", "-fno-math-errno", "-pthread"]
+_UNIX_FLAGS = ["-O3", "-std=c11", "-ffp-contract=off", "-fno-math-errno", "-Wno-psabi", "-pthread"]
 
 
 class _BuildExt(build_ext):

@@ -86,90 +86,108 @@ static int g_threads = 1;
 
 #define AI static inline __attribute__((always_inline))
 
+/* LANES configurations side by side: GCC vector types, lowered to the widest registers the
+ * instruction set chosen at run time has (one zmm on AVX-512, two ymm on AVX2, four xmm). */
+typedef double vd __attribute__((vector_size(8 * LANES)));
+typedef int64_t vl __attribute__((vector_size(8 * LANES)));
+
+AI vd vselect(vl mask, vd yes, vd no) { return (vd)(((vl)yes & mask) | ((vl)no & ~mask)); }
+
 /* sin and cos of |x| < REDUCE_MAX: x = n pi/2 + (y0 + y1) with pi/2 to 99 bits, then fdlibm's
- * __kernel_sin(y0, y1) and __kernel_cos(y0, y1) by the last two bits of n. */
-AI void sincos_fast(double x, double *s, double *c) {
-    double shifted = x * INV_PIO2 + ROUND_MAGIC;
-    double fn = shifted - ROUND_MAGIC;
-    int64_t bits;
-    memcpy(&bits, &shifted, sizeof bits);
-    int64_t quadrant = bits & 3;
-    double r1 = x - fn * PIO2_1; /* exact */
-    double w2 = fn * PIO2_2;     /* exact */
-    double r2 = r1 - w2;         /* r1 - w2 = r2 + e2 exactly (two-sum) */
-    double bv = r2 - r1;
-    double e2 = (r1 - (r2 - bv)) + (-w2 - bv);
-    double tail = e2 - fn * PIO2_3;
-    double y0 = r2 + tail; /* fast two-sum: |r2| >= |tail| */
-    double y1 = tail - (y0 - r2);
-    double z = y0 * y0;
-    double v = z * y0;
-    double rs = S2 + z * (S3 + z * (S4 + z * (S5 + z * S6)));
-    double sr = y0 - ((z * (0.5 * y1 - v * rs) - y1) - v * S1);
-    double rc = z * (C1 + z * (C2 + z * (C3 + z * (C4 + z * (C5 + z * C6)))));
-    double hz = 0.5 * z;
-    double w = 1.0 - hz;
-    double cr = w + (((1.0 - w) - hz) + (z * rc - y0 * y1));
-    double ss = (quadrant & 1) ? cr : sr;
-    double cc = (quadrant & 1) ? sr : cr;
-    *s = (quadrant & 2) ? -ss : ss;
-    *c = ((quadrant + 1) & 2) ? -cc : cc;
+ * __kernel_sin(y0, y1) and __kernel_cos(y0, y1) by the last two bits of n. Lanes with a larger
+ * |x| are then redone with the C library (sincos_fixup). */
+AI void sincos_fast(vd x, vd *s, vd *c) {
+    vd shifted = x * INV_PIO2 + ROUND_MAGIC;
+    vd fn = shifted - ROUND_MAGIC;
+    vl quadrant = (vl)shifted & 3;
+    vd r1 = x - fn * PIO2_1; /* exact */
+    vd w2 = fn * PIO2_2;     /* exact */
+    vd r2 = r1 - w2;         /* r1 - w2 = r2 + e2 exactly (two-sum) */
+    vd bv = r2 - r1;
+    vd e2 = (r1 - (r2 - bv)) + (-w2 - bv);
+    vd tail = e2 - fn * PIO2_3;
+    vd y0 = r2 + tail; /* fast two-sum: |r2| >= |tail| */
+    vd y1 = tail - (y0 - r2);
+    vd z = y0 * y0;
+    vd v = z * y0;
+    vd rs = S2 + z * (S3 + z * (S4 + z * (S5 + z * S6)));
+    vd sr = y0 - ((z * (0.5 * y1 - v * rs) - y1) - v * S1);
+    vd rc = z * (C1 + z * (C2 + z * (C3 + z * (C4 + z * (C5 + z * C6)))));
+    vd hz = 0.5 * z;
+    vd w = 1.0 - hz;
+    vd cr = w + (((1.0 - w) - hz) + (z * rc - y0 * y1));
+    vl odd = (quadrant & 1) != 0;
+    vd ss = vselect(odd, cr, sr), cc = vselect(odd, sr, cr);
+    *s = vselect((quadrant & 2) != 0, -ss, ss);
+    *c = vselect(((quadrant + 1) & 2) != 0, -cc, cc);
 }
 
-/* sin and cos of any x: the C library's beyond REDUCE_MAX (never inside a SIMD loop). */
-AI void sincos_any(double x, double *s, double *c) {
-    if (fabs(x) < REDUCE_MAX) {
-        sincos_fast(x, s, c);
-    } else {
-        *s = sin(x);
-        *c = cos(x);
+AI void sincos_fixup(vd x, vd *s, vd *c) {
+    for (int l = 0; l < LANES; ++l) {
+        if (!(fabs(x[l]) < REDUCE_MAX)) {
+            (*s)[l] = sin(x[l]);
+            (*c)[l] = cos(x[l]);
+        }
     }
 }
 
 /* ------------------------------------------------------------------------------------------ */
-/* rigid transforms, one lane at a time: R (9, row-major) and t (3) in registers */
+/* rigid transforms: R (9, row-major) and t (3), each entry LANES wide */
 
 typedef struct {
-    double R[9][LANES];
-    double t[3][LANES];
+    vd R[9];
+    vd t[3];
 } Pose;
 
-/* cur[l] = cur[l] * (Rj, tj): t += R tj, then R = R Rj (the reference's order and sums). */
-AI void compose(Pose *cur, int l, const double *Rj, const double *tj) {
-    double R[9];
-    for (int k = 0; k < 9; ++k) R[k] = cur->R[k][l];
+/* cur = cur * (Rj, tj): t += R tj, then R = R Rj (the reference's order and sums). */
+AI void compose(Pose *cur, const vd *Rj, const vd *tj) {
+    vd R[9];
+    for (int k = 0; k < 9; ++k) R[k] = cur->R[k];
     for (int i = 0; i < 3; ++i)
-        cur->t[i][l] = cur->t[i][l] + ((R[3 * i] * tj[0] + R[3 * i + 1] * tj[1]) + R[3 * i + 2] * tj[2]);
+        cur->t[i] = cur->t[i] + ((R[3 * i] * tj[0] + R[3 * i + 1] * tj[1]) + R[3 * i + 2] * tj[2]);
     for (int i = 0; i < 3; ++i)
         for (int j = 0; j < 3; ++j)
-            cur->R[3 * i + j][l] =
-                (R[3 * i] * Rj[j] + R[3 * i + 1] * Rj[3 + j]) + R[3 * i + 2] * Rj[6 + j];
+            cur->R[3 * i + j] = (R[3 * i] * Rj[j] + R[3 * i + 1] * Rj[3 + j]) + R[3 * i + 2] * Rj[6 + j];
+}
+
+/* cur = cur * (R, t) for a constant R (9) and t (3). */
+AI void compose_const(Pose *cur, const double *Rc, const double *tc) {
+    vd R[9];
+    for (int k = 0; k < 9; ++k) R[k] = cur->R[k];
+    for (int i = 0; i < 3; ++i)
+        cur->t[i] = cur->t[i] + ((R[3 * i] * tc[0] + R[3 * i + 1] * tc[1]) + R[3 * i + 2] * tc[2]);
+    for (int i = 0; i < 3; ++i)
+        for (int j = 0; j < 3; ++j)
+            cur->R[3 * i + j] = (R[3 * i] * Rc[j] + R[3 * i + 1] * Rc[3 + j]) + R[3 * i + 2] * Rc[6 + j];
 }
 
 /* Rj = (I + s W) + c W2, Rodrigues with c = 1 - cos. */
-AI void rodrigues(const double *W, const double *W2, double s, double c, double *Rj) {
+AI void rodrigues(const double *W, const double *W2, vd s, vd c, vd *Rj) {
     for (int k = 0; k < 9; ++k) Rj[k] = (((k % 4 == 0) ? 1.0 : 0.0) + s * W[k]) + c * W2[k];
 }
 
 /* tj = anchor - Rj anchor: the translation of a rotation about a point. */
-AI void about_point(const double *anchor, const double *Rj, double *tj) {
+AI void about_point(const double *anchor, const vd *Rj, vd *tj) {
     for (int i = 0; i < 3; ++i)
         tj[i] = anchor[i] -
                 ((Rj[3 * i] * anchor[0] + Rj[3 * i + 1] * anchor[1]) + Rj[3 * i + 2] * anchor[2]);
 }
 
-/* Rj of the quaternion (w, x, y, z), normalised as MuJoCo's mju_normalize4. */
-AI void quat_rotation(double w, double x, double y, double z, double *Rj) {
-    double norm = sqrt(((w * w + x * x) + y * y) + z * z);
-    int tiny = norm < 1e-15;
-    int unchanged = fabs(norm - 1.0) <= 1e-15;
-    double inv = 1.0 / ((tiny || unchanged) ? 1.0 : norm);
-    w = tiny ? 1.0 : w * inv;
-    x = tiny ? 0.0 : x * inv;
-    y = tiny ? 0.0 : y * inv;
-    z = tiny ? 0.0 : z * inv;
-    double ww = w * w, xx = x * x, yy = y * y, zz = z * z;
-    double wx = w * x, wy = w * y, wz = w * z, xy = x * y, xz = x * z, yz = y * z;
+/* Rj of the quaternion (w, x, y, z) = q[0..3], normalised as MuJoCo's mju_normalize4. */
+AI void quat_rotation(const vd *q, vd *Rj) {
+    vd w = q[0], x = q[1], y = q[2], z = q[3];
+    vd norm2 = ((w * w + x * x) + y * y) + z * z, norm;
+    for (int l = 0; l < LANES; ++l) norm[l] = sqrt(norm2[l]);
+    vl tiny = norm < 1e-15;
+    vl unchanged = (norm - 1.0 <= 1e-15) & (1.0 - norm <= 1e-15);
+    vd zero = {0}, one = zero + 1.0;
+    vd inv = one / vselect(tiny | unchanged, one, norm);
+    w = vselect(tiny, one, w * inv);
+    x = vselect(tiny, zero, x * inv);
+    y = vselect(tiny, zero, y * inv);
+    z = vselect(tiny, zero, z * inv);
+    vd ww = w * w, xx = x * x, yy = y * y, zz = z * z;
+    vd wx = w * x, wy = w * y, wz = w * z, xy = x * y, xz = x * z, yz = y * z;
     Rj[0] = ((ww + xx) - yy) - zz;
     Rj[1] = 2 * (xy - wz);
     Rj[2] = 2 * (xz + wy);
@@ -263,46 +281,39 @@ typedef struct {
 #define MULTI_ISA
 #endif
 
-/* Run the program on one block: cur is the state, slots the stored poses. Inlined twice: with
- * the fast SIMD sin/cos, and for a block with a huge angle, with the per-lane choice. */
-AI void run_ops(const Program *prog, Pose *restrict cur_, Pose *restrict slots,
-             double qT[][LANES], double ang[][3][LANES], double *out, int form, int lanes,
-             const int exact) {
+typedef struct {
+    vd th, s, c; /* angle, sin, 1 - cos */
+} Angle;
+
+/* Run the program on one block of LANES configurations, q transposed in qT; slots hold the
+ * stored poses, ang the angles. huge: some |q| may give an angle beyond REDUCE_MAX. */
+AI void run_ops(const Program *prog, Pose *restrict slots, const vd *restrict qT,
+                Angle *restrict ang, double *out, int form, int lanes, int huge) {
     const int size = FORM_SIZE[form];
     const npy_intp stride = (npy_intp)prog->n_out * size;
-    Pose cur = *cur_;
+    Pose cur;
     /* first every angle's sin and 1 - cos: independent work the CPU overlaps */
     for (int k = 0; k < prog->n_ops; ++k) {
         const int32_t *op = prog->ops + 4 * k;
         const double *P = prog->params + op[2];
         if (op[0] != OP_SCREW && op[0] != OP_HINGE) continue;
-        double(*A)[LANES] = ang[op[3]];
-        const double *q = qT[op[1]];
-        if (op[0] == OP_SCREW) {
-            for (int l = 0; l < LANES; ++l) A[0][l] = q[l];
-        } else {
-            for (int l = 0; l < LANES; ++l) A[0][l] = (q[l] * P[0] + P[1]) - P[2];
-        }
-        for (int l = 0; l < LANES; ++l) {
-            double th = A[0][l], sn, cs;
-            if (exact)
-                sincos_any(th, &sn, &cs);
-            else
-                sincos_fast(th, &sn, &cs);
-            A[1][l] = sn;
-            A[2][l] = 1.0 - cs;
-        }
+        Angle *A = ang + op[3];
+        A->th = op[0] == OP_SCREW ? qT[op[1]] : (qT[op[1]] * P[0] + P[1]) - P[2];
+        vd sn, cs;
+        sincos_fast(A->th, &sn, &cs);
+        if (huge) sincos_fixup(A->th, &sn, &cs);
+        A->s = sn;
+        A->c = 1.0 - cs;
     }
     for (int k = 0; k < prog->n_ops; ++k) {
         const int32_t *op = prog->ops + 4 * k;
         const int a = op[1], slot = op[3];
         const double *P = prog->params + op[2];
+        vd Rj[9], tj[3];
         switch (op[0]) {
             case OP_IDENTITY:
-                for (int i = 0; i < 9; ++i)
-                    for (int l = 0; l < LANES; ++l) cur.R[i][l] = (i % 4 == 0) ? 1.0 : 0.0;
-                for (int i = 0; i < 3; ++i)
-                    for (int l = 0; l < LANES; ++l) cur.t[i][l] = 0.0;
+                for (int i = 0; i < 9; ++i) cur.R[i] = (vd){0} + ((i % 4 == 0) ? 1.0 : 0.0);
+                for (int i = 0; i < 3; ++i) cur.t[i] = (vd){0};
                 break;
             case OP_LOAD:
                 cur = slots[slot];
@@ -311,50 +322,35 @@ AI void run_ops(const Program *prog, Pose *restrict cur_, Pose *restrict slots,
                 slots[slot] = cur;
                 break;
             case OP_CONST:
-                for (int l = 0; l < LANES; ++l) compose(&cur, l, P, P + 9);
+                compose_const(&cur, P, P + 9);
                 break;
             case OP_SCREW: /* R = (I + s W) + c W2, c = 1 - cos q; p = (r - R r) + q u */
-                for (int l = 0; l < LANES; ++l) {
-                    double th = ang[slot][0][l], Rj[9], tj[3];
-                    rodrigues(P, P + 9, ang[slot][1][l], ang[slot][2][l], Rj);
-                    about_point(P + 18, Rj, tj);
-                    for (int i = 0; i < 3; ++i) tj[i] = tj[i] + th * P[21 + i];
-                    compose(&cur, l, Rj, tj);
-                }
+                rodrigues(P, P + 9, ang[slot].s, ang[slot].c, Rj);
+                about_point(P + 18, Rj, tj);
+                for (int i = 0; i < 3; ++i) tj[i] = tj[i] + ang[slot].th * P[21 + i];
+                compose(&cur, Rj, tj);
                 break;
             case OP_HINGE:
-                for (int l = 0; l < LANES; ++l) {
-                    double Rj[9], tj[3];
-                    rodrigues(P + 3, P + 12, ang[slot][1][l], ang[slot][2][l], Rj);
-                    about_point(P + 21, Rj, tj);
-                    compose(&cur, l, Rj, tj);
+                rodrigues(P + 3, P + 12, ang[slot].s, ang[slot].c, Rj);
+                about_point(P + 21, Rj, tj);
+                compose(&cur, Rj, tj);
+                break;
+            case OP_SLIDE: {
+                vd th = (qT[a] * P[0] + P[1]) - P[2];
+                for (int i = 0; i < 3; ++i) {
+                    vd ax = (cur.R[3 * i] * P[3] + cur.R[3 * i + 1] * P[4]) + cur.R[3 * i + 2] * P[5];
+                    cur.t[i] = cur.t[i] + ax * th;
                 }
                 break;
-            case OP_SLIDE:
-                for (int l = 0; l < LANES; ++l) {
-                    double th = (qT[a][l] * P[0] + P[1]) - P[2];
-                    for (int i = 0; i < 3; ++i) {
-                        double ax = (cur.R[3 * i][l] * P[3] + cur.R[3 * i + 1][l] * P[4]) +
-                                    cur.R[3 * i + 2][l] * P[5];
-                        cur.t[i][l] = cur.t[i][l] + ax * th;
-                    }
-                }
-                break;
+            }
             case OP_BALL:
-                for (int l = 0; l < LANES; ++l) {
-                    double Rj[9], tj[3];
-                    quat_rotation(qT[a][l], qT[a + 1][l], qT[a + 2][l], qT[a + 3][l], Rj);
-                    about_point(P, Rj, tj);
-                    compose(&cur, l, Rj, tj);
-                }
+                quat_rotation(qT + a, Rj);
+                about_point(P, Rj, tj);
+                compose(&cur, Rj, tj);
                 break;
             case OP_FREE:
-                for (int l = 0; l < LANES; ++l) {
-                    double Rj[9];
-                    quat_rotation(qT[a + 3][l], qT[a + 4][l], qT[a + 5][l], qT[a + 6][l], Rj);
-                    for (int i = 0; i < 9; ++i) cur.R[i][l] = Rj[i];
-                    for (int i = 0; i < 3; ++i) cur.t[i][l] = qT[a + i][l];
-                }
+                quat_rotation(qT + a + 3, cur.R);
+                for (int i = 0; i < 3; ++i) cur.t[i] = qT[a + i];
                 break;
             case OP_EMIT:
                 emit(&cur, form, out + (npy_intp)slot * size, stride, lanes);
@@ -364,27 +360,19 @@ AI void run_ops(const Program *prog, Pose *restrict cur_, Pose *restrict slots,
 }
 
 MULTI_ISA static void run_block(const Program *prog, const double *q, npy_intp n_rows,
-                                double *out, int form, Pose *slots, double qT[][LANES],
-                                double ang[][3][LANES], int *bad) {
+                                double *out, int form, Pose *slots, vd *qT, Angle *ang,
+                                int *bad) {
     const int nq = prog->nq;
     const int lanes = n_rows < LANES ? (int)n_rows : LANES;
     const double huge_q = prog->huge_q;
-    Pose cur;
     /* transpose the block's q to qT[j][lane]; lanes past the end repeat the last row */
     int ok = 1; /* every |q| < huge_q (false for NaN and inf too) */
-    if (lanes == LANES) {
-        for (int j = 0; j < nq; ++j)
-            for (int l = 0; l < LANES; ++l) {
-                qT[j][l] = q[l * nq + j];
-                ok &= fabs(qT[j][l]) < huge_q;
-            }
-    } else {
-        for (int j = 0; j < nq; ++j)
-            for (int l = 0; l < LANES; ++l) {
-                qT[j][l] = q[(l < lanes ? l : lanes - 1) * nq + j];
-                ok &= fabs(qT[j][l]) < huge_q;
-            }
-    }
+    for (int j = 0; j < nq; ++j)
+        for (int l = 0; l < LANES; ++l) {
+            double v = q[(l < lanes ? l : lanes - 1) * nq + j];
+            qT[j][l] = v;
+            ok &= fabs(v) < huge_q;
+        }
     if (!ok) {
         for (int j = 0; j < nq; ++j)
             for (int l = 0; l < LANES; ++l)
@@ -392,31 +380,52 @@ MULTI_ISA static void run_block(const Program *prog, const double *q, npy_intp n
                     *bad = 1;
                     return;
                 }
-        run_ops(prog, &cur, slots, qT, ang, out, form, lanes, 1);
-    } else {
-        run_ops(prog, &cur, slots, qT, ang, out, form, lanes, 0);
     }
+    run_ops(prog, slots, qT, ang, out, form, lanes, !ok);
+}
+
+/* Scratch that fits in this many bytes lives on the stack (no malloc per call). */
+#define STACK_SCRATCH 32768
+
+static unsigned char *aligned_malloc(size_t bytes) {
+    size_t rounded = (bytes + sizeof(vd) - 1) / sizeof(vd) * sizeof(vd);
+#ifdef _WIN32
+    return _aligned_malloc(rounded, sizeof(vd));
+#else
+    return aligned_alloc(sizeof(vd), rounded);
+#endif
+}
+
+static void aligned_free(unsigned char *p) {
+#ifdef _WIN32
+    _aligned_free(p);
+#else
+    free(p);
+#endif
 }
 
 static void run_task(Task *task) {
     const Program *prog = task->prog;
     const npy_intp stride = (npy_intp)prog->n_out * FORM_SIZE[task->form];
-    Pose *slots = malloc(sizeof(Pose) * (prog->n_slots > 0 ? prog->n_slots : 1));
-    double(*qT)[LANES] = malloc(sizeof(double[LANES]) * (prog->nq > 0 ? prog->nq : 1));
-    double(*ang)[3][LANES] =
-        malloc(sizeof(double[3][LANES]) * (prog->n_angles > 0 ? prog->n_angles : 1));
-    if (slots == NULL || qT == NULL || ang == NULL) {
+    size_t n_slots = prog->n_slots, n_q = prog->nq, n_ang = prog->n_angles;
+    size_t bytes = sizeof(Pose) * n_slots + sizeof(vd) * n_q + sizeof(Angle) * n_ang;
+    _Alignas(64) unsigned char stack[STACK_SCRATCH];
+    unsigned char *heap = bytes > STACK_SCRATCH ? aligned_malloc(bytes) : NULL;
+    unsigned char *base = bytes > STACK_SCRATCH ? heap : stack;
+    if (base == NULL) {
         task->bad = -1;
-    } else {
-        for (npy_intp i = task->lo; i < task->hi && !task->bad; i += LANES) {
-            npy_intp rows = task->hi - i < LANES ? task->hi - i : LANES;
-            run_block(prog, task->q + i * prog->nq, rows, task->out + i * stride, task->form,
-                      slots, qT, ang, &task->bad);
-        }
+        return;
     }
-    free(slots);
-    free(qT);
-    free(ang);
+    /* every part's size is a multiple of sizeof(vd), so each stays aligned */
+    Pose *slots = (Pose *)base;
+    vd *qT = (vd *)(base + sizeof(Pose) * n_slots);
+    Angle *ang = (Angle *)(base + sizeof(Pose) * n_slots + sizeof(vd) * n_q);
+    for (npy_intp i = task->lo; i < task->hi && !task->bad; i += LANES) {
+        npy_intp rows = task->hi - i < LANES ? task->hi - i : LANES;
+        run_block(prog, task->q + i * prog->nq, rows, task->out + i * stride, task->form, slots,
+                  qT, ang, &task->bad);
+    }
+    aligned_free(heap);
 }
 
 #ifdef _WIN32
@@ -451,7 +460,7 @@ static int run_program(const Program *prog, const double *q, npy_intp n, double 
 #else
     pthread_t handles[MAX_THREADS];
 #endif
-    int started[MAX_THREADS] = {0};
+    int started[MAX_THREADS];
     for (int k = 1; k < nt; ++k) {
 #ifdef _WIN32
         handles[k] = CreateThread(NULL, 0, thread_main, &tasks[k], 0, NULL);
