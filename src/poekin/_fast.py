@@ -255,6 +255,16 @@ def reformat(T: FloatArray, form: str) -> FloatArray:
     return np.concatenate([T[..., :3, 3], lie.rotation_to_quat(T[..., :3, :3])], axis=-1)
 
 
+def try_run(kernel: Any, q: ArrayLike, out: FloatArray | None, form: object) -> FloatArray | None:
+    """``kernel.run`` for inputs that need no conversion, else None (then :func:`evaluate`)."""
+    try:
+        code = _FORM_CODES[form]  # type: ignore[index]
+        result: FloatArray | None = kernel.run(q, out, code)
+    except (KeyError, TypeError, ValueError):  # evaluate says what is wrong
+        return None
+    return result
+
+
 def evaluate(
     kernel: Any,
     q: ArrayLike,

@@ -250,8 +250,12 @@ class Chain:
             The pose of ``frame`` in the world (base) frame, for each configuration.
         """
         kernel = self._space_kernel
-        if kernel is not None and out is None and form == "4x4":  # the fast path
-            T: FloatArray | None = kernel.run(q)
+        if kernel is not None:  # the fast path: no conversion needed
+            T = (
+                kernel.run(q)
+                if out is None and form == "4x4"
+                else _fast.try_run(kernel, q, out, form)
+            )
             if T is not None:
                 return T
         return _fast.evaluate(
@@ -266,8 +270,12 @@ class Chain:
         Same arguments and result as :meth:`fk`; equal to it to float precision.
         """
         kernel = self._body_kernel
-        if kernel is not None and out is None and form == "4x4":
-            T: FloatArray | None = kernel.run(q)
+        if kernel is not None:
+            T = (
+                kernel.run(q)
+                if out is None and form == "4x4"
+                else _fast.try_run(kernel, q, out, form)
+            )
             if T is not None:
                 return T
         return _fast.evaluate(

@@ -420,8 +420,12 @@ class Tree:
             ``T_world_frame`` for each of :attr:`frame_names`.
         """
         kernel = self._kernel
-        if kernel is not None and out is None and form == "4x4":  # the fast path
-            T: FloatArray | None = kernel.run(qpos)
+        if kernel is not None:  # the fast path: no conversion needed
+            T = (
+                kernel.run(qpos)
+                if out is None and form == "4x4"
+                else _fast.try_run(kernel, qpos, out, form)
+            )
             if T is not None:
                 return T
         return _fast.evaluate(
