@@ -226,8 +226,46 @@ static inline __attribute__((always_inline)) void write_quat(const Pose *p, int 
     for (int i = 0; i < 4; ++i) o[i] = q[i] * sign;
 }
 
+#if LANES == 8
+/* r[e][l] -> r[l][e]: an 8x8 transpose in three rounds of two-vector shuffles. */
+AI void transpose8(vd r[8]) {
+    vd a[8], b[8];
+    for (int k = 0; k < 8; k += 2) {
+        a[k] = __builtin_shuffle(r[k], r[k + 1], (vl){0, 8, 2, 10, 4, 12, 6, 14});
+        a[k + 1] = __builtin_shuffle(r[k], r[k + 1], (vl){1, 9, 3, 11, 5, 13, 7, 15});
+    }
+    for (int m = 0; m < 8; m += (m % 2 ? 3 : 1)) { /* m = 0, 1, 4, 5 */
+        b[m] = __builtin_shuffle(a[m], a[m + 2], (vl){0, 1, 8, 9, 4, 5, 12, 13});
+        b[m + 2] = __builtin_shuffle(a[m], a[m + 2], (vl){2, 3, 10, 11, 6, 7, 14, 15});
+    }
+    for (int m = 0; m < 4; ++m) {
+        r[m] = __builtin_shuffle(b[m], b[m + 4], (vl){0, 1, 2, 3, 8, 9, 10, 11});
+        r[m + 4] = __builtin_shuffle(b[m], b[m + 4], (vl){4, 5, 6, 7, 12, 13, 14, 15});
+    }
+}
+#endif
+
+/* Write each lane's pose to its row of the output, in the form asked for. */
 static inline __attribute__((always_inline)) void emit(const Pose *p, int form, double *out,
                                                         npy_intp stride, int lanes) {
+#if LANES == 8
+    if (form != FORM_POS_QUAT) { /* rows [R0 R1 R2 t0 R3 R4 R5 t1 | R6 R7 R8 t2 0 0 0 1] */
+        vd zero = {0};
+        vd lo[8] = {p->R[0], p->R[1], p->R[2], p->t[0], p->R[3], p->R[4], p->R[5], p->t[1]};
+        vd hi[8] = {p->R[6], p->R[7], p->R[8], p->t[2], zero, zero, zero, zero + 1.0};
+        transpose8(lo);
+        transpose8(hi);
+        for (int l = 0; l < lanes; ++l) {
+            double *o = out + l * stride;
+            memcpy(o, &lo[l], sizeof(vd));
+            if (form == FORM_4X4)
+                memcpy(o + 8, &hi[l], sizeof(vd));
+            else
+                memcpy(o + 8, &hi[l], sizeof(vd) / 2);
+        }
+        return;
+    }
+#endif
     for (int l = 0; l < lanes; ++l) {
         double *o = out + l * stride;
         if (form == FORM_POS_QUAT) {
