@@ -10,6 +10,7 @@ import shutil
 import struct
 import warnings
 import zlib
+from collections.abc import Sequence
 
 import mujoco
 import numpy as np
@@ -71,6 +72,54 @@ def test_stripped_model_has_the_same_frames(tmp_path: pathlib.Path) -> None:
         assert_close("xmat", d_bare.xmat, d_full.xmat, 0.0)
         assert_close("site_xpos", d_bare.site_xpos, d_full.site_xpos, 0.0)
         assert_close("site_xmat", d_bare.site_xmat, d_full.site_xmat, 0.0)
+
+
+KINEMATIC_FIELDS = (
+    "body_pos",
+    "body_quat",
+    "jnt_pos",
+    "jnt_axis",
+    "site_pos",
+    "site_quat",
+    "qpos0",
+)
+POSE_FIELDS = ("xpos", "xmat", "site_xpos", "site_xmat")
+
+
+def _assert_bitwise_kinematics(
+    ours: mujoco.MjModel, full: mujoco.MjModel, qpos: Sequence[np.ndarray]
+) -> None:
+    """``ours`` has ``full``'s frames and joints, and poses them bit for bit like ``full`` does
+    (mj_kinematics) at every ``qpos``."""
+    for kind, count in (("body", "nbody"), ("joint", "njnt"), ("site", "nsite")):
+        assert getattr(ours, count) == getattr(full, count), count
+        names = [[getattr(m, kind)(i).name for i in range(getattr(m, count))] for m in (ours, full)]
+        assert names[0] == names[1], kind
+    for field in KINEMATIC_FIELDS:
+        assert np.array_equal(getattr(ours, field), getattr(full, field)), field
+    d_ours, d_full = mujoco.MjData(ours), mujoco.MjData(full)
+    for q in qpos:
+        d_ours.qpos[:] = d_full.qpos[:] = q
+        mujoco.mj_kinematics(ours, d_ours)
+        mujoco.mj_kinematics(full, d_full)
+        for field in POSE_FIELDS:
+            assert np.array_equal(getattr(d_ours, field), getattr(d_full, field)), field
+
+
+def test_ur5e_kinematics_only_compile_equals_the_full_compile_bitwise() -> None:
+    """The complete UR5e folder compiles without reading its 20 meshes (about 30 MB), yet its
+    frames, joints and poses are those of MuJoCo's full compile of the same file, bit for bit."""
+    before = _digest(UR5E_DIR)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        loaded = load_model("universal_robots_ur5e")
+    full = mujoco.MjModel.from_xml_path(str(UR5E_DIR / "ur5e.xml"))
+    assert loaded.xml_path == UR5E_DIR / "ur5e.xml"
+    assert (full.nmesh, loaded.model.nmesh) == (20, 0)  # no mesh was read
+    assert len(loaded.files) == 21 and loaded.stripped == ()  # the meshes are still its files
+    qpos = np.random.default_rng(0).uniform(-2 * np.pi, 2 * np.pi, size=(1000, full.nq))
+    _assert_bitwise_kinematics(loaded.model, full, list(qpos))
+    assert _digest(UR5E_DIR) == before
 
 
 @pytest.mark.parametrize(
@@ -488,6 +537,105 @@ def test_free_body_aligned_with_missing_inertia_is_refused(
     with pytest.raises(ModelError, match=r"free body 'obj' is aligned with its inertial frame"):
         load_model(bare_xml)
     assert _digest(tmp_path) == before
+
+
+# Complete folders: every case above, and the free bodies whose aligned frame their mesh shapes.
+COMPLETE = {name: files for name, (files, _, _) in CASES.items()} | {
+    f"alignfree, mesh read: {name}": _free_body_files(*parts)
+    for name, parts in ALIGN_REFUSED.items()
+}
+
+
+@pytest.mark.parametrize("case", list(COMPLETE))
+def test_complete_folder_poses_like_the_full_compile(tmp_path: pathlib.Path, case: str) -> None:
+    """With every file present, the kinematics-only compile (which reads no mesh, height field,
+    skin or texture file unless an aligned free body's inertia needs it) poses every frame bit
+    for bit like MuJoCo's full compile, writes nothing, and says nothing."""
+    xml = _write(tmp_path, COMPLETE[case])
+    before = _digest(tmp_path)
+    loaded = _load_complete(xml)
+    full = mujoco.MjModel.from_xml_path(str(xml))
+    assert loaded.stripped == () and set(loaded.files) == _all_files(tmp_path)
+    rng = np.random.default_rng(3)
+    _assert_bitwise_kinematics(
+        loaded.model, full, [full.qpos0] + [_random_qpos(full, rng) for _ in range(20)]
+    )
+    assert _digest(tmp_path) == before
+
+
+def _binary_stl(obj: str) -> bytes:
+    """The triangles of a Wavefront OBJ text as a binary STL file."""
+    lines = [ln.split() for ln in obj.splitlines()]
+    vertices = [[float(x) for x in ln[1:]] for ln in lines if ln[0] == "v"]
+    faces = [[vertices[int(i) - 1] for i in ln[1:]] for ln in lines if ln[0] == "f"]
+    triangles = b"".join(
+        struct.pack("<12fH", 0.0, 0.0, 0.0, *(x for v in face for x in v), 0) for face in faces
+    )
+    return b"\0" * 80 + struct.pack("<I", len(faces)) + triangles
+
+
+@pytest.mark.parametrize("fmt", ["obj", "stl"])
+def test_aligned_free_body_reads_only_its_own_mesh(tmp_path: pathlib.Path, fmt: str) -> None:
+    """A free body aligned with its inertial frame (alignfree) gets MuJoCo's aligned pose: the
+    mesh that shapes that frame is read. The arm's mesh, which cannot move a frame, is not."""
+    mesh = TET_OBJ.encode() if fmt == "obj" else _binary_stl(TET_OBJ)
+    xml = _write(
+        tmp_path,
+        {
+            "robot.xml": _mjcf(
+                compiler='alignfree="true" meshdir="assets"',
+                asset=f'<mesh name="tet" file="tet.{fmt}"/><mesh name="wedge" file="wedge.obj"/>',
+                body='<body name="obj" pos="0.3 0.2 1" euler="10 20 30"><freejoint/>'
+                '<geom type="mesh" mesh="tet"/><geom type="mesh" mesh="wedge" density="0"/>'
+                '<site name="s" pos="0.05 0.02 0.01"/></body>'
+                + ARM.format(geoms='<geom type="mesh" mesh="wedge"/>'),
+            ),
+            f"assets/tet.{fmt}": mesh,
+            "assets/wedge.obj": TET_OBJ,
+        },
+    )
+    before = _digest(tmp_path)
+    loaded = _load_complete(xml)
+    full = mujoco.MjModel.from_xml_path(str(xml))
+    assert not np.allclose(full.body("obj").pos, [0.3, 0.2, 1])  # MuJoCo did align it
+    assert (full.nmesh, loaded.model.nmesh) == (2, 1)
+    assert loaded.model.mesh(0).name == "tet"
+    rng = np.random.default_rng(5)
+    _assert_bitwise_kinematics(
+        loaded.model, full, [full.qpos0] + [_random_qpos(full, rng) for _ in range(50)]
+    )
+    assert set(loaded.files) == _all_files(tmp_path)
+    assert _digest(tmp_path) == before
+
+
+def test_present_asset_files_are_not_read(tmp_path: pathlib.Path) -> None:
+    """Files that cannot move a frame are not opened: unreadable ones load without a word, with
+    the frames of the model whose files are good. One that an aligned frame needs is read."""
+    good = {
+        "robot.xml": _mjcf(
+            asset='<mesh name="tet" file="tet.obj"/>'
+            '<texture name="wood" type="2d" file="wood.png"/><material name="m" texture="wood"/>',
+            body=ARM.format(geoms='<geom type="mesh" mesh="tet" material="m"/>'),
+        ),
+        "tet.obj": TET_OBJ,
+        "wood.png": _png(),
+    }
+    full = mujoco.MjModel.from_xml_path(str(_write(tmp_path / "good", good)))
+    bad = _write(tmp_path / "bad", good | {"tet.obj": "not a mesh\n", "wood.png": b"not a png"})
+    with pytest.raises(ValueError, match="at least 4 vertices"):
+        mujoco.MjModel.from_xml_path(str(bad))  # MuJoCo's full compile reads them
+    loaded = _load_complete(bad)
+    assert loaded.model.nmesh == 0 and loaded.model.ntex == 1  # a one-pixel placeholder
+    assert loaded.model.mat_texid[0].max() == 0
+    assert set(loaded.files) == _all_files(tmp_path / "bad")
+    rng = np.random.default_rng(1)
+    _assert_bitwise_kinematics(loaded.model, full, [_random_qpos(full, rng) for _ in range(10)])
+    aligned = _write(
+        tmp_path / "aligned", _free_body_files('alignfree="true"', "<freejoint/>", FREE_MESH)
+    )
+    (tmp_path / "aligned" / "tet.obj").write_text("not a mesh\n")
+    with pytest.raises(ModelError, match=r"MuJoCo rejected .*robot\.xml: .*at least 4 vertices"):
+        load_model(aligned)
 
 
 def test_nested_include_prefers_the_main_models_folder(tmp_path: pathlib.Path) -> None:

@@ -1,17 +1,26 @@
 """Finding and compiling models: Menagerie names, MJCF paths, and kinematics-only loading.
 
-This is the only module that reads model files, and it never writes one. A model folder whose
-asset files are absent (as in a partial Menagerie clone) still compiles. poekin looks for every
-mesh, height field, skin and texture file where MuJoCo would (``meshdir``, ``texturedir`` and
-``assetdir``, ``strippath``, absolute paths, assets declared in ``<include>`` files or in
-sub-models attached with ``<model file=...>``). Then it turns each geom or site that names a
-missing mesh or height field into a tiny sphere, unlinks missing textures from materials and
-lights, drops the missing assets, floors body mass and inertia so that bodies whose geometry is
-gone still compile, and says so once (an :class:`AssetsStrippedWarning`). Body and site frames,
-joint axes and anchors, and hence every pose, are unchanged by this; only collision, rendering and
-inertia differ. One case cannot keep its poses and is refused with a :class:`ModelError`: a free
-body that MuJoCo aligns with its inertial frame (``alignfree``) when missing geometry shaped that
-frame. A missing ``<include>`` or sub-model file is an error too.
+This is the only module that reads model files, and it never writes one. Models are compiled
+for kinematics only: mesh, height field, skin and texture files are not read, since they cannot
+move any body or site frame (body frames come from the XML; meshes only move geom frames and
+shape inertia). Only when a free body that MuJoCo aligns with its inertial frame (``alignfree``)
+takes that frame from mesh or height field geoms are those files read, so that its pose is
+MuJoCo's. So a model folder whose asset files are absent (as in a partial Menagerie clone)
+compiles too, and a complete one compiles in milliseconds instead of reading megabytes of meshes.
+
+poekin looks for every mesh, height field, skin and texture file where MuJoCo would
+(``meshdir``, ``texturedir`` and ``assetdir``, ``strippath``, absolute paths, assets declared in
+``<include>`` files or in sub-models attached with ``<model file=...>``). Then it turns each
+geom or site that names a mesh or height field it does not read into a tiny sphere, drops
+those assets, and floors body mass and inertia so that bodies whose geometry is gone still
+compile. A missing texture is dropped and unlinked from materials and lights; a texture whose
+files exist stays, as a one-pixel flat colour, so materials keep their links. Body and site
+frames, joint axes and anchors, and hence every pose, are unchanged by this; only collision,
+rendering and inertia differ. Files that are missing are named once (an
+:class:`AssetsStrippedWarning`); files that exist and were merely not read are not. One case
+cannot keep its poses and is refused with a :class:`ModelError`: a free body that MuJoCo aligns
+with its inertial frame when missing geometry shaped that frame. A missing ``<include>`` or
+sub-model file is an error too.
 """
 
 from __future__ import annotations
@@ -22,11 +31,8 @@ import os
 import pathlib
 import re
 import warnings
-import xml.etree.ElementTree as ET
 from collections.abc import Iterator, Sequence
-from typing import TypeAlias
-
-import mujoco
+from typing import TYPE_CHECKING, TypeAlias
 
 from poekin.errors import (
     MenagerieUnavailableError,
@@ -34,6 +40,12 @@ from poekin.errors import (
     UnknownRobotError,
     did_you_mean,
 )
+
+if TYPE_CHECKING:  # MuJoCo is imported when a model is first loaded, not with poekin
+    import mujoco
+
+    # A model element that reads a file.
+    _Asset: TypeAlias = mujoco.MjsMesh | mujoco.MjsHField | mujoco.MjsSkin | mujoco.MjsTexture
 
 __all__ = ["AssetsStrippedWarning", "LoadedModel", "load_model", "resolve_source"]
 
@@ -47,9 +59,6 @@ _STUB_RADIUS = 1e-3
 _MIN_MASS = 1e-6
 _MIN_INERTIA = 1e-12
 _XML_KINDS = {"include": "included file", "model": "sub-model file"}
-
-# A model element that reads a file.
-_Asset: TypeAlias = mujoco.MjsMesh | mujoco.MjsHField | mujoco.MjsSkin | mujoco.MjsTexture
 
 
 class AssetsStrippedWarning(UserWarning):
@@ -65,8 +74,9 @@ class LoadedModel:
         robot: the Menagerie name given, or the file name for a path.
         short_name: a short name for labels: the model file's stem (``ur5e``).
         xml_path: the MJCF file that was compiled.
-        files: the model's files that exist on disk (XML, includes, assets), for hashing.
-        stripped: what was removed for a kinematics-only load (empty if nothing).
+        files: the model's files that exist on disk (XML, includes, assets), for hashing,
+            whether or not the kinematics-only compile read them.
+        stripped: what was missing and stripped, as the warning says it (empty if nothing).
     """
 
     model: mujoco.MjModel
@@ -154,6 +164,8 @@ def _xml_references(path: pathlib.Path) -> list[tuple[str, str]]:
 
     A file that does not parse names nothing here; MuJoCo then reports it with its line number.
     """
+    import xml.etree.ElementTree as ET
+
     try:
         root = ET.parse(path).getroot()
     except (ET.ParseError, OSError):
@@ -230,6 +242,8 @@ def _candidates(
     sub-model keep its compiler and are under its folder; the spec does not say which
     sub-model's, so each sub-model's folder is a candidate.
     """
+    import mujoco
+
     compiler = asset.compiler
     folder = compiler.texturedir if isinstance(asset, mujoco.MjsTexture) else compiler.meshdir
     if spec.strippath:
@@ -238,30 +252,35 @@ def _candidates(
     return [base / folder / file for base in bases]
 
 
-def _scan_assets(spec: mujoco.MjSpec, xml: _ModelXml) -> tuple[list[pathlib.Path], list[_Asset]]:
-    """The asset files that exist, and the assets with a file that does not."""
+def _scan_assets(
+    spec: mujoco.MjSpec, xml: _ModelXml
+) -> tuple[list[pathlib.Path], list[_Asset], list[_Asset]]:
+    """The asset files that exist, the assets with a file that does not, and the others."""
     found: list[pathlib.Path] = []
     missing: dict[int, _Asset] = {}
+    present: dict[int, _Asset] = {}
     for asset, file in _asset_files(spec):
         hits = [p for p in _candidates(spec, xml, asset, file) if p.is_file()]
         if hits:
             found.append(hits[0])
+            present.setdefault(id(asset), asset)
         else:
             missing.setdefault(id(asset), asset)
-    return found, list(missing.values())
+    return found, list(missing.values()), [a for k, a in present.items() if k not in missing]
 
 
-def _tiny_spheres(elements: Sequence[mujoco.MjsGeom | mujoco.MjsSite]) -> int:
+def _tiny_spheres(elements: Sequence[mujoco.MjsGeom | mujoco.MjsSite]) -> None:
     """Make geoms or sites tiny spheres that name no mesh; their frames stay as they are.
 
     Whatever the type: a primitive geom that names a mesh is fitted to it, so its own size means
     nothing without the mesh. A geom keeps its group, mass and density.
     """
+    import mujoco
+
     for e in elements:
         e.type = mujoco.mjtGeom.mjGEOM_SPHERE
         e.size = [_STUB_RADIUS, 0.0, 0.0]
         e.meshname = ""
-    return len(elements)
 
 
 def _spheres_note(geoms: int, sites: int) -> str:
@@ -272,6 +291,8 @@ def _spheres_note(geoms: int, sites: int) -> str:
 
 def _adds_inertia(geom: mujoco.MjsGeom) -> bool:
     """Whether ``geom`` counts towards its body's mass, centre of mass and inertia."""
+    import mujoco
+
     body = geom.parent
     compiler = body.compiler
     from_geoms = compiler.inertiafromgeom == mujoco.mjtInertiaFromGeom.mjINERTIAFROMGEOM_TRUE or (
@@ -292,6 +313,19 @@ def _unlink_textures(spec: mujoco.MjSpec, names: set[str]) -> None:
             light.texture = ""
 
 
+def _flat_texture(texture: mujoco.MjsTexture) -> None:
+    """Make ``texture`` a one-pixel flat colour that reads no file. Its name, type, and the
+    materials and lights that use it stay."""
+    import mujoco
+
+    texture.file = ""
+    texture.cubefiles = [""] * 6
+    texture.content_type = ""
+    texture.builtin = mujoco.mjtBuiltin.mjBUILTIN_FLAT
+    texture.width = texture.height = 1
+    texture.gridsize = [1, 1]
+
+
 def _floor_inertia(spec: mujoco.MjSpec) -> None:
     """Floor every body's mass and inertia, far below any real part's, so that a moving body
     whose geometry is gone still compiles. Each attached sub-model has its own compiler."""
@@ -300,39 +334,85 @@ def _floor_inertia(spec: mujoco.MjSpec) -> None:
         compiler.boundinertia = max(compiler.boundinertia, _MIN_INERTIA)
 
 
+@dataclasses.dataclass(frozen=True)
+class _Stub:
+    """A geom made a tiny sphere that counted towards its body's inertia.
+
+    Attributes:
+        geom: the geom.
+        asset: ``("mesh" | "hfield", name)`` of the asset it named.
+        missing: whether that asset's file is missing (else it exists but was not read).
+    """
+
+    geom: mujoco.MjsGeom
+    asset: tuple[str, str]
+    missing: bool
+
+
+def _asset_key(asset: _Asset) -> tuple[str, str]:
+    """``(kind, name)`` as in :attr:`_Stub.asset`; the kind is empty for skins and textures."""
+    import mujoco
+
+    kinds = ((mujoco.MjsMesh, "mesh"), (mujoco.MjsHField, "hfield"))
+    return next((k for cls, k in kinds if isinstance(asset, cls)), ""), asset.name
+
+
 def _strip_for_kinematics(
-    spec: mujoco.MjSpec, missing: list[_Asset]
-) -> tuple[tuple[str, ...], list[mujoco.MjsGeom]]:
-    """Remove the missing assets and every reference to them.
+    spec: mujoco.MjSpec, missing: list[_Asset], skipped: list[_Asset]
+) -> tuple[tuple[str, ...], list[_Stub]]:
+    """Remove the ``missing`` assets, and the ``skipped`` ones whose files exist but are not to be
+    read, and every reference to them; a skipped texture stays, as a flat placeholder.
 
     Returns:
-        The note's parts (what was stripped, per kind), and the geoms made tiny spheres that
-        counted towards their body's inertia.
+        The note's parts (what was missing, per kind; empty if nothing was), and the geoms made
+        tiny spheres that counted towards their body's inertia.
     """
+    import mujoco
+
     meshes, hfields, skins, textures = (
         [a for a in missing if isinstance(a, kind)]
         for kind in (mujoco.MjsMesh, mujoco.MjsHField, mujoco.MjsSkin, mujoco.MjsTexture)
     )
-    mesh_names = {a.name for a in meshes if a.name}
-    hfield_names = {a.name for a in hfields if a.name}
+    placeholders = [a for a in skipped if isinstance(a, mujoco.MjsTexture)]
+    gone = [*missing, *(a for a in skipped if not isinstance(a, mujoco.MjsTexture))]
+    lost_meshes = {a.name for a in meshes if a.name}
+    lost_hfields = {a.name for a in hfields if a.name}
+    mesh_names = {a.name for a in gone if isinstance(a, mujoco.MjsMesh) and a.name}
+    hfield_names = {a.name for a in gone if isinstance(a, mujoco.MjsHField) and a.name}
     mesh_geoms = [g for g in spec.geoms if g.meshname in mesh_names]
     hfield_geoms = [g for g in spec.geoms if g.hfieldname in hfield_names]
-    n_sites = _tiny_spheres([s for s in spec.sites if s.meshname in mesh_names])
+    mesh_sites = [s for s in spec.sites if s.meshname in mesh_names]
+    n_mesh_geoms = sum(g.meshname in lost_meshes for g in mesh_geoms)
+    n_mesh_sites = sum(s.meshname in lost_meshes for s in mesh_sites)
+    n_hfield_geoms = sum(g.hfieldname in lost_hfields for g in hfield_geoms)
+    stubs = [
+        _Stub(g, ("mesh", g.meshname), g.meshname in lost_meshes)
+        for g in mesh_geoms
+        if _adds_inertia(g)
+    ] + [
+        _Stub(g, ("hfield", g.hfieldname), g.hfieldname in lost_hfields)
+        for g in hfield_geoms
+        if _adds_inertia(g)
+    ]
+    _tiny_spheres(mesh_sites)
     _tiny_spheres(mesh_geoms + hfield_geoms)
     for g in hfield_geoms:
         g.hfieldname = ""
-    _unlink_textures(spec, {a.name for a in textures if a.name})
-    for asset in missing:
+    _unlink_textures(spec, {a.name for a in gone if isinstance(a, mujoco.MjsTexture) and a.name})
+    for asset in gone:
         spec.delete(asset)
-    _floor_inertia(spec)
+    for texture in placeholders:
+        _flat_texture(texture)
+    if gone:
+        _floor_inertia(spec)
     parts = [
-        (meshes, "missing mesh file", _spheres_note(len(mesh_geoms), n_sites)),
-        (hfields, "missing height field file", _spheres_note(len(hfield_geoms), 0)),
+        (meshes, "missing mesh file", _spheres_note(n_mesh_geoms, n_mesh_sites)),
+        (hfields, "missing height field file", _spheres_note(n_hfield_geoms, 0)),
         (textures, "missing texture file", ""),
         (skins, "missing skin file", ""),
     ]
     note = tuple(_count(len(assets), noun) + more for assets, noun, more in parts if assets)
-    return note, [g for g in mesh_geoms + hfield_geoms if _adds_inertia(g)]
+    return note, stubs
 
 
 def _aligned_bodies(spec: mujoco.MjSpec, model: mujoco.MjModel) -> set[int]:
@@ -341,6 +421,8 @@ def _aligned_bodies(spec: mujoco.MjSpec, model: mujoco.MjModel) -> set[int]:
     Those with a free joint whose ``align`` is on (``"auto"``: the compiler's ``alignfree``)
     and, once static children are fused (``fusestatic``), no child bodies.
     """
+    import mujoco
+
     parents = set(model.body_parentid[1:].tolist())
     aligned = set()
     for joint in spec.joints:
@@ -356,28 +438,66 @@ def _aligned_bodies(spec: mujoco.MjSpec, model: mujoco.MjModel) -> set[int]:
 def _check_alignment(
     spec: mujoco.MjSpec,
     model: mujoco.MjModel,
-    weighty: list[mujoco.MjsGeom],
+    stubs: list[_Stub],
     xml_path: pathlib.Path,
-) -> None:
-    """Refuse a free body whose frame MuJoCo aligned with an inertial frame shaped by a stub.
+) -> set[tuple[str, str]]:
+    """Refuse a free body whose frame MuJoCo aligned with an inertial frame shaped by a stub of
+    a missing asset; return the present assets whose stubs shaped such a frame, which are to be
+    read after all.
 
     Raises:
-        ModelError: such a body exists; its frame (and ``qpos``'s meaning) would be wrong.
+        ModelError: such an asset's file is missing; the body's frame (and ``qpos``'s meaning)
+            cannot be reproduced.
     """
     aligned = _aligned_bodies(spec, model)
-    for geom in weighty:
-        body = geom.parent  # after compiling: the body it was fused into, if any
-        if body.id in aligned:
+    needed = set()
+    for stub in stubs:
+        body = stub.geom.parent  # after compiling: the body it was fused into, if any
+        if body.id not in aligned:
+            continue
+        if stub.missing:
             name = body.name or f"#{body.id}"
             raise ModelError(
                 f"{xml_path.name}: free body {name!r} is aligned with its inertial frame "
                 "(compiler alignfree, or freejoint align), which depends on missing asset files, "
                 "so its pose cannot be reproduced; restore the missing files"
             )
+        needed.add(stub.asset)
+    return needed
+
+
+def _read_spec(xml_path: pathlib.Path) -> mujoco.MjSpec:
+    """Parse the model (no asset file is read yet).
+
+    Raises:
+        ModelError: the XML cannot be parsed.
+    """
+    import mujoco
+
+    try:
+        spec = mujoco.MjSpec.from_file(str(xml_path))
+    except Exception as e:  # MuJoCo raises ValueError for XML errors, but be robust
+        raise ModelError(f"cannot read {xml_path}: {_first_line(e)}") from e
+    if xml_path.suffix.lower() == ".urdf":
+        spec.compiler.fusestatic = False  # keep fixed-joint links as bodies: they are frames
+        _floor_inertia(spec)  # URDF links often have no <inertial>
+    return spec
+
+
+def _compile(spec: mujoco.MjSpec, xml_path: pathlib.Path) -> mujoco.MjModel:
+    try:
+        return spec.compile()
+    except Exception as e:
+        raise ModelError(f"MuJoCo rejected {xml_path}: {_first_line(e)}") from e
 
 
 def load_model(source: str | os.PathLike[str]) -> LoadedModel:
-    """Resolve ``source`` and compile it with MuJoCo, kinematics-only if assets are missing.
+    """Resolve ``source`` and compile it with MuJoCo for kinematics.
+
+    Mesh, height field, skin and texture files are not read, except the meshes and height
+    fields that shape the inertial frame of a free body that MuJoCo aligns with it: every body
+    and site pose, joint and ``qpos0`` is MuJoCo's full compile's, bit for bit; collision
+    geometry, rendering and inertia are not.
 
     Args:
         source: a Menagerie robot name (``"universal_robots_ur5e"``) or a path to an MJCF or
@@ -395,21 +515,17 @@ def load_model(source: str | os.PathLike[str]) -> LoadedModel:
     """
     xml_path, robot = resolve_source(source)
     xml = _model_xml(xml_path)
-    try:
-        spec = mujoco.MjSpec.from_file(str(xml_path))
-    except Exception as e:  # MuJoCo raises ValueError for XML errors, but be robust
-        raise ModelError(f"cannot read {xml_path}: {_first_line(e)}") from e
-    if xml_path.suffix.lower() == ".urdf":
-        spec.compiler.fusestatic = False  # keep fixed-joint links as bodies: they are frames
-        _floor_inertia(spec)  # URDF links often have no <inertial>
-    found, missing = _scan_assets(spec, xml)
+    spec = _read_spec(xml_path)
+    found, missing, present = _scan_assets(spec, xml)
     files = tuple(sorted({p.resolve() for p in [*xml.files, *found]}))
-    stripped, weighty = _strip_for_kinematics(spec, missing) if missing else ((), [])
-    try:
-        model = spec.compile()
-    except Exception as e:
-        raise ModelError(f"MuJoCo rejected {xml_path}: {_first_line(e)}") from e
-    _check_alignment(spec, model, weighty, xml_path)
+    stripped, stubs = _strip_for_kinematics(spec, missing, present)
+    model = _compile(spec, xml_path)
+    needed = _check_alignment(spec, model, stubs, xml_path)
+    if needed:  # read those files after all: compile again, with them
+        spec = _read_spec(xml_path)
+        _, missing, present = _scan_assets(spec, xml)
+        _strip_for_kinematics(spec, missing, [a for a in present if _asset_key(a) not in needed])
+        model = _compile(spec, xml_path)
     if stripped:
         warnings.warn(
             f"{xml_path.name}: loaded for kinematics only, stripped {'; '.join(stripped)}",
