@@ -251,6 +251,45 @@ def test_console_script_runs_without_traceback() -> None:
     assert "Traceback" not in proc.stderr
 
 
+# What each import costs a user who only verifies: none of these is needed for that.
+NOT_FOR_VERIFY = [
+    "matplotlib",
+    "yaml",
+    "yourdfpy",
+    "tqdm",  # only for a progress bar on a terminal
+    "numpy.ma",
+    "glfw",  # MuJoCo's GL backend, which the command line never uses
+    "poekin.metrics",
+    "poekin.plotting",
+]
+
+
+def test_verify_imports_only_what_it_needs() -> None:
+    """``import poekin`` imports no MuJoCo, and ``poekin verify`` none of the modules it does not
+    use; MUJOCO_GL is left as the user had it."""
+    code = (
+        "import os, sys\n"
+        "import poekin\n"
+        "print(sorted(m for m in ['mujoco', *NOT] if m in sys.modules))\n"
+        "from poekin.cli import main\n"
+        "assert main(['verify', '--samples', '20']) == 0\n"
+        "print(sorted(m for m in NOT if m in sys.modules), 'mujoco' in sys.modules)\n"
+        "print(os.environ.get('MUJOCO_GL'))\n"
+    )
+    env = {k: v for k, v in os.environ.items() if k != "MUJOCO_GL"}
+    proc = subprocess.run(
+        [sys.executable, "-c", f"NOT = {NOT_FOR_VERIFY!r}\n{code}"],
+        capture_output=True,
+        text=True,
+        check=True,
+        env=env,
+    )
+    lines = proc.stdout.splitlines()
+    assert lines[0] == "[]"
+    assert lines[-2:] == ["[] True", "None"]
+    assert proc.stderr == ""
+
+
 # --- dh, diagnose, --params ---------------------------------------------------------------------
 
 

@@ -86,3 +86,17 @@ def test_sampling_ranges() -> None:
 def test_within_limits_report() -> None:
     r = verify(load_quiet("universal_robots_ur5e"), samples=200, within_limits=True)
     assert r.within_limits and r.passed
+
+
+@pytest.mark.parametrize("n", [1, 2, 7, 1000])
+def test_report_medians_are_numpys(ur5e_report, n: int) -> None:
+    """The medians equal ``np.median``'s to the bit (poekin sorts itself, so that verifying does
+    not import numpy.ma), NaN included."""
+    rng = np.random.default_rng(n)
+    pos = {"a": rng.random(n) * 1e-14, "b": np.where(rng.random(n) < 0.5, np.nan, 1.0)}
+    r = dataclasses.replace(ur5e_report, samples=n, pos_err=pos, ori_err=pos)
+    per = r.per_method()
+    for m, errors in pos.items():
+        assert per[m]["median_pos_err_m"] == float(np.median(errors)) or (
+            np.isnan(per[m]["median_pos_err_m"]) and np.isnan(np.median(errors))
+        )

@@ -73,8 +73,28 @@ def _params_or_chain(args: argparse.Namespace) -> Chain | DHTable:
     return _params(args.params) if args.params else load(_model_source(args, None), args.frame)
 
 
+def _import_mujoco_without_gl() -> None:
+    """Import MuJoCo with its OpenGL backends off, unless the user chose one with ``MUJOCO_GL``.
+
+    The command line never renders with MuJoCo (plots use matplotlib), but MuJoCo's default
+    backend, GLFW, looks for its library when MuJoCo is imported, and starts a Python subprocess
+    to read the library's version: about 0.1 s of every command. The variable is set only for
+    that import, so nothing else in the process, or started from it, sees it.
+    """
+    if "mujoco" in sys.modules or "MUJOCO_GL" in os.environ:
+        return
+    os.environ["MUJOCO_GL"] = "disable"
+    try:
+        import mujoco  # noqa: F401
+    finally:
+        del os.environ["MUJOCO_GL"]
+
+
 def _model_source(args: argparse.Namespace, default: str | None = DEFAULT_ROBOT) -> str:
-    """The model to compare with: ``--against`` or the positional SOURCE (not both)."""
+    """The model to compare with: ``--against`` or the positional SOURCE (not both).
+
+    A model is loaded next, so MuJoCo is imported here (:func:`_import_mujoco_without_gl`).
+    """
     against = getattr(args, "against", None)
     if against and args.source and against != args.source:
         raise InputError(f"two models given ({args.source!r} and --against {against!r}); give one")
@@ -83,6 +103,7 @@ def _model_source(args: argparse.Namespace, default: str | None = DEFAULT_ROBOT)
         raise InputError(
             "give a model: a Menagerie robot name or an MJCF path (or --params FILE|NAME)"
         )
+    _import_mujoco_without_gl()
     return str(source)
 
 
@@ -101,12 +122,13 @@ def _check_run_options(args: argparse.Namespace) -> None:
 
 
 def _cmd_verify(args: argparse.Namespace, out: TextIO) -> int:
-    from poekin.metrics import append_metrics, check_metrics_file, metric_rows, sha256_files
     from poekin.sources import load_model
     from poekin.verify import verify
 
     _check_run_options(args)
     if args.metrics:
+        from poekin.metrics import check_metrics_file
+
         check_metrics_file(args.metrics)
     if args.against and not args.params:
         raise InputError("--against SOURCE goes with --params FILE|NAME (what to check)")
@@ -171,6 +193,8 @@ def _cmd_verify(args: argparse.Namespace, out: TextIO) -> int:
         if not args.json:
             print(f"plot written to {args.plot}", file=out)
     if args.metrics:
+        from poekin.metrics import append_metrics, metric_rows, sha256_files
+
         notes = f"frame={report.frame}; range={'limits' if args.within_limits else '[-2pi,2pi]'}"
         if args.params:
             notes += f"; params={args.params}"

@@ -17,9 +17,9 @@ pose for the same numbers.
 
 from __future__ import annotations
 
-from typing import Literal
+import functools
+from typing import TYPE_CHECKING, Literal
 
-import mujoco
 import numpy as np
 from numpy.typing import NDArray
 
@@ -27,6 +27,9 @@ from poekin import lie
 from poekin.chain import Chain, JointType
 from poekin.errors import UnknownFrameError, did_you_mean
 from poekin.tree import Tree, TreeJointType
+
+if TYPE_CHECKING:
+    import mujoco
 
 __all__ = [
     "FrameKind",
@@ -38,21 +41,39 @@ __all__ = [
 ]
 
 FrameKind = Literal["site", "body"]
-_JOINT_TYPES: dict[int, JointType] = {
-    int(mujoco.mjtJoint.mjJNT_HINGE): "revolute",
-    int(mujoco.mjtJoint.mjJNT_SLIDE): "prismatic",
-}
+_CHAIN_JOINTS: tuple[JointType, ...] = ("revolute", "prismatic")
 
 
-def _name(model: mujoco.MjModel, obj: mujoco.mjtObj, i: int, prefix: str) -> str:
-    return mujoco.mj_id2name(model, obj, i) or f"{prefix}{i}"
+@functools.cache
+def _joint_types() -> dict[int, TreeJointType]:
+    """MuJoCo's joint types by ``mjtJoint`` value (MuJoCo is imported when first needed)."""
+    import mujoco
+
+    return {
+        int(mujoco.mjtJoint.mjJNT_HINGE): "revolute",
+        int(mujoco.mjtJoint.mjJNT_SLIDE): "prismatic",
+        int(mujoco.mjtJoint.mjJNT_BALL): "ball",
+        int(mujoco.mjtJoint.mjJNT_FREE): "free",
+    }
+
+
+def _names(
+    model: mujoco.MjModel, kind: Literal["site", "body", "joint"], start: int, stop: int
+) -> list[str]:
+    """Names of the ``kind`` objects ``start, ..., stop - 1``; unnamed ones as ``site3``, ..."""
+    import mujoco
+
+    obj = {
+        "site": mujoco.mjtObj.mjOBJ_SITE,
+        "body": mujoco.mjtObj.mjOBJ_BODY,
+        "joint": mujoco.mjtObj.mjOBJ_JOINT,
+    }[kind]
+    return [mujoco.mj_id2name(model, obj, i) or f"{kind}{i}" for i in range(start, stop)]
 
 
 def site_and_body_names(model: mujoco.MjModel) -> tuple[list[str], list[str]]:
     """Names of every site and every body except the world (unnamed ones as ``site3``, ...)."""
-    sites = [_name(model, mujoco.mjtObj.mjOBJ_SITE, i, "site") for i in range(model.nsite)]
-    bodies = [_name(model, mujoco.mjtObj.mjOBJ_BODY, i, "body") for i in range(1, model.nbody)]
-    return sites, bodies
+    return _names(model, "site", 0, model.nsite), _names(model, "body", 1, model.nbody)
 
 
 def find_frame(model: mujoco.MjModel, frame: str | None) -> tuple[FrameKind, int, str]:
@@ -94,14 +115,6 @@ def frame_pose(
     return T
 
 
-_TREE_JOINT_TYPES: dict[int, TreeJointType] = {
-    int(mujoco.mjtJoint.mjJNT_HINGE): "revolute",
-    int(mujoco.mjtJoint.mjJNT_SLIDE): "prismatic",
-    int(mujoco.mjtJoint.mjJNT_BALL): "ball",
-    int(mujoco.mjtJoint.mjJNT_FREE): "free",
-}
-
-
 def tree_from_model(model: mujoco.MjModel, *, robot: str = "") -> Tree:
     """The whole kinematic tree of a compiled MuJoCo model: every body, joint and site.
 
@@ -115,7 +128,8 @@ def tree_from_model(model: mujoco.MjModel, *, robot: str = "") -> Tree:
 
     joints = range(model.njnt)
     site_names, body_names = site_and_body_names(model)
-    hinge_like = [int(model.jnt_type[j]) in _JOINT_TYPES for j in joints]
+    types = [_joint_types()[int(model.jnt_type[j])] for j in joints]
+    hinge_like = [t in _CHAIN_JOINTS for t in types]
     limits = np.where(
         (model.jnt_limited.astype(bool) & np.array(hinge_like, dtype=bool))[:, None],
         model.jnt_range,
@@ -127,8 +141,8 @@ def tree_from_model(model: mujoco.MjModel, *, robot: str = "") -> Tree:
         body_parents=model.body_parentid[1:] - 1,
         body_pos=model.body_pos[1:],
         body_rot=quat(model.body_quat[1:]),
-        joint_names=tuple(_name(model, mujoco.mjtObj.mjOBJ_JOINT, j, "joint") for j in joints),
-        joint_types=tuple(_TREE_JOINT_TYPES[int(model.jnt_type[j])] for j in joints),
+        joint_names=tuple(_names(model, "joint", 0, model.njnt)),
+        joint_types=tuple(types),
         joint_bodies=model.jnt_bodyid - 1,
         joint_axes=model.jnt_axis,
         joint_anchors=model.jnt_pos,

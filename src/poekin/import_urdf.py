@@ -32,15 +32,17 @@ from __future__ import annotations
 
 import math
 import os
-import xml.etree.ElementTree as ET
 from collections.abc import Sequence
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import NDArray
 
 from poekin.errors import InputError, ModelError, did_you_mean
 from poekin.tree import Mimic, Tree, TreeJointType
+
+if TYPE_CHECKING:
+    import xml.etree.ElementTree as ET
 
 __all__ = ["FLOATING_BASE", "tree_from_urdf"]
 
@@ -163,6 +165,8 @@ def _parse(path: str) -> Any:
         raise ModelError("reading URDF needs yourdfpy: pip install 'poekin[urdf]'") from exc
     if not os.path.isfile(path):
         raise ModelError(f"{path}: no such URDF file; check the path")
+    import xml.etree.ElementTree as ET
+
     try:
         root = ET.parse(path).getroot()
     except ET.ParseError as exc:

@@ -10,22 +10,26 @@ Errors between a reference pose ``T_ref`` (MuJoCo) and a pose ``T`` (PoE):
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Mapping, Sequence
-from typing import Any
+import math
+import sys
+from collections.abc import Iterable, Mapping, Sequence
+from typing import TYPE_CHECKING, Any
 
-import mujoco
 import numpy as np
 from numpy.typing import NDArray
-from tqdm import tqdm
 
 from poekin import lie
 from poekin.chain import Chain
-from poekin.dh import DHTable
 from poekin.errors import InputError, ModelError
 from poekin.import_mujoco import FrameKind, find_frame, frame_pose, tree_from_model
 from poekin.loading import default_frame, is_urdf, load_tree
 from poekin.sources import LoadedModel
 from poekin.tree import Tree
+
+if TYPE_CHECKING:
+    import mujoco
+
+    from poekin.dh import DHTable
 
 __all__ = [
     "DEFAULT_ORI_TOL",
@@ -119,22 +123,27 @@ def mujoco_frame_poses(
 ) -> FloatArray:
     """``(N, len(frames), 4, 4)`` poses of sites/bodies ``(kind, id)`` from ``mj_forward``,
     for ``qpos`` of shape ``(N, nq)``."""
+    import mujoco
+
     data = mujoco.MjData(model)
     out = np.zeros((len(qpos), len(frames), 4, 4))
-    rows = tqdm(
-        range(len(qpos)),
-        desc="mj_forward",
-        unit="q",
-        disable=None if progress else True,
-        delay=0.5,
-        leave=False,
-    )
-    for k in rows:
+    for k in _progress(range(len(qpos)), progress):
         data.qpos[:] = qpos[k]
         mujoco.mj_forward(model, data)
         for f, (kind, fid) in enumerate(frames):
             frame_pose(data, kind, fid, out=out[k, f])
     return out
+
+
+def _progress(rows: range, progress: bool) -> Iterable[int]:
+    """``rows``, with a progress bar if ``progress`` and stderr is a terminal (as tqdm decides
+    itself; tqdm is only imported then)."""
+    if not (progress and hasattr(sys.stderr, "isatty") and sys.stderr.isatty()):
+        return rows
+    from tqdm import tqdm
+
+    bar: Iterable[int] = tqdm(rows, desc="mj_forward", unit="q", delay=0.5, leave=False)
+    return bar
 
 
 def mujoco_poses(
@@ -223,12 +232,22 @@ class VerifyReport:
         return {
             m: {
                 "max_pos_err_m": float(np.max(self.pos_err[m], initial=0.0)),
-                "median_pos_err_m": float(np.median(self.pos_err[m])) if self.samples else 0.0,
+                "median_pos_err_m": _median(self.pos_err[m]) if self.samples else 0.0,
                 "max_ori_err_rad": float(np.max(self.ori_err[m], initial=0.0)),
-                "median_ori_err_rad": float(np.median(self.ori_err[m])) if self.samples else 0.0,
+                "median_ori_err_rad": _median(self.ori_err[m]) if self.samples else 0.0,
             }
             for m in self.pos_err
         }
+
+
+def _median(x: FloatArray) -> float:
+    """``float(np.median(x))``, to the bit, for ``x`` of shape ``(N,)``, ``N >= 1``, without
+    the import of ``numpy.ma`` that ``np.median`` makes."""
+    s = np.sort(x)
+    n = len(s)
+    if math.isnan(s[-1]):  # NaNs sort last
+        return math.nan
+    return float(s[n // 2] if n % 2 else (s[n // 2 - 1] + s[n // 2]) / 2)
 
 
 def verify(
@@ -350,6 +369,8 @@ def _mujoco_qpos(
     Raises:
         ModelError: MuJoCo compiled the model with other joints than poekin read.
     """
+    import mujoco
+
     mj_names = [
         mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_JOINT, j) or "" for j in range(model.njnt)
     ]
@@ -383,7 +404,7 @@ def _chain_errors(
         )
     T_ref = mujoco_poses(loaded.model, chain, q, progress=progress)
     errors = {}
-    if isinstance(checked, DHTable):
+    if not isinstance(checked, Chain):  # a DH table (poekin.dh is not imported to verify)
         errors["DH table"] = pose_errors(T_ref, checked.fk(q))
         checked = checked.to_chain()
     errors["space PoE"] = pose_errors(T_ref, checked.fk(q))
