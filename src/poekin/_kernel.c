@@ -330,18 +330,27 @@ AI void run_ops(const Program *prog, Pose *restrict slots, const vd *restrict qT
     const int size = FORM_SIZE[form];
     const npy_intp stride = (npy_intp)prog->n_out * size;
     Pose cur;
-    /* first every angle's sin and 1 - cos: independent work the CPU overlaps */
+    /* first every angle, then their sin and 1 - cos two at a time: independent work whose
+     * latencies overlap */
     for (int k = 0; k < prog->n_ops; ++k) {
         const int32_t *op = prog->ops + 4 * k;
         const double *P = prog->params + op[2];
-        if (op[0] != OP_SCREW && op[0] != OP_HINGE) continue;
-        Angle *A = ang + op[3];
-        A->th = op[0] == OP_SCREW ? qT[op[1]] : (qT[op[1]] * P[0] + P[1]) - P[2];
-        vd sn, cs;
-        sincos_fast(A->th, &sn, &cs);
-        if (huge) sincos_fixup(A->th, &sn, &cs);
-        A->s = sn;
-        A->c = 1.0 - cs;
+        if (op[0] == OP_SCREW) ang[op[3]].th = qT[op[1]];
+        if (op[0] == OP_HINGE) ang[op[3]].th = (qT[op[1]] * P[0] + P[1]) - P[2];
+    }
+    for (int k = 0; k < prog->n_angles; k += 2) {
+        Angle *A = ang + k, *B = ang + (k + 1 < prog->n_angles ? k + 1 : k);
+        vd sa, ca, sb, cb;
+        sincos_fast(A->th, &sa, &ca);
+        sincos_fast(B->th, &sb, &cb);
+        if (huge) {
+            sincos_fixup(A->th, &sa, &ca);
+            sincos_fixup(B->th, &sb, &cb);
+        }
+        A->s = sa;
+        A->c = 1.0 - ca;
+        B->s = sb;
+        B->c = 1.0 - cb;
     }
     for (int k = 0; k < prog->n_ops; ++k) {
         const int32_t *op = prog->ops + 4 * k;
@@ -404,13 +413,21 @@ MULTI_ISA static void run_block(const Program *prog, const double *q, npy_intp n
     const int lanes = n_rows < LANES ? (int)n_rows : LANES;
     const double huge_q = prog->huge_q;
     /* transpose the block's q to qT[j][lane]; lanes past the end repeat the last row */
-    int ok = 1; /* every |q| < huge_q (false for NaN and inf too) */
-    for (int j = 0; j < nq; ++j)
-        for (int l = 0; l < LANES; ++l) {
-            double v = q[(l < lanes ? l : lanes - 1) * nq + j];
-            qT[j][l] = v;
-            ok &= fabs(v) < huge_q;
+    const vl sign = (vl){0} + INT64_MAX;
+    const vd limit = (vd){0} + huge_q;
+    vl below = (vl){0} - 1; /* per lane: every |q| < huge_q (false for NaN and inf too) */
+    for (int j = 0; j < nq; ++j) {
+        vd v;
+        if (lanes == LANES) {
+            for (int l = 0; l < LANES; ++l) v[l] = q[l * nq + j];
+        } else {
+            for (int l = 0; l < LANES; ++l) v[l] = q[(l < lanes ? l : lanes - 1) * nq + j];
         }
+        qT[j] = v;
+        below &= (vd)((vl)v & sign) < limit;
+    }
+    int ok = 1;
+    for (int l = 0; l < LANES; ++l) ok &= below[l] != 0;
     if (!ok) {
         for (int j = 0; j < nq; ++j)
             for (int l = 0; l < LANES; ++l)
