@@ -153,6 +153,39 @@ def test_thread_count_does_not_change_the_bits(ur5e: Chain, features: Tree) -> N
     assert np.array_equal(one[0], four[0]) and np.array_equal(one[1], four[1])
 
 
+def _widths() -> list[int]:
+    """The kernel widths this CPU runs (8: AVX-512, 4: AVX2, 2: any)."""
+    if not poekin.compiled_kernel():
+        return []
+    best = _fast._kernel.set_width(0)  # the widest
+    return [w for w in (2, 4, 8) if w <= best]
+
+
+@pytest.mark.parametrize("form", FORMS)
+def test_every_instruction_set_gives_the_same_bits(ur5e: Chain, features: Tree, form: str) -> None:
+    """The AVX-512, AVX2 and SSE2/NEON kernels do the same operations in the same order."""
+    widths = _widths()
+    if len(widths) < 2:
+        pytest.skip("this CPU runs one kernel width")
+    q = np.random.default_rng(15).uniform(-7, 7, (1_001, 6))
+    q[5] = 1e6  # a huge angle: the C library's sin and cos in that block
+    qpos = sample_qpos(features, 1_001, seed=15)
+    results = {}
+    try:
+        for w in widths:
+            _fast._kernel.set_width(w)
+            results[w] = (
+                ur5e.fk(q, form=form),
+                ur5e.fk_body(q, form=form),
+                features.fk(qpos, form=form),
+            )
+    finally:
+        _fast._kernel.set_width(0)
+    for w in widths[1:]:
+        for a, b in zip(results[widths[0]], results[w], strict=True):
+            assert np.array_equal(a, b), f"width {w} differs from width {widths[0]}"
+
+
 @pytest.mark.parametrize("form", FORMS)
 def test_out_is_filled_and_returned(ur5e: Chain, features: Tree, form: str) -> None:
     q = np.random.default_rng(11).uniform(-6, 6, (3, 4, 6))

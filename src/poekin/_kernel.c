@@ -3,8 +3,10 @@
  *
  * One generic interpreter serves every FK path (space PoE, body PoE, whole trees). Python
  * compiles a model into a small *program* of pose operations (see poekin/_fast.py); this file
- * runs it on blocks of LANES configurations at once, so that every operation is a loop over
- * lanes that the compiler turns into SIMD code, and on several threads for big batches.
+ * runs it on blocks of LANES configurations at once, each operation one SIMD instruction
+ * sequence over the block (GCC vector types), and on several threads for big batches. The code
+ * that depends on LANES is in _kernel_core.h, compiled three times: 8 lanes for AVX-512, 4 for
+ * AVX2, 2 for everything else (SSE2, NEON); the widest the CPU runs is picked at import.
  *
  * The state is one rigid transform per lane, ``cur = (R, t)``. Operations right-multiply it,
  * in the same order and with the same formulas as the pure-NumPy reference path
@@ -15,7 +17,8 @@
  * instruction set chosen at run time.
  *
  * sin and cos: a branch-free Cody-Waite reduction to a double-double remainder and fdlibm's
- * minimax kernels (error below 1 ulp), vectorised over lanes; arguments beyond 2^19 rad go to the C library's sin and cos.
+ * minimax kernels (error below 1 ulp), vectorised over lanes; arguments beyond 2^19 rad go to
+ * the C library's sin and cos.
  */
 #define PY_SSIZE_T_CLEAN
 #include <Python.h>
@@ -33,7 +36,6 @@
 #include <pthread.h>
 #endif
 
-#define LANES 8
 
 /* Operation codes; each operation is 4 int32: code, qpos address, parameter offset, slot (for
  * SCREW and HINGE: the angle's index, 0, 1, ... in program order). */
@@ -86,209 +88,6 @@ static int g_threads = 1;
 
 #define AI static inline __attribute__((always_inline))
 
-/* LANES configurations side by side: GCC vector types, lowered to the widest registers the
- * instruction set chosen at run time has (one zmm on AVX-512, two ymm on AVX2, four xmm). */
-typedef double vd __attribute__((vector_size(8 * LANES)));
-typedef int64_t vl __attribute__((vector_size(8 * LANES)));
-
-AI vd vselect(vl mask, vd yes, vd no) { return (vd)(((vl)yes & mask) | ((vl)no & ~mask)); }
-
-/* sin and cos of |x| < REDUCE_MAX: x = n pi/2 + (y0 + y1) with pi/2 to 99 bits, then fdlibm's
- * __kernel_sin(y0, y1) and __kernel_cos(y0, y1) by the last two bits of n. Lanes with a larger
- * |x| are then redone with the C library (sincos_fixup). */
-AI void sincos_fast(vd x, vd *s, vd *c) {
-    vd shifted = x * INV_PIO2 + ROUND_MAGIC;
-    vd fn = shifted - ROUND_MAGIC;
-    vl quadrant = (vl)shifted & 3;
-    vd r1 = x - fn * PIO2_1; /* exact */
-    vd w2 = fn * PIO2_2;     /* exact */
-    vd r2 = r1 - w2;         /* r1 - w2 = r2 + e2 exactly (two-sum) */
-    vd bv = r2 - r1;
-    vd e2 = (r1 - (r2 - bv)) + (-w2 - bv);
-    vd tail = e2 - fn * PIO2_3;
-    vd y0 = r2 + tail; /* fast two-sum: |r2| >= |tail| */
-    vd y1 = tail - (y0 - r2);
-    vd z = y0 * y0;
-    vd v = z * y0;
-    vd rs = S2 + z * (S3 + z * (S4 + z * (S5 + z * S6)));
-    vd sr = y0 - ((z * (0.5 * y1 - v * rs) - y1) - v * S1);
-    vd rc = z * (C1 + z * (C2 + z * (C3 + z * (C4 + z * (C5 + z * C6)))));
-    vd hz = 0.5 * z;
-    vd w = 1.0 - hz;
-    vd cr = w + (((1.0 - w) - hz) + (z * rc - y0 * y1));
-    vl odd = (quadrant & 1) != 0;
-    vd ss = vselect(odd, cr, sr), cc = vselect(odd, sr, cr);
-    *s = vselect((quadrant & 2) != 0, -ss, ss);
-    *c = vselect(((quadrant + 1) & 2) != 0, -cc, cc);
-}
-
-AI void sincos_fixup(vd x, vd *s, vd *c) {
-    for (int l = 0; l < LANES; ++l) {
-        if (!(fabs(x[l]) < REDUCE_MAX)) {
-            (*s)[l] = sin(x[l]);
-            (*c)[l] = cos(x[l]);
-        }
-    }
-}
-
-/* ------------------------------------------------------------------------------------------ */
-/* rigid transforms: R (9, row-major) and t (3), each entry LANES wide */
-
-typedef struct {
-    vd R[9];
-    vd t[3];
-} Pose;
-
-/* cur = cur * (Rj, tj): t += R tj, then R = R Rj (the reference's order and sums). */
-AI void compose(Pose *cur, const vd *Rj, const vd *tj) {
-    vd R[9];
-    for (int k = 0; k < 9; ++k) R[k] = cur->R[k];
-    for (int i = 0; i < 3; ++i)
-        cur->t[i] = cur->t[i] + ((R[3 * i] * tj[0] + R[3 * i + 1] * tj[1]) + R[3 * i + 2] * tj[2]);
-    for (int i = 0; i < 3; ++i)
-        for (int j = 0; j < 3; ++j)
-            cur->R[3 * i + j] = (R[3 * i] * Rj[j] + R[3 * i + 1] * Rj[3 + j]) + R[3 * i + 2] * Rj[6 + j];
-}
-
-/* cur = cur * (R, t) for a constant R (9) and t (3). */
-AI void compose_const(Pose *cur, const double *Rc, const double *tc) {
-    vd R[9];
-    for (int k = 0; k < 9; ++k) R[k] = cur->R[k];
-    for (int i = 0; i < 3; ++i)
-        cur->t[i] = cur->t[i] + ((R[3 * i] * tc[0] + R[3 * i + 1] * tc[1]) + R[3 * i + 2] * tc[2]);
-    for (int i = 0; i < 3; ++i)
-        for (int j = 0; j < 3; ++j)
-            cur->R[3 * i + j] = (R[3 * i] * Rc[j] + R[3 * i + 1] * Rc[3 + j]) + R[3 * i + 2] * Rc[6 + j];
-}
-
-/* Rj = (I + s W) + c W2, Rodrigues with c = 1 - cos. */
-AI void rodrigues(const double *W, const double *W2, vd s, vd c, vd *Rj) {
-    for (int k = 0; k < 9; ++k) Rj[k] = (((k % 4 == 0) ? 1.0 : 0.0) + s * W[k]) + c * W2[k];
-}
-
-/* tj = anchor - Rj anchor: the translation of a rotation about a point. */
-AI void about_point(const double *anchor, const vd *Rj, vd *tj) {
-    for (int i = 0; i < 3; ++i)
-        tj[i] = anchor[i] -
-                ((Rj[3 * i] * anchor[0] + Rj[3 * i + 1] * anchor[1]) + Rj[3 * i + 2] * anchor[2]);
-}
-
-/* Rj of the quaternion (w, x, y, z) = q[0..3], normalised as MuJoCo's mju_normalize4. */
-AI void quat_rotation(const vd *q, vd *Rj) {
-    vd w = q[0], x = q[1], y = q[2], z = q[3];
-    vd norm2 = ((w * w + x * x) + y * y) + z * z, norm;
-    for (int l = 0; l < LANES; ++l) norm[l] = sqrt(norm2[l]);
-    vl tiny = norm < 1e-15;
-    vl unchanged = (norm - 1.0 <= 1e-15) & (1.0 - norm <= 1e-15);
-    vd zero = {0}, one = zero + 1.0;
-    vd inv = one / vselect(tiny | unchanged, one, norm);
-    w = vselect(tiny, one, w * inv);
-    x = vselect(tiny, zero, x * inv);
-    y = vselect(tiny, zero, y * inv);
-    z = vselect(tiny, zero, z * inv);
-    vd ww = w * w, xx = x * x, yy = y * y, zz = z * z;
-    vd wx = w * x, wy = w * y, wz = w * z, xy = x * y, xz = x * z, yz = y * z;
-    Rj[0] = ((ww + xx) - yy) - zz;
-    Rj[1] = 2 * (xy - wz);
-    Rj[2] = 2 * (xz + wy);
-    Rj[3] = 2 * (xy + wz);
-    Rj[4] = ((ww - xx) + yy) - zz;
-    Rj[5] = 2 * (yz - wx);
-    Rj[6] = 2 * (xz - wy);
-    Rj[7] = 2 * (yz + wx);
-    Rj[8] = ((ww - xx) - yy) + zz;
-}
-
-/* ------------------------------------------------------------------------------------------ */
-/* output */
-
-/* Quaternion wxyz with w >= 0 of R (Shepperd's method, as poekin.lie.rotation_to_quat). */
-static inline __attribute__((always_inline)) void write_quat(const Pose *p, int l, double *o) {
-    double m00 = p->R[0][l], m01 = p->R[1][l], m02 = p->R[2][l];
-    double m10 = p->R[3][l], m11 = p->R[4][l], m12 = p->R[5][l];
-    double m20 = p->R[6][l], m21 = p->R[7][l], m22 = p->R[8][l];
-    double a = m21 - m12, b = m02 - m20, c = m10 - m01;
-    double xy = m01 + m10, xz = m02 + m20, yz = m12 + m21;
-    double d[4] = {1 + m00 + m11 + m22, 1 + m00 - m11 - m22, 1 - m00 + m11 - m22,
-                   1 - m00 - m11 + m22};
-    int k = 0;
-    for (int i = 1; i < 4; ++i)
-        if (d[i] > d[k]) k = i;
-    double big = sqrt(d[k] > 0.25 ? d[k] : 0.25) * 2;
-    double q[4];
-    switch (k) {
-        case 0: q[0] = big / 4; q[1] = a / big; q[2] = b / big; q[3] = c / big; break;
-        case 1: q[0] = a / big; q[1] = big / 4; q[2] = xy / big; q[3] = xz / big; break;
-        case 2: q[0] = b / big; q[1] = xy / big; q[2] = big / 4; q[3] = yz / big; break;
-        default: q[0] = c / big; q[1] = xz / big; q[2] = yz / big; q[3] = big / 4; break;
-    }
-    double sign = q[0] < 0 ? -1.0 : 1.0;
-    for (int i = 0; i < 4; ++i) o[i] = q[i] * sign;
-}
-
-#if LANES == 8
-/* r[e][l] -> r[l][e]: an 8x8 transpose in three rounds of two-vector shuffles. */
-AI void transpose8(vd r[8]) {
-    vd a[8], b[8];
-    for (int k = 0; k < 8; k += 2) {
-        a[k] = __builtin_shuffle(r[k], r[k + 1], (vl){0, 8, 2, 10, 4, 12, 6, 14});
-        a[k + 1] = __builtin_shuffle(r[k], r[k + 1], (vl){1, 9, 3, 11, 5, 13, 7, 15});
-    }
-    for (int m = 0; m < 8; m += (m % 2 ? 3 : 1)) { /* m = 0, 1, 4, 5 */
-        b[m] = __builtin_shuffle(a[m], a[m + 2], (vl){0, 1, 8, 9, 4, 5, 12, 13});
-        b[m + 2] = __builtin_shuffle(a[m], a[m + 2], (vl){2, 3, 10, 11, 6, 7, 14, 15});
-    }
-    for (int m = 0; m < 4; ++m) {
-        r[m] = __builtin_shuffle(b[m], b[m + 4], (vl){0, 1, 2, 3, 8, 9, 10, 11});
-        r[m + 4] = __builtin_shuffle(b[m], b[m + 4], (vl){4, 5, 6, 7, 12, 13, 14, 15});
-    }
-}
-#endif
-
-/* Write each lane's pose to its row of the output, in the form asked for. */
-static inline __attribute__((always_inline)) void emit(const Pose *p, int form, double *out,
-                                                        npy_intp stride, int lanes) {
-#if LANES == 8
-    if (form != FORM_POS_QUAT) { /* rows [R0 R1 R2 t0 R3 R4 R5 t1 | R6 R7 R8 t2 0 0 0 1] */
-        vd zero = {0};
-        vd lo[8] = {p->R[0], p->R[1], p->R[2], p->t[0], p->R[3], p->R[4], p->R[5], p->t[1]};
-        vd hi[8] = {p->R[6], p->R[7], p->R[8], p->t[2], zero, zero, zero, zero + 1.0};
-        transpose8(lo);
-        transpose8(hi);
-        for (int l = 0; l < lanes; ++l) {
-            double *o = out + l * stride;
-            memcpy(o, &lo[l], sizeof(vd));
-            if (form == FORM_4X4)
-                memcpy(o + 8, &hi[l], sizeof(vd));
-            else
-                memcpy(o + 8, &hi[l], sizeof(vd) / 2);
-        }
-        return;
-    }
-#endif
-    for (int l = 0; l < lanes; ++l) {
-        double *o = out + l * stride;
-        if (form == FORM_POS_QUAT) {
-            o[0] = p->t[0][l];
-            o[1] = p->t[1][l];
-            o[2] = p->t[2][l];
-            write_quat(p, l, o + 3);
-            continue;
-        }
-        for (int i = 0; i < 3; ++i) {
-            o[4 * i] = p->R[3 * i][l];
-            o[4 * i + 1] = p->R[3 * i + 1][l];
-            o[4 * i + 2] = p->R[3 * i + 2][l];
-            o[4 * i + 3] = p->t[i][l];
-        }
-        if (form == FORM_4X4) {
-            o[12] = 0.0;
-            o[13] = 0.0;
-            o[14] = 0.0;
-            o[15] = 1.0;
-        }
-    }
-}
 
 /* ------------------------------------------------------------------------------------------ */
 /* the interpreter */
@@ -313,141 +112,15 @@ typedef struct {
     int bad; /* set if some q is not finite */
 } Task;
 
-#if defined(__x86_64__) && defined(__ELF__) && defined(__GNUC__) && !defined(__clang__)
-#define MULTI_ISA __attribute__((target_clones("arch=x86-64-v4", "arch=x86-64-v3", "default")))
-#else
-#define MULTI_ISA
-#endif
-
-typedef struct {
-    vd th, s, c; /* angle, sin, 1 - cos */
-} Angle;
-
-/* Run the program on one block of LANES configurations, q transposed in qT; slots hold the
- * stored poses, ang the angles. huge: some |q| may give an angle beyond REDUCE_MAX. */
-AI void run_ops(const Program *prog, Pose *restrict slots, const vd *restrict qT,
-                Angle *restrict ang, double *out, int form, int lanes, int huge) {
-    const int size = FORM_SIZE[form];
-    const npy_intp stride = (npy_intp)prog->n_out * size;
-    Pose cur;
-    /* first every angle, then their sin and 1 - cos two at a time: independent work whose
-     * latencies overlap */
-    for (int k = 0; k < prog->n_ops; ++k) {
-        const int32_t *op = prog->ops + 4 * k;
-        const double *P = prog->params + op[2];
-        if (op[0] == OP_SCREW) ang[op[3]].th = qT[op[1]];
-        if (op[0] == OP_HINGE) ang[op[3]].th = (qT[op[1]] * P[0] + P[1]) - P[2];
-    }
-    for (int k = 0; k < prog->n_angles; k += 2) {
-        Angle *A = ang + k, *B = ang + (k + 1 < prog->n_angles ? k + 1 : k);
-        vd sa, ca, sb, cb;
-        sincos_fast(A->th, &sa, &ca);
-        sincos_fast(B->th, &sb, &cb);
-        if (huge) {
-            sincos_fixup(A->th, &sa, &ca);
-            sincos_fixup(B->th, &sb, &cb);
-        }
-        A->s = sa;
-        A->c = 1.0 - ca;
-        B->s = sb;
-        B->c = 1.0 - cb;
-    }
-    for (int k = 0; k < prog->n_ops; ++k) {
-        const int32_t *op = prog->ops + 4 * k;
-        const int a = op[1], slot = op[3];
-        const double *P = prog->params + op[2];
-        vd Rj[9], tj[3];
-        switch (op[0]) {
-            case OP_IDENTITY:
-                for (int i = 0; i < 9; ++i) cur.R[i] = (vd){0} + ((i % 4 == 0) ? 1.0 : 0.0);
-                for (int i = 0; i < 3; ++i) cur.t[i] = (vd){0};
-                break;
-            case OP_LOAD:
-                cur = slots[slot];
-                break;
-            case OP_STORE:
-                slots[slot] = cur;
-                break;
-            case OP_CONST:
-                compose_const(&cur, P, P + 9);
-                break;
-            case OP_SCREW: /* R = (I + s W) + c W2, c = 1 - cos q; p = (r - R r) + q u */
-                rodrigues(P, P + 9, ang[slot].s, ang[slot].c, Rj);
-                about_point(P + 18, Rj, tj);
-                for (int i = 0; i < 3; ++i) tj[i] = tj[i] + ang[slot].th * P[21 + i];
-                compose(&cur, Rj, tj);
-                break;
-            case OP_HINGE:
-                rodrigues(P + 3, P + 12, ang[slot].s, ang[slot].c, Rj);
-                about_point(P + 21, Rj, tj);
-                compose(&cur, Rj, tj);
-                break;
-            case OP_SLIDE: {
-                vd th = (qT[a] * P[0] + P[1]) - P[2];
-                for (int i = 0; i < 3; ++i) {
-                    vd ax = (cur.R[3 * i] * P[3] + cur.R[3 * i + 1] * P[4]) + cur.R[3 * i + 2] * P[5];
-                    cur.t[i] = cur.t[i] + ax * th;
-                }
-                break;
-            }
-            case OP_BALL:
-                quat_rotation(qT + a, Rj);
-                about_point(P, Rj, tj);
-                compose(&cur, Rj, tj);
-                break;
-            case OP_FREE:
-                quat_rotation(qT + a + 3, cur.R);
-                for (int i = 0; i < 3; ++i) cur.t[i] = qT[a + i];
-                break;
-            case OP_EMIT:
-                emit(&cur, form, out + (npy_intp)slot * size, stride, lanes);
-                break;
-        }
-    }
-}
-
-MULTI_ISA static void run_block(const Program *prog, const double *q, npy_intp n_rows,
-                                double *out, int form, Pose *slots, vd *qT, Angle *ang,
-                                int *bad) {
-    const int nq = prog->nq;
-    const int lanes = n_rows < LANES ? (int)n_rows : LANES;
-    const double huge_q = prog->huge_q;
-    /* transpose the block's q to qT[j][lane]; lanes past the end repeat the last row */
-    const vl sign = (vl){0} + INT64_MAX;
-    const vd limit = (vd){0} + huge_q;
-    vl below = (vl){0} - 1; /* per lane: every |q| < huge_q (false for NaN and inf too) */
-    for (int j = 0; j < nq; ++j) {
-        vd v;
-        if (lanes == LANES) {
-            for (int l = 0; l < LANES; ++l) v[l] = q[l * nq + j];
-        } else {
-            for (int l = 0; l < LANES; ++l) v[l] = q[(l < lanes ? l : lanes - 1) * nq + j];
-        }
-        qT[j] = v;
-        below &= (vd)((vl)v & sign) < limit;
-    }
-    int ok = 1;
-    for (int l = 0; l < LANES; ++l) ok &= below[l] != 0;
-    if (!ok) {
-        for (int j = 0; j < nq; ++j)
-            for (int l = 0; l < LANES; ++l)
-                if (!isfinite(qT[j][l])) {
-                    *bad = 1;
-                    return;
-                }
-    }
-    run_ops(prog, slots, qT, ang, out, form, lanes, !ok);
-}
-
 /* Scratch that fits in this many bytes lives on the stack (no malloc per call). */
 #define STACK_SCRATCH 32768
 
 static unsigned char *aligned_malloc(size_t bytes) {
-    size_t rounded = (bytes + sizeof(vd) - 1) / sizeof(vd) * sizeof(vd);
+    size_t rounded = (bytes + 64 - 1) / 64 * 64;
 #ifdef _WIN32
-    return _aligned_malloc(rounded, sizeof(vd));
+    return _aligned_malloc(rounded, 64);
 #else
-    return aligned_alloc(sizeof(vd), rounded);
+    return aligned_alloc(64, rounded);
 #endif
 }
 
@@ -459,38 +132,66 @@ static void aligned_free(unsigned char *p) {
 #endif
 }
 
-static void run_task(Task *task) {
-    const Program *prog = task->prog;
-    const npy_intp stride = (npy_intp)prog->n_out * FORM_SIZE[task->form];
-    size_t n_slots = prog->n_slots, n_q = prog->nq, n_ang = prog->n_angles;
-    size_t bytes = sizeof(Pose) * n_slots + sizeof(vd) * n_q + sizeof(Angle) * n_ang;
-    _Alignas(64) unsigned char stack[STACK_SCRATCH];
-    unsigned char *heap = bytes > STACK_SCRATCH ? aligned_malloc(bytes) : NULL;
-    unsigned char *base = bytes > STACK_SCRATCH ? heap : stack;
-    if (base == NULL) {
-        task->bad = -1;
-        return;
-    }
-    /* every part's size is a multiple of sizeof(vd), so each stays aligned */
-    Pose *slots = (Pose *)base;
-    vd *qT = (vd *)(base + sizeof(Pose) * n_slots);
-    Angle *ang = (Angle *)(base + sizeof(Pose) * n_slots + sizeof(vd) * n_q);
-    for (npy_intp i = task->lo; i < task->hi && !task->bad; i += LANES) {
-        npy_intp rows = task->hi - i < LANES ? task->hi - i : LANES;
-        run_block(prog, task->q + i * prog->nq, rows, task->out + i * stride, task->form, slots,
-                  qT, ang, &task->bad);
-    }
-    aligned_free(heap);
+
+/* ------------------------------------------------------------------------------------------ */
+/* one kernel per vector width, each compiled for the instruction set that has it */
+
+#if (defined(__x86_64__) || defined(_M_X64)) && defined(__GNUC__)
+#define X86_DISPATCH 1
+#endif
+
+#define LANES 2 /* SSE2 on x86-64, NEON on arm64: every CPU these run on */
+#define TARGET
+#include "_kernel_core.h"
+#undef LANES
+#undef TARGET
+
+#ifdef X86_DISPATCH
+#define LANES 4
+#define TARGET __attribute__((target("avx2,fma")))
+#include "_kernel_core.h"
+#undef LANES
+#undef TARGET
+
+#define LANES 8
+#define TARGET __attribute__((target("avx512f,avx512dq,avx512vl,avx512bw,avx2,fma")))
+#include "_kernel_core.h"
+#undef LANES
+#undef TARGET
+#endif
+
+typedef void (*TaskFn)(Task *);
+static TaskFn g_run_task = run_task_2;
+static int g_lanes = 2;
+
+/* The widest kernel this CPU runs; widest = 0 picks the best, else 2, 4 or 8. -1: not here. */
+static int choose_width(int widest) {
+    int best = 2;
+#ifdef X86_DISPATCH
+    __builtin_cpu_init();
+    if (__builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma")) best = 4;
+    if (best == 4 && __builtin_cpu_supports("avx512f") && __builtin_cpu_supports("avx512dq") &&
+        __builtin_cpu_supports("avx512vl") && __builtin_cpu_supports("avx512bw"))
+        best = 8;
+#endif
+    int w = widest == 0 ? best : widest;
+    if (w != 2 && w != 4 && w != 8) return -1;
+    if (w > best) return -1;
+    g_lanes = w;
+#ifdef X86_DISPATCH
+    g_run_task = w == 8 ? run_task_8 : w == 4 ? run_task_4 : run_task_2;
+#endif
+    return w;
 }
 
 #ifdef _WIN32
 static DWORD WINAPI thread_main(LPVOID arg) {
-    run_task((Task *)arg);
+    g_run_task((Task *)arg);
     return 0;
 }
 #else
 static void *thread_main(void *arg) {
-    run_task((Task *)arg);
+    g_run_task((Task *)arg);
     return NULL;
 }
 #endif
@@ -504,7 +205,7 @@ static int run_program(const Program *prog, const double *q, npy_intp n, double 
     int nt = threads < most ? threads : (int)(most > 0 ? most : 1);
     if (nt > MAX_THREADS) nt = MAX_THREADS;
     npy_intp chunk = (n + nt - 1) / nt;
-    chunk = (chunk + LANES - 1) / LANES * LANES;
+    chunk = (chunk + 7) / 8 * 8; /* whole blocks of every width */
     for (int k = 0; k < nt; ++k) {
         npy_intp lo = k * chunk < n ? k * chunk : n;
         npy_intp hi = lo + chunk < n ? lo + chunk : n;
@@ -524,7 +225,7 @@ static int run_program(const Program *prog, const double *q, npy_intp n, double 
         started[k] = pthread_create(&handles[k], NULL, thread_main, &tasks[k]) == 0;
 #endif
     }
-    run_task(&tasks[0]);
+    g_run_task(&tasks[0]);
     int status = tasks[0].bad;
     for (int k = 1; k < nt; ++k) {
         if (started[k]) {
@@ -535,7 +236,7 @@ static int run_program(const Program *prog, const double *q, npy_intp n, double 
             pthread_join(handles[k], NULL);
 #endif
         } else {
-            run_task(&tasks[k]); /* no thread to be had: do its share here */
+            g_run_task(&tasks[k]); /* no thread to be had: do its share here */
         }
         if (tasks[k].bad && !status) status = tasks[k].bad;
     }
@@ -725,6 +426,21 @@ static PyObject *set_threads(PyObject *Py_UNUSED(mod), PyObject *arg) {
     Py_RETURN_NONE;
 }
 
+/* set_width(n): the kernel's vector width, 0 for the widest this CPU runs (tests use it) */
+static PyObject *set_width(PyObject *Py_UNUSED(mod), PyObject *arg) {
+    long n = PyLong_AsLong(arg);
+    if (n == -1 && PyErr_Occurred()) return NULL;
+    if (n < 0 || n > 8 || choose_width((int)n) < 0) {
+        PyErr_Format(PyExc_ValueError, "width %ld is not one this CPU runs", n);
+        return NULL;
+    }
+    return PyLong_FromLong(g_lanes);
+}
+
+static PyObject *get_width(PyObject *Py_UNUSED(mod), PyObject *Py_UNUSED(unused)) {
+    return PyLong_FromLong(g_lanes);
+}
+
 static PyObject *get_threads(PyObject *Py_UNUSED(mod), PyObject *Py_UNUSED(unused)) {
     return PyLong_FromLong(g_threads);
 }
@@ -732,6 +448,8 @@ static PyObject *get_threads(PyObject *Py_UNUSED(mod), PyObject *Py_UNUSED(unuse
 static PyMethodDef module_methods[] = {
     {"set_threads", set_threads, METH_O, "set_threads(n): threads for big batches"},
     {"get_threads", get_threads, METH_NOARGS, "get_threads() -> int"},
+    {"set_width", set_width, METH_O, "set_width(n): 2, 4, 8 lanes, or 0 for the widest"},
+    {"get_width", get_width, METH_NOARGS, "get_width() -> configurations per block"},
     {NULL, NULL, 0, NULL},
 };
 
@@ -751,6 +469,6 @@ PyMODINIT_FUNC PyInit__kernel(void) {
         Py_DECREF(m);
         return NULL;
     }
-    PyModule_AddIntConstant(m, "LANES", LANES);
+    choose_width(0);
     return m;
 }
