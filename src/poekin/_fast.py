@@ -255,32 +255,30 @@ def reformat(T: FloatArray, form: str) -> FloatArray:
     return np.concatenate([T[..., :3, 3], lie.rotation_to_quat(T[..., :3, :3])], axis=-1)
 
 
-def try_run(kernel: Any, q: ArrayLike, out: FloatArray | None, form: object) -> FloatArray | None:
-    """``kernel.run`` for inputs that need no conversion, else None (then :func:`evaluate`)."""
-    try:
-        code = _FORM_CODES[form]  # type: ignore[index]
-        result: FloatArray | None = kernel.run(q, out, code)
-    except (KeyError, TypeError, ValueError):  # evaluate says what is wrong
-        return None
-    return result
-
-
 def evaluate(
     kernel: Any,
     q: ArrayLike,
     out: FloatArray | None,
     form: str,
-    *,
     validate: Callable[[ArrayLike], FloatArray],
     reference: Callable[[FloatArray], FloatArray],
-    frames: tuple[int, ...],
+    frames: tuple[int, ...] = (),
 ) -> FloatArray:
-    """FK through ``kernel`` with full validation, or through ``reference`` without a kernel.
+    """FK of ``q`` through ``kernel``, with ``out`` and ``form``, validating what needs it.
 
-    ``validate`` checks and converts ``q`` (raising InputError), ``reference`` is the NumPy
-    path (``(..., n) -> (..., *frames, 4, 4)``), ``frames`` the result's frame axis (``()`` for
-    a chain, ``(n_frames,)`` for a tree).
+    The kernel takes ``q`` as it is if it can (a C-contiguous float64 array of finite values)
+    and a valid ``out``; else ``validate`` checks and converts ``q`` (raising InputError) and
+    ``out`` and ``form`` are checked here. Without a kernel, ``reference`` is the NumPy path
+    (``(..., n) -> (..., *frames, 4, 4)``); ``frames`` is the result's frame axis (``()`` for a
+    chain, ``(n_frames,)`` for a tree).
     """
+    if kernel is not None and isinstance(form, str) and form in _FORM_CODES:
+        try:
+            result: FloatArray | None = kernel.run(q, out, _FORM_CODES[form])
+        except ValueError:  # a bad out: said below
+            result = None
+        if result is not None:
+            return result
     form = _check_form(form)
     arr = np.require(validate(q), dtype=np.float64, requirements=["C", "A"])
     shape = result_shape(arr.shape[:-1], frames, form)
@@ -294,4 +292,4 @@ def evaluate(
         return out
     result = kernel.run(arr, out, _FORM_CODES[form])
     assert result is not None, "validated joint values were refused by the kernel"
-    return result  # type: ignore[no-any-return]
+    return result

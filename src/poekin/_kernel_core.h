@@ -88,15 +88,12 @@ AI void compose(Pose *cur, const vd *Rj, const vd *tj) {
             cur->R[3 * i + j] = (R[3 * i] * Rj[j] + R[3 * i + 1] * Rj[3 + j]) + R[3 * i + 2] * Rj[6 + j];
 }
 
-/* cur = cur * (R, t) for a constant R (9) and t (3). */
+/* cur = cur * (R, t) for a constant R (9) and t (3), the same in every lane. */
 AI void compose_const(Pose *cur, const double *Rc, const double *tc) {
-    vd R[9];
-    for (int k = 0; k < 9; ++k) R[k] = cur->R[k];
-    for (int i = 0; i < 3; ++i)
-        cur->t[i] = cur->t[i] + ((R[3 * i] * tc[0] + R[3 * i + 1] * tc[1]) + R[3 * i + 2] * tc[2]);
-    for (int i = 0; i < 3; ++i)
-        for (int j = 0; j < 3; ++j)
-            cur->R[3 * i + j] = (R[3 * i] * Rc[j] + R[3 * i + 1] * Rc[3 + j]) + R[3 * i + 2] * Rc[6 + j];
+    vd R[9], t[3];
+    for (int k = 0; k < 9; ++k) R[k] = Rc[k] - (vd){0}; /* x - 0 keeps the sign of 0 */
+    for (int i = 0; i < 3; ++i) t[i] = tc[i] - (vd){0};
+    compose(cur, R, t);
 }
 
 /* Rj = (I + s W) + c W2, Rodrigues with c = 1 - cos. */

@@ -250,17 +250,11 @@ class Chain:
             The pose of ``frame`` in the world (base) frame, for each configuration.
         """
         kernel = self._space_kernel
-        if kernel is not None:  # the fast path: no conversion needed
-            T = (
-                kernel.run(q)
-                if out is None and form == "4x4"
-                else _fast.try_run(kernel, q, out, form)
-            )
+        if kernel is not None and out is None and form == "4x4":  # the one-call fast path
+            T: FloatArray | None = kernel.run(q)
             if T is not None:
                 return T
-        return _fast.evaluate(
-            kernel, q, out, form, validate=self._joint_values, reference=self._fk_numpy, frames=()
-        )
+        return _fast.evaluate(kernel, q, out, form, self._joint_values, self._fk_numpy)
 
     def fk_body(
         self, q: ArrayLike, *, out: FloatArray | None = None, form: Form = "4x4"
@@ -270,23 +264,11 @@ class Chain:
         Same arguments and result as :meth:`fk`; equal to it to float precision.
         """
         kernel = self._body_kernel
-        if kernel is not None:
-            T = (
-                kernel.run(q)
-                if out is None and form == "4x4"
-                else _fast.try_run(kernel, q, out, form)
-            )
+        if kernel is not None and out is None and form == "4x4":
+            T: FloatArray | None = kernel.run(q)
             if T is not None:
                 return T
-        return _fast.evaluate(
-            kernel,
-            q,
-            out,
-            form,
-            validate=self._joint_values,
-            reference=self._fk_body_numpy,
-            frames=(),
-        )
+        return _fast.evaluate(kernel, q, out, form, self._joint_values, self._fk_body_numpy)
 
     def _joint_values(self, q: ArrayLike) -> FloatArray:
         return as_joint_values(q, self.n_joints)

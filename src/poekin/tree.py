@@ -420,23 +420,12 @@ class Tree:
             ``T_world_frame`` for each of :attr:`frame_names`.
         """
         kernel = self._kernel
-        if kernel is not None:  # the fast path: no conversion needed
-            T = (
-                kernel.run(qpos)
-                if out is None and form == "4x4"
-                else _fast.try_run(kernel, qpos, out, form)
-            )
+        if kernel is not None and out is None and form == "4x4":  # the one-call fast path
+            T: FloatArray | None = kernel.run(qpos)
             if T is not None:
                 return T
-        return _fast.evaluate(
-            kernel,
-            qpos,
-            out,
-            form,
-            validate=self._as_qpos,
-            reference=self._fk_numpy,
-            frames=(self.n_frames,),
-        )
+        frames = (self.n_frames,)
+        return _fast.evaluate(kernel, qpos, out, form, self._as_qpos, self._fk_numpy, frames)
 
     def _fk_numpy(self, qpos: ArrayLike) -> FloatArray:
         """:meth:`fk` on the pure-NumPy reference path (the compiled kernel's specification)."""
