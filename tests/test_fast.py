@@ -4,6 +4,7 @@ its batch, thread and ``out=`` behaviour, and the errors a user sees."""
 from __future__ import annotations
 
 import copy
+import dataclasses
 import os
 import pickle
 
@@ -295,20 +296,13 @@ def test_without_the_kernel_the_numpy_path_gives_the_same_poses(
     expected = {f: (ur5e.fk(q, form=f), features.fk(qpos, form=f)) for f in FORMS}
     monkeypatch.setattr(_fast, "_kernel", None)
     chain = Chain(ur5e.joint_names, ur5e.joint_types, ur5e.screws, ur5e.home)
-    tree = dataclasses_replace(features)
+    tree = dataclasses.replace(features)  # built again: now without a kernel
     assert chain._space_kernel is None and tree._kernel is None
     for f in FORMS:
         assert_close(f"chain {f}", chain.fk(q, form=f), expected[f][0], REF_TOL)
         assert_close(f"tree {f}", tree.fk(qpos, form=f), expected[f][1], REF_TOL)
     out = np.empty((200, 4, 4))
     assert chain.fk(q, out=out) is out
-
-
-def dataclasses_replace(tree: Tree) -> Tree:
-    """A new Tree with the same fields (built again, so with the current kernel setting)."""
-    import dataclasses
-
-    return dataclasses.replace(tree)
 
 
 def test_a_kernel_refuses_operations_out_of_range() -> None:
