@@ -168,6 +168,7 @@ def tree_program(
     nb = len(body_parents)
     p = _Program()
     held = -2  # the body whose pose the kernel's state holds right now (-1: the world)
+    loaded_later = {int(b) for b in body_parents} | {int(b) for b in site_bodies}
 
     def start_from(body: int) -> None:
         nonlocal held
@@ -202,7 +203,8 @@ def tree_program(
                 p.op(_BALL, qadr, joint_anchors[k])
             else:
                 p.op(_FREE, qadr)
-        p.op(_STORE, slot=b)
+        if b in loaded_later:  # a child body or a site starts from it
+            p.op(_STORE, slot=b)
         p.op(_EMIT, slot=b)
         held = b
     for s, body in enumerate(site_bodies):

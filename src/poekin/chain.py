@@ -273,13 +273,14 @@ class Chain:
     def _joint_values(self, q: ArrayLike) -> FloatArray:
         return as_joint_values(q, self.n_joints)
 
-    def _fk_numpy(self, q: ArrayLike) -> FloatArray:
-        """:meth:`fk` on the pure-NumPy reference path (the compiled kernel's specification)."""
-        return poe(self._space, self._joint_values(q), left=None, right=self.home)
+    def _fk_numpy(self, q: FloatArray) -> FloatArray:
+        """:meth:`fk` on the pure-NumPy reference path (the compiled kernel's specification),
+        for float64 ``q`` of shape ``(..., n)`` that :meth:`fk` has validated."""
+        return poe(self._space, q, left=None, right=self.home)
 
-    def _fk_body_numpy(self, q: ArrayLike) -> FloatArray:
-        """:meth:`fk_body` on the pure-NumPy reference path."""
-        return poe(self._body, self._joint_values(q), left=self.home, right=None)
+    def _fk_body_numpy(self, q: FloatArray) -> FloatArray:
+        """:meth:`fk_body` on the pure-NumPy reference path (``q`` as for :meth:`_fk_numpy`)."""
+        return poe(self._body, q, left=self.home, right=None)
 
     def __repr__(self) -> str:
         joints = ", ".join(

@@ -427,9 +427,10 @@ class Tree:
         frames = (self.n_frames,)
         return _fast.evaluate(kernel, qpos, out, form, self._as_qpos, self._fk_numpy, frames)
 
-    def _fk_numpy(self, qpos: ArrayLike) -> FloatArray:
-        """:meth:`fk` on the pure-NumPy reference path (the compiled kernel's specification)."""
-        return self._frame_poses(*self._body_poses(self._expand(self._as_qpos(qpos))))
+    def _fk_numpy(self, qpos: FloatArray) -> FloatArray:
+        """:meth:`fk` on the pure-NumPy reference path (the compiled kernel's specification),
+        for float64 ``qpos`` of shape ``(..., nq)`` that :meth:`fk` has validated."""
+        return self._frame_poses(*self._body_poses(self._expand(qpos)))
 
     def _as_qpos(self, qpos: ArrayLike) -> FloatArray:
         return as_joint_values(qpos, self.nq, what="qpos values", layout=self._layout_text)
