@@ -11,6 +11,7 @@ from typing import Any
 import numpy as np
 import pytest
 from helpers import assert_close
+from test_params import BOOK_BODY_SCREWS, BOOK_HOME
 
 from poekin import Chain, InputError, exp_se3
 from poekin.dh import DHTable
@@ -97,18 +98,7 @@ def test_screws_form_with_prismatic_joint(tmp_path: Path) -> None:
 
 def test_body_screws_form_reproduces_the_book(tmp_path: Path) -> None:
     # Lynch & Park Example 4.5 in its body form, typed from the book; its printed FK result.
-    W1, W2, L1, L2, H1, H2 = 0.109, 0.082, 0.425, 0.392, 0.089, 0.095
-    doc = {
-        "body_screws": [
-            [0, 1, 0, W1 + W2, 0, L1 + L2],
-            [0, 0, 1, H2, -L1 - L2, 0],
-            [0, 0, 1, H2, -L2, 0],
-            [0, 0, 1, H2, 0, 0],
-            [0, -1, 0, -W2, 0, 0],
-            [0, 0, 1, 0, 0, 0],
-        ],
-        "home": [[-1, 0, 0, L1 + L2], [0, 0, 1, W1 + W2], [0, 1, 0, H1 - H2], [0, 0, 0, 1]],
-    }
+    doc = {"body_screws": BOOK_BODY_SCREWS, "home": BOOK_HOME}
     chain = load_params(_write(tmp_path / "body.json", doc))
     assert isinstance(chain, Chain)
     q = [0, -np.pi / 2, 0, 0, np.pi / 2, 0]

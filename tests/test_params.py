@@ -54,10 +54,20 @@ def test_fk_ur5e_poe_matches_mj_forward() -> None:
 W1, W2, L1, L2, H1, H2 = 0.109, 0.082, 0.425, 0.392, 0.089, 0.095
 # Building the book's numbers (e.g. L1 + L2) rounds by an ulp or two of ~1 m: 1e-15 is tight.
 BOOK_TOL = 1e-15
+# The printed home pose M and body-frame list B_i = Ad(M^-1) S_i.
+BOOK_HOME = [[-1, 0, 0, L1 + L2], [0, 0, 1, W1 + W2], [0, 1, 0, H1 - H2], [0, 0, 0, 1]]
+BOOK_BODY_SCREWS = [
+    [0, 1, 0, W1 + W2, 0, L1 + L2],
+    [0, 0, 1, H2, -L1 - L2, 0],
+    [0, 0, 1, H2, -L2, 0],
+    [0, 0, 1, H2, 0, 0],
+    [0, -1, 0, -W2, 0, 0],
+    [0, 0, 1, 0, 0, 0],
+]
 
 
 def test_lynch_park_constants_are_the_printed_table() -> None:
-    M = [[-1, 0, 0, L1 + L2], [0, 0, 1, W1 + W2], [0, 1, 0, H1 - H2], [0, 0, 0, 1]]
+    M = BOOK_HOME
     S = [
         [0, 0, 1, 0, 0, 0],
         [0, 1, 0, -H1, 0, 0],
@@ -72,16 +82,8 @@ def test_lynch_park_constants_are_the_printed_table() -> None:
 
 def test_lynch_park_body_screws_match_the_book() -> None:
     # Example 4.5 also prints the body-frame list B_i = Ad(M^-1) S_i.
-    B = [
-        [0, 1, 0, W1 + W2, 0, L1 + L2],
-        [0, 0, 1, H2, -L1 - L2, 0],
-        [0, 0, 1, H2, -L2, 0],
-        [0, 0, 1, H2, 0, 0],
-        [0, -1, 0, -W2, 0, 0],
-        [0, 0, 1, 0, 0, 0],
-    ]
     chain = lynch_park_ur5_chain()
-    assert_close("body_screws", chain.body_screws, B, BOOK_TOL)
+    assert_close("body_screws", chain.body_screws, BOOK_BODY_SCREWS, BOOK_TOL)
     assert chain.joint_names == UR5E_JOINT_NAMES
     assert (chain.robot, chain.frame) == ("lynch-park-ur5", "ee")
 
