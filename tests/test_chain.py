@@ -18,20 +18,33 @@ TOL = 1e-13
 BATCH_SHAPES = [(), (1,), (3, 1, 2)]
 
 
-def random_chain(rng: np.random.Generator, n: int) -> Chain:
-    """A chain of ``n`` joints with random axes, axis points and joint types."""
+def random_chain(rng: np.random.Generator, n: int, *, aligned: bool = False) -> Chain:
+    """A chain of ``n`` joints with random axes, axis points and joint types.
+
+    ``aligned``: every axis along +-x, +-y or +-z, some revolute screws with a pitch, and a home
+    whose rotation permutes the axes, so space and body screws both take the coordinate-axis
+    path (``lie.coordinate_axis``) that most real robots take.
+    """
     screws, types = np.zeros((n, 6)), []
     for i in range(n):
-        axis = rng.normal(size=3)
-        axis /= np.linalg.norm(axis)
+        if aligned:
+            axis = np.zeros(3)
+            axis[rng.integers(3)] = rng.choice([-1.0, 1.0])
+        else:
+            axis = rng.normal(size=3)
+            axis /= np.linalg.norm(axis)
         if rng.random() < 0.3:
             screws[i, 3:] = axis
             types.append("prismatic")
         else:
             point = rng.uniform(-1, 1, size=3)
-            screws[i] = np.r_[axis, -np.cross(axis, point)]
+            pitch = rng.uniform(-0.1, 0.1) if aligned and rng.random() < 0.3 else 0.0
+            screws[i] = np.r_[axis, -np.cross(axis, point) + pitch * axis]
             types.append("revolute")
     home = exp_se3(rng.normal(size=6))
+    if aligned:
+        home[:3, :3] = np.eye(3)[rng.permutation(3)] * rng.choice([-1.0, 1.0], size=3)
+        home[:3, :3] *= np.sign(np.linalg.det(home[:3, :3]))  # a rotation, det +1
     return Chain(tuple(f"j{i}" for i in range(n)), tuple(types), screws, home)
 
 
@@ -55,6 +68,20 @@ def test_space_and_body_fk_match_reference(seed: int, n: int, shape: tuple[int, 
     expected = reference_fk(chain, q)
     assert_close("fk", chain.fk(q), expected, TOL)
     assert_close("fk_body", chain.fk_body(q), expected, TOL)
+
+
+@settings(max_examples=40, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1), n=st.integers(1, 8), shape=st.sampled_from(BATCH_SHAPES))
+def test_coordinate_axis_chains_match_reference(seed: int, n: int, shape: tuple[int, ...]) -> None:
+    """Screws along +-x, +-y, +-z, with and without pitch, in space and body form."""
+    rng = np.random.default_rng(seed)
+    chain = random_chain(rng, n, aligned=True)
+    q = rng.uniform(-2 * np.pi, 2 * np.pi, size=(*shape, n))
+    expected = reference_fk(chain, q)
+    assert_close("fk", chain.fk(q), expected, TOL)
+    assert_close("fk_body", chain.fk_body(q), expected, TOL)
+    assert_close("fk(0)", chain.fk(np.zeros(n)), chain.home, 0.0)
+    assert_close("fk_body(0)", chain.fk_body(np.zeros(n)), chain.home, 0.0)
 
 
 @pytest.mark.parametrize("scale", [0.0, 1e-12, 1e-7])

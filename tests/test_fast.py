@@ -71,6 +71,27 @@ def test_random_revolute_and_prismatic_chains_equal_the_reference(seed: int) -> 
         assert_close(form, getattr(chain, form)(q), expected, tol)
 
 
+def test_coordinate_axis_chains_equal_the_reference() -> None:
+    """Axes along +-x, +-y, +-z, with and without pitch: the kernel's AXIS operations, each of
+    the six (three axes, pitched or not) met at least once."""
+    codes: set[int] = set()
+    for seed in range(20):
+        rng = np.random.default_rng(seed)
+        chain = random_chain(rng, 7, aligned=True)
+        q = rng.uniform(-2 * np.pi, 2 * np.pi, (1_000, 7))
+        for form in ("fk", "fk_body"):
+            expected = getattr(chain, f"_{form}_numpy")(q)
+            tol = REF_TOL * max(1.0, float(np.abs(expected).max()))
+            assert_close(f"seed {seed} {form}", getattr(chain, form)(q), expected, tol)
+        for kernel in (chain._space_kernel, chain._body_kernel):
+            if kernel is not None:
+                codes |= set(kernel.__reduce__()[1][0][:, 0].tolist())
+    if not poekin.compiled_kernel():
+        return  # the NumPy path served both sides: nothing more to check
+    axis_codes = set(range(_fast._AXIS, _fast._AXIS_PITCH + 3))
+    assert axis_codes <= codes, f"AXIS operations never built: {sorted(axis_codes - codes)}"
+
+
 @pytest.mark.parametrize("robot", MENAGERIE)
 def test_menagerie_trees_equal_the_reference(robot: str) -> None:
     tree = poekin.load_tree(load_quiet(robot))

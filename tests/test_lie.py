@@ -151,6 +151,27 @@ def test_exp_se3_matches_expm(shape: tuple[int, ...], seed: int, angle: float) -
     assert_close("exp_se3", lie.exp_se3(xi), expected, ATOL / 10)
 
 
+@pytest.mark.parametrize("axis", [[1, 0, 0], [0, -1, 0], [0, 0, 1], [0.6, 0, -0.8]])
+@pytest.mark.parametrize("shape", BATCH_SHAPES)
+@FAST
+@given(seed=seeds)
+def test_axis_rotation_matches_expm(axis: list[float], shape: tuple[int, ...], seed: int) -> None:
+    """About a coordinate axis (exact cos/sin entries) and about any other (Rodrigues)."""
+    w = np.array(axis, dtype=np.float64)
+    angle = np.random.default_rng(seed).uniform(-2 * PI, 2 * PI, shape)
+    expected = np.empty((*shape, 3, 3))
+    for idx in np.ndindex(shape):
+        expected[idx] = scipy.linalg.expm(lie.hat_so3(w * angle[idx]))
+    assert_close("axis_rotation", lie.axis_rotation(w, angle), expected, ATOL)
+
+
+def test_coordinate_axis_needs_two_exact_zeros() -> None:
+    assert lie.coordinate_axis(np.array([0.0, -0.9999999999999998, 0.0])) == (1, -1.0)
+    assert lie.coordinate_axis(np.array([2.0, 0.0, 0.0])) == (0, 1.0)
+    assert lie.coordinate_axis(np.array([0.0, 1e-300, 1.0])) is None
+    assert lie.coordinate_axis(np.zeros(3)) is None
+
+
 def test_exp_se3_pure_translation() -> None:
     v = np.array([0.3, -2.0, 5.0])
     T = lie.exp_se3(np.concatenate([np.zeros(3), v]))

@@ -42,6 +42,7 @@ _FORM_SHAPES: dict[str, tuple[int, ...]] = {"4x4": (4, 4), "3x4": (3, 4), "pos_q
 
 # operation codes, as in _kernel.c
 _IDENTITY, _LOAD, _STORE, _CONST, _SCREW, _HINGE, _SLIDE, _BALL, _FREE, _EMIT = range(10)
+_AXIS, _AXIS_PITCH = 10, 13  # + 0, 1, 2 for x, y, z
 
 
 def compiled_kernel() -> bool:
@@ -97,7 +98,7 @@ class _Program:
 
     def op(self, code: int, qadr: int = 0, params: Sequence[Any] = (), slot: int = 0) -> None:
         flat = np.asarray(params, dtype=np.float64).reshape(-1)
-        if code in (_SCREW, _HINGE):  # their slot numbers the angle
+        if code in (_SCREW, _HINGE) or code >= _AXIS:  # their slot numbers the angle
             slot, self.angles = self.angles, self.angles + 1
         self.ops.append((code, qadr, len(self.params), slot))
         self.params.extend(flat.tolist())
@@ -112,9 +113,35 @@ class _Program:
         return _kernel.Kernel(ops, params, nq, n_slots, n_out, frame_axis)
 
 
+def _hinge(
+    p: _Program,
+    qadr: int,
+    angle: Sequence[float],
+    axis: FloatArray,
+    point: FloatArray,
+    pitch: FloatArray,
+    code: int,
+) -> None:
+    """A rotation by ``angle = (q scale + offset) - ref`` about ``axis`` through ``point``, then
+    ``q pitch`` along it: AXIS about a coordinate axis (see ``lie.coordinate_axis``), else
+    ``code`` (SCREW or HINGE, Rodrigues)."""
+    along = lie.coordinate_axis(axis)
+    if along is not None:
+        k, sign = along
+        a, b = (k + 1) % 3, (k + 2) % 3
+        code = (_AXIS if pitch[k] == 0.0 else _AXIS_PITCH) + k
+        p.op(code, qadr, [*angle, sign, point[a], point[b], pitch[k]])
+        return
+    W = lie.hat_so3(axis)
+    W2 = lie.rotate_compose(W, W)
+    if code == _SCREW:
+        p.op(_SCREW, qadr, [*W.reshape(-1), *W2.reshape(-1), *point, *pitch])
+    else:
+        p.op(_HINGE, qadr, [*angle, *W.reshape(-1), *W2.reshape(-1), *point])
+
+
 def chain_program(
-    W: FloatArray,
-    W2: FloatArray,
+    w: FloatArray,
     r: FloatArray,
     u: FloatArray,
     *,
@@ -132,7 +159,7 @@ def chain_program(
     if left is not None:
         p.const(left[:3, :3], left[:3, 3])
     for i in range(r.shape[0]):
-        p.op(_SCREW, i, [*W[i].reshape(-1), *W2[i].reshape(-1), *r[i], *u[i]])
+        _hinge(p, i, (1.0, 0.0, 0.0), w[i], r[i], u[i], _SCREW)
     if right is not None:
         p.const(right[:3, :3], right[:3, 3])
     p.op(_EMIT, slot=0)
@@ -185,18 +212,9 @@ def tree_program(
             j = slot_of_joint[k]
             kind, qadr = joint_types[k], int(slots[j])
             if kind == "revolute":
-                W = lie.hat_so3(joint_axes[k])
-                scale = [slot_scale[j], slot_offset[j], joint_refs[k]]
-                p.op(
-                    _HINGE,
-                    qadr,
-                    [
-                        *scale,
-                        *W.reshape(-1),
-                        *lie.rotate_compose(W, W).reshape(-1),
-                        *joint_anchors[k],
-                    ],
-                )
+                angle = (slot_scale[j], slot_offset[j], joint_refs[k])
+                no_pitch = np.zeros(3)
+                _hinge(p, qadr, angle, joint_axes[k], joint_anchors[k], no_pitch, _HINGE)
             elif kind == "prismatic":
                 p.op(_SLIDE, qadr, [slot_scale[j], slot_offset[j], joint_refs[k], *joint_axes[k]])
             elif kind == "ball":

@@ -50,7 +50,18 @@ enum {
     OP_BALL = 7,     /* rotation by the quaternion qpos[a:a+4] about anchor; params: anchor */
     OP_FREE = 8,     /* cur = (quat qpos[a+3:a+7], position qpos[a:a+3]) */
     OP_EMIT = 9,     /* write cur to output frame a3 */
+    /* rotation about coordinate axis x, y or z through a point, then (_PITCH) along it; params:
+     * scale, offset, ref, sign, point[(k+1)%3], point[(k+2)%3], pitch (k = 0, 1, 2 for x, y, z) */
+    OP_AXIS_X = 10,
+    OP_AXIS_Y = 11,
+    OP_AXIS_Z = 12,
+    OP_AXIS_X_PITCH = 13,
+    OP_AXIS_Y_PITCH = 14,
+    OP_AXIS_Z_PITCH = 15,
 };
+#define N_OPS 16
+/* SCREW, HINGE and the AXIS operations turn by an angle; each names its angle's index in slot */
+#define HAS_ANGLE(code) ((code) == OP_SCREW || (code) == OP_HINGE || (code) >= OP_AXIS_X)
 
 enum { FORM_4X4 = 0, FORM_3X4 = 1, FORM_POS_QUAT = 2 };
 static const int FORM_SIZE[3] = {16, 12, 7};
@@ -92,6 +103,14 @@ static int g_threads = 1;
 /* ------------------------------------------------------------------------------------------ */
 /* the interpreter */
 
+/* An angle is q[qadr] (plain: a SCREW, or scale 1, offset 0, ref 0) or (q[qadr] scale + offset)
+ * - ref with P = (scale, offset, ref). */
+typedef struct {
+    const double *P;
+    int32_t qadr;
+    int32_t plain;
+} AngleSource;
+
 typedef struct {
     const int32_t *ops;
     int n_ops;
@@ -99,7 +118,8 @@ typedef struct {
     int nq;
     int n_slots;
     int n_out;
-    int n_angles;  /* SCREW and HINGE operations; each names its angle's index in its slot */
+    int n_angles;  /* operations that turn by an angle (HAS_ANGLE) */
+    const AngleSource *angles; /* where each angle comes from */
     double huge_q; /* a block with |q| beyond this may have an angle beyond REDUCE_MAX */
 } Program;
 
@@ -250,6 +270,7 @@ typedef struct {
     PyObject_HEAD Program prog;
     PyObject *ops_obj;    /* keeps the int32 ops array alive */
     PyObject *params_obj; /* keeps the float64 params array alive */
+    AngleSource *angles;  /* owned: Program.angles */
     int frame_axis;       /* output shape (..., n_out, ...) rather than (...) */
 } KernelObject;
 
@@ -262,6 +283,7 @@ static PyObject *Kernel_reduce(KernelObject *self, PyObject *Py_UNUSED(ignored))
 static void Kernel_dealloc(KernelObject *self) {
     Py_XDECREF(self->ops_obj);
     Py_XDECREF(self->params_obj);
+    PyMem_Free(self->angles);
     Py_TYPE(self)->tp_free((PyObject *)self);
 }
 
@@ -289,15 +311,16 @@ static int Kernel_init(KernelObject *self, PyObject *args, PyObject *kwds) {
     const int32_t *code = PyArray_DATA(o);
     npy_intp n_ops = PyArray_DIM(o, 0), n_params = PyArray_DIM(p, 0);
     int n_angles = 0;
-    static const int QSIZE[10] = {0, 0, 0, 0, 1, 1, 1, 4, 7, 0};
-    static const int PSIZE[10] = {0, 0, 0, 12, 24, 24, 6, 3, 0, 0};
+    static const int QSIZE[N_OPS] = {0, 0, 0, 0, 1, 1, 1, 4, 7, 0, 1, 1, 1, 1, 1, 1};
+    static const int PSIZE[N_OPS] = {0, 0, 0, 12, 24, 24, 6, 3, 0, 0, 7, 7, 7, 7, 7, 7};
+    const double *pd = PyArray_DATA(p);
     for (npy_intp k = 0; k < n_ops; ++k) {
         const int32_t *op = code + 4 * k;
-        int ok = op[0] >= 0 && op[0] <= OP_EMIT && op[1] >= 0 && op[1] + QSIZE[op[0]] <= nq &&
+        int ok = op[0] >= 0 && op[0] < N_OPS && op[1] >= 0 && op[1] + QSIZE[op[0]] <= nq &&
                  op[2] >= 0 && op[2] + PSIZE[op[0]] <= n_params;
         if (ok && (op[0] == OP_LOAD || op[0] == OP_STORE)) ok = op[3] >= 0 && op[3] < n_slots;
         if (ok && op[0] == OP_EMIT) ok = op[3] >= 0 && op[3] < n_out;
-        if (ok && (op[0] == OP_SCREW || op[0] == OP_HINGE)) ok = op[3] == n_angles++;
+        if (ok && HAS_ANGLE(op[0])) ok = op[3] == n_angles++;
         if (!ok) {
             Py_DECREF(o);
             Py_DECREF(p);
@@ -305,19 +328,34 @@ static int Kernel_init(KernelObject *self, PyObject *args, PyObject *kwds) {
             return -1;
         }
     }
+    AngleSource *angles = PyMem_Malloc(sizeof(AngleSource) * (n_angles > 0 ? n_angles : 1));
+    if (angles == NULL) {
+        Py_DECREF(o);
+        Py_DECREF(p);
+        PyErr_NoMemory();
+        return -1;
+    }
+    for (npy_intp k = 0; k < n_ops; ++k) {
+        const int32_t *op = code + 4 * k;
+        if (!HAS_ANGLE(op[0])) continue;
+        const double *P = pd + op[2];
+        int plain = op[0] == OP_SCREW || (P[0] == 1.0 && P[1] == 0.0 && P[2] == 0.0);
+        angles[op[3]] = (AngleSource){P, op[1], plain};
+    }
+    PyMem_Free(self->angles);
+    self->angles = angles;
     Py_XSETREF(self->ops_obj, (PyObject *)o);
     Py_XSETREF(self->params_obj, (PyObject *)p);
-    /* the angles are q (screws) or (q scale + offset) - ref (hinges): bound them */
+    /* the angles are q (screws) or (q scale + offset) - ref (hinges, axes): bound them */
     double gain = 1.0, shift = 0.0;
-    const double *pd = PyArray_DATA(p);
     for (npy_intp k = 0; k < n_ops; ++k) {
-        if (code[4 * k] != OP_HINGE) continue;
+        if (code[4 * k] == OP_SCREW || !HAS_ANGLE(code[4 * k])) continue;
         const double *P = pd + code[4 * k + 2];
         if (fabs(P[0]) > gain) gain = fabs(P[0]);
         if (fabs(P[1]) + fabs(P[2]) > shift) shift = fabs(P[1]) + fabs(P[2]);
     }
     double huge_q = (REDUCE_MAX - shift) / gain;
-    self->prog = (Program){code, (int)n_ops, pd, nq, n_slots, n_out, n_angles,
+    self->prog = (Program){code,   (int)n_ops, pd, nq, n_slots, n_out, n_angles, angles,
                            huge_q > 0 ? huge_q : 0.0};
     self->frame_axis = frame_axis;
     return 0;

@@ -15,9 +15,12 @@
 #define compose_const GLUE(compose_const, LANES)
 #define rodrigues GLUE(rodrigues, LANES)
 #define about_point GLUE(about_point, LANES)
+#define axis_turn GLUE(axis_turn, LANES)
 #define quat_rotation GLUE(quat_rotation, LANES)
 #define write_quat GLUE(write_quat, LANES)
 #define transpose8 GLUE(transpose8, LANES)
+#define transpose4 GLUE(transpose4, LANES)
+#define store_rows GLUE(store_rows, LANES)
 #define emit GLUE(emit, LANES)
 #define Angle GLUE(Angle, LANES)
 #define run_ops GLUE(run_ops, LANES)
@@ -108,6 +111,35 @@ AI void about_point(const double *anchor, const vd *Rj, vd *tj) {
                 ((Rj[3 * i] * anchor[0] + Rj[3 * i + 1] * anchor[1]) + Rj[3 * i + 2] * anchor[2]);
 }
 
+/* cur = cur * (Rk, (point - Rk point) + th pitch e_k) for Rk the rotation about coordinate axis
+ * k with cos c and sin s: rows a = k+1, b = k+2 (mod 3) of point are pa, pb, and its row k
+ * cancels. Only columns a and b of R change, each c R_a + s R_b or c R_b - s R_a: the arithmetic
+ * of the full product with Rk's zeros and ones left out, equal to it but for signs of zero.
+ * Params: scale, offset, ref, sign, point[a], point[b], pitch. */
+AI void axis_turn(Pose *cur, const int k, const int pitched, vd s, vd c, vd th,
+                  const double *P) {
+    const int a = (k + 1) % 3, b = (k + 2) % 3;
+    const double ra = P[4], rb = P[5];
+    vd pj[3];
+    pj[a] = ra - (c * ra - s * rb);
+    pj[b] = rb - (s * ra + c * rb);
+    if (pitched) {
+        pj[k] = th * P[6];
+        for (int i = 0; i < 3; ++i)
+            cur->t[i] = cur->t[i] + ((cur->R[3 * i] * pj[0] + cur->R[3 * i + 1] * pj[1]) +
+                                     cur->R[3 * i + 2] * pj[2]);
+    } else {
+        for (int i = 0; i < 3; ++i)
+            cur->t[i] = cur->t[i] + (cur->R[3 * i + a] * pj[a] + cur->R[3 * i + b] * pj[b]);
+    }
+    for (int i = 0; i < 3; ++i) {
+        vd *R = cur->R + 3 * i;
+        vd Ra = R[a], Rb = R[b];
+        R[a] = c * Ra + s * Rb;
+        R[b] = c * Rb - s * Ra;
+    }
+}
+
 /* Rj of the quaternion (w, x, y, z) = q[0..3], normalised as MuJoCo's mju_normalize4. */
 AI void quat_rotation(const vd *q, vd *Rj) {
     vd w = q[0], x = q[1], y = q[2], z = q[3];
@@ -180,6 +212,37 @@ AI void transpose8(vd r[8]) {
 }
 #endif
 
+#if LANES == 4
+/* r[e][l] -> r[l][e]: a 4x4 transpose in two rounds of two-vector shuffles. */
+AI void transpose4(vd r[4]) {
+    vd a0 = __builtin_shuffle(r[0], r[1], (vl){0, 4, 2, 6});
+    vd a1 = __builtin_shuffle(r[0], r[1], (vl){1, 5, 3, 7});
+    vd a2 = __builtin_shuffle(r[2], r[3], (vl){0, 4, 2, 6});
+    vd a3 = __builtin_shuffle(r[2], r[3], (vl){1, 5, 3, 7});
+    r[0] = __builtin_shuffle(a0, a2, (vl){0, 1, 4, 5});
+    r[1] = __builtin_shuffle(a1, a3, (vl){0, 1, 4, 5});
+    r[2] = __builtin_shuffle(a0, a2, (vl){2, 3, 6, 7});
+    r[3] = __builtin_shuffle(a1, a3, (vl){2, 3, 6, 7});
+}
+#endif
+
+#if LANES == 8
+/* Lane l's pose from the transposed halves lo and hi: 16 numbers for 4x4, 12 for 3x4. */
+AI void store_rows(const vd lo[8], const vd hi[8], int l, int form, double *o) {
+    memcpy(o, &lo[l], sizeof(vd));
+    memcpy(o + 8, &hi[l], form == FORM_4X4 ? sizeof(vd) : sizeof(vd) / 2);
+}
+#endif
+
+#if LANES == 4
+/* Lane l's pose from transposed rows: [R_i0 R_i1 R_i2 t_i] for i < 3, then [0 0 0 1] for 4x4. */
+AI void store_rows(vd rows[3][4], int l, int form, double *o) {
+    const vd last = {0.0, 0.0, 0.0, 1.0};
+    for (int i = 0; i < 3; ++i) memcpy(o + 4 * i, &rows[i][l], sizeof(vd));
+    if (form == FORM_4X4) memcpy(o + 12, &last, sizeof(vd));
+}
+#endif
+
 /* Write each lane's pose to its row of the output, in the form asked for. */
 static inline __attribute__((always_inline)) void emit(const Pose *p, int form, double *out,
                                                         npy_intp stride, int lanes) {
@@ -190,14 +253,25 @@ static inline __attribute__((always_inline)) void emit(const Pose *p, int form, 
         vd hi[8] = {p->R[6], p->R[7], p->R[8], p->t[2], zero, zero, zero, zero + 1.0};
         transpose8(lo);
         transpose8(hi);
-        for (int l = 0; l < lanes; ++l) {
-            double *o = out + l * stride;
-            memcpy(o, &lo[l], sizeof(vd));
-            if (form == FORM_4X4)
-                memcpy(o + 8, &hi[l], sizeof(vd));
-            else
-                memcpy(o + 8, &hi[l], sizeof(vd) / 2);
+        if (lanes == LANES) /* a constant count: the stores unroll */
+            for (int l = 0; l < LANES; ++l) store_rows(lo, hi, l, form, out + l * stride);
+        else
+            for (int l = 0; l < lanes; ++l) store_rows(lo, hi, l, form, out + l * stride);
+        return;
+    }
+#endif
+#if LANES == 4
+    if (form != FORM_POS_QUAT) { /* each row [R_i0 R_i1 R_i2 t_i] of a lane: one store */
+        vd rows[3][4];
+        for (int i = 0; i < 3; ++i) {
+            vd *r = rows[i];
+            r[0] = p->R[3 * i], r[1] = p->R[3 * i + 1], r[2] = p->R[3 * i + 2], r[3] = p->t[i];
+            transpose4(r);
         }
+        if (lanes == LANES) /* a constant count: the stores unroll */
+            for (int l = 0; l < LANES; ++l) store_rows(rows, l, form, out + l * stride);
+        else
+            for (int l = 0; l < lanes; ++l) store_rows(rows, l, form, out + l * stride);
         return;
     }
 #endif
@@ -226,7 +300,7 @@ static inline __attribute__((always_inline)) void emit(const Pose *p, int form, 
 }
 
 typedef struct {
-    vd th, s, c; /* angle, sin, 1 - cos */
+    vd th, s, c; /* angle, sin, cos */
 } Angle;
 
 /* Run the program on one block of LANES configurations, q transposed in qT; slots hold the
@@ -236,13 +310,12 @@ AI void run_ops(const Program *prog, Pose *restrict slots, const vd *restrict qT
     const int size = FORM_SIZE[form];
     const npy_intp stride = (npy_intp)prog->n_out * size;
     Pose cur;
-    /* first every angle, then their sin and 1 - cos two at a time: independent work whose
+    /* first every angle, then their sin and cos two at a time: independent work whose
      * latencies overlap */
-    for (int k = 0; k < prog->n_ops; ++k) {
-        const int32_t *op = prog->ops + 4 * k;
-        const double *P = prog->params + op[2];
-        if (op[0] == OP_SCREW) ang[op[3]].th = qT[op[1]];
-        if (op[0] == OP_HINGE) ang[op[3]].th = (qT[op[1]] * P[0] + P[1]) - P[2];
+    for (int k = 0; k < prog->n_angles; ++k) {
+        const AngleSource *src = prog->angles + k;
+        const double *P = src->P;
+        ang[k].th = src->plain ? qT[src->qadr] : (qT[src->qadr] * P[0] + P[1]) - P[2];
     }
     for (int k = 0; k < prog->n_angles; k += 2) {
         Angle *A = ang + k, *B = ang + (k + 1 < prog->n_angles ? k + 1 : k);
@@ -254,9 +327,9 @@ AI void run_ops(const Program *prog, Pose *restrict slots, const vd *restrict qT
             sincos_fixup(B->th, &sb, &cb);
         }
         A->s = sa;
-        A->c = 1.0 - ca;
+        A->c = ca;
         B->s = sb;
-        B->c = 1.0 - cb;
+        B->c = cb;
     }
     for (int k = 0; k < prog->n_ops; ++k) {
         const int32_t *op = prog->ops + 4 * k;
@@ -278,13 +351,13 @@ AI void run_ops(const Program *prog, Pose *restrict slots, const vd *restrict qT
                 compose_const(&cur, P, P + 9);
                 break;
             case OP_SCREW: /* R = (I + s W) + c W2, c = 1 - cos q; p = (r - R r) + q u */
-                rodrigues(P, P + 9, ang[slot].s, ang[slot].c, Rj);
+                rodrigues(P, P + 9, ang[slot].s, 1.0 - ang[slot].c, Rj);
                 about_point(P + 18, Rj, tj);
                 for (int i = 0; i < 3; ++i) tj[i] = tj[i] + ang[slot].th * P[21 + i];
                 compose(&cur, Rj, tj);
                 break;
             case OP_HINGE:
-                rodrigues(P + 3, P + 12, ang[slot].s, ang[slot].c, Rj);
+                rodrigues(P + 3, P + 12, ang[slot].s, 1.0 - ang[slot].c, Rj);
                 about_point(P + 21, Rj, tj);
                 compose(&cur, Rj, tj);
                 break;
@@ -305,6 +378,23 @@ AI void run_ops(const Program *prog, Pose *restrict slots, const vd *restrict qT
                 quat_rotation(qT + a + 3, cur.R);
                 for (int i = 0; i < 3; ++i) cur.t[i] = qT[a + i];
                 break;
+            case OP_AXIS_X:
+            case OP_AXIS_Y:
+            case OP_AXIS_Z:
+            case OP_AXIS_X_PITCH:
+            case OP_AXIS_Y_PITCH:
+            case OP_AXIS_Z_PITCH: { /* literal k and pitch for each, so R stays in registers */
+                vd s = P[3] * ang[slot].s, c = ang[slot].c, th = ang[slot].th;
+                switch (op[0]) {
+                    case OP_AXIS_X: axis_turn(&cur, 0, 0, s, c, th, P); break;
+                    case OP_AXIS_Y: axis_turn(&cur, 1, 0, s, c, th, P); break;
+                    case OP_AXIS_Z: axis_turn(&cur, 2, 0, s, c, th, P); break;
+                    case OP_AXIS_X_PITCH: axis_turn(&cur, 0, 1, s, c, th, P); break;
+                    case OP_AXIS_Y_PITCH: axis_turn(&cur, 1, 1, s, c, th, P); break;
+                    default: axis_turn(&cur, 2, 1, s, c, th, P); break;
+                }
+                break;
+            }
             case OP_EMIT:
                 emit(&cur, form, out + (npy_intp)slot * size, stride, lanes);
                 break;
@@ -322,13 +412,11 @@ AI void run_block(const Program *prog, const double *q, npy_intp n_rows,
     const vl sign = (vl){0} + INT64_MAX;
     const vd limit = (vd){0} + huge_q;
     vl below = (vl){0} - 1; /* per lane: every |q| < huge_q (false for NaN and inf too) */
+    const double *row[LANES];
+    for (int l = 0; l < LANES; ++l) row[l] = q + (l < lanes ? l : lanes - 1) * nq;
     for (int j = 0; j < nq; ++j) {
         vd v;
-        if (lanes == LANES) {
-            for (int l = 0; l < LANES; ++l) v[l] = q[l * nq + j];
-        } else {
-            for (int l = 0; l < LANES; ++l) v[l] = q[(l < lanes ? l : lanes - 1) * nq + j];
-        }
+        for (int l = 0; l < LANES; ++l) v[l] = row[l][j];
         qT[j] = v;
         below &= (vd)((vl)v & sign) < limit;
     }
@@ -379,9 +467,12 @@ TARGET static void run_task(Task *task) {
 #undef compose_const
 #undef rodrigues
 #undef about_point
+#undef axis_turn
 #undef quat_rotation
 #undef write_quat
 #undef transpose8
+#undef transpose4
+#undef store_rows
 #undef emit
 #undef Angle
 #undef run_ops

@@ -87,8 +87,9 @@ def as_joint_values(
 class _ScrewTerms:
     """Per-joint constants of ``exp([S] q)`` for unit screws ``S = [w; v]``, computed once.
 
-    With ``|w| = 1`` (or ``w = 0, |v| = 1``), Rodrigues and the Murray-Li-Sastry form of the
-    translation need no small-angle branch::
+    With ``|w| = 1`` (or ``w = 0, |v| = 1``), the rotation needs no small-angle branch
+    (:func:`poekin.lie.axis_rotation`: exact ``cos``/``sin`` entries about a coordinate axis, else
+    Rodrigues) and neither does the Murray-Li-Sastry form of the translation::
 
         R = I + sin(q) W + (1 - cos q) W^2
         p = (r - R r) + q u,   r = w x v,   u = (w . v) w  (u = v if w = 0)
@@ -98,19 +99,16 @@ class _ScrewTerms:
     cancels: the rounding stays at the size of the robot, not of ``q`` times it.
     """
 
-    W: FloatArray  # (n, 3, 3) hat(w)
-    W2: FloatArray  # (n, 3, 3) hat(w)^2
+    w: FloatArray  # (n, 3) rotation axes (0 for a prismatic screw)
     r: FloatArray  # (n, 3) w x v
     u: FloatArray  # (n, 3) (w . v) w, or v for a prismatic screw
 
     @classmethod
     def of(cls, screws: FloatArray) -> _ScrewTerms:
         w, v = screws[:, :3], screws[:, 3:]
-        W = np.asarray(lie.hat_so3(w), dtype=np.float64)
         revolute = np.linalg.norm(w, axis=-1, keepdims=True) > 0
         u = np.where(revolute, np.sum(w * v, axis=-1, keepdims=True) * w, v)
-        W2: FloatArray = lie.rotate_compose(W, W).astype(np.float64)
-        return cls(W, W2, np.cross(w, v), u)
+        return cls(w, np.cross(w, v), u)
 
 
 def poe(
@@ -130,9 +128,9 @@ def poe(
         ``(..., 4, 4)`` poses.
     """
     batch = q.shape[:-1]
-    s = np.sin(q)[..., None, None]
-    c = (1.0 - np.cos(q))[..., None, None]
-    R_i = (np.eye(3) + s * terms.W) + c * terms.W2  # (..., n, 3, 3)
+    R_i = np.empty((*q.shape, 3, 3))
+    for i, w in enumerate(terms.w):
+        R_i[..., i, :, :] = lie.axis_rotation(w, q[..., i]) if w.any() else np.eye(3)
     p_i = (terms.r - lie.rotate(R_i, terms.r)) + q[..., None] * terms.u  # (..., n, 3)
     R = np.broadcast_to(np.eye(3), (*batch, 3, 3))
     p = np.zeros((*batch, 3))

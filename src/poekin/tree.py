@@ -397,7 +397,7 @@ class Tree:
                 if kind == "ball":
                     R_j = lie.quat_to_rotation(lie.quat_normalize(x[..., a : a + 4]))
                 else:
-                    R_j = _axis_rotation(axis, x[..., a] - self.joint_refs[k])
+                    R_j = lie.axis_rotation(axis, x[..., a] - self.joint_refs[k])
                 p_b = p_b + rotate(R_b, anchor - rotate(R_j, anchor))
                 R_b = compose(R_b, R_j)
             R[..., b + 1, :, :] = R_b
@@ -552,12 +552,3 @@ class Tree:
                 for n, b in zip(self.site_names, self.site_bodies, strict=True)
             ],
         }
-
-
-def _axis_rotation(axis: FloatArray, angle: FloatArray) -> FloatArray:
-    """``(..., 3, 3)`` rotation by ``angle (...)`` about the unit ``axis (3,)`` (Rodrigues)."""
-    W = lie.hat_so3(axis)
-    s = np.sin(angle)[..., None, None]
-    c = (1.0 - np.cos(angle))[..., None, None]
-    out: FloatArray = (np.eye(3) + s * W) + c * lie.rotate_compose(W, W)
-    return out
