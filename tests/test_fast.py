@@ -218,6 +218,9 @@ def test_out_is_filled_and_returned(ur5e: Chain, features: Tree, form: str) -> N
     out_t = np.empty(features.fk(qpos, form=form).shape)
     assert features.fk(qpos, out=out_t, form=form) is out_t
     assert np.array_equal(out_t, features.fk(qpos, form=form))
+    by_position = np.empty_like(out)
+    assert ur5e.fk_body(q, by_position, form) is by_position  # out and form by position too
+    assert np.array_equal(by_position, ur5e.fk_body(q, out=out, form=form))
 
 
 @pytest.mark.parametrize(

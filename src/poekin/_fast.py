@@ -37,12 +37,12 @@ __all__ = [
 
 FloatArray = NDArray[np.float64]
 Form = Literal["4x4", "3x4", "pos_quat"]
-_FORM_CODES: dict[str, int] = {"4x4": 0, "3x4": 1, "pos_quat": 2}
 _FORM_SHAPES: dict[str, tuple[int, ...]] = {"4x4": (4, 4), "3x4": (3, 4), "pos_quat": (7,)}
 
 # operation codes, as in _kernel.c
 _IDENTITY, _LOAD, _STORE, _CONST, _SCREW, _HINGE, _SLIDE, _BALL, _FREE, _EMIT = range(10)
 _AXIS, _AXIS_PITCH = 10, 13  # + 0, 1, 2 for x, y, z
+_TRANSLATE = 16
 
 
 def compiled_kernel() -> bool:
@@ -98,13 +98,18 @@ class _Program:
 
     def op(self, code: int, qadr: int = 0, params: Sequence[Any] = (), slot: int = 0) -> None:
         flat = np.asarray(params, dtype=np.float64).reshape(-1)
-        if code in (_SCREW, _HINGE) or code >= _AXIS:  # their slot numbers the angle
+        if code in (_SCREW, _HINGE) or _AXIS <= code < _TRANSLATE:  # their slot numbers the angle
             slot, self.angles = self.angles, self.angles + 1
         self.ops.append((code, qadr, len(self.params), slot))
         self.params.extend(flat.tolist())
 
     def const(self, R: FloatArray, t: FloatArray) -> None:
-        self.op(_CONST, params=[*R.reshape(-1), *t])
+        """Compose with ``(R, t)``: only ``t`` if ``R`` is exactly I (R I = R in every bit but
+        signs of zero), nothing if ``t`` is 0 too."""
+        if not np.array_equal(R, np.eye(3)):
+            self.op(_CONST, params=[*R.reshape(-1), *t])
+        elif np.any(t):
+            self.op(_TRANSLATE, params=[*t])
 
     def kernel(self, nq: int, n_slots: int, n_out: int, frame_axis: bool) -> Any:
         assert _kernel is not None
@@ -241,8 +246,8 @@ def result_shape(batch: tuple[int, ...], frames: tuple[int, ...], form: str) -> 
 
 
 def _check_form(form: object) -> str:
-    if not isinstance(form, str) or form not in _FORM_CODES:
-        raise InputError(f"unknown form {form!r}: {did_you_mean(str(form), list(_FORM_CODES))}")
+    if not isinstance(form, str) or form not in _FORM_SHAPES:
+        raise InputError(f"unknown form {form!r}: {did_you_mean(str(form), list(_FORM_SHAPES))}")
     return form
 
 
@@ -284,21 +289,13 @@ def evaluate(
     reference: Callable[[FloatArray], FloatArray],
     frames: tuple[int, ...] = (),
 ) -> FloatArray:
-    """FK of ``q`` through ``kernel``, with ``out`` and ``form``, validating what needs it.
+    """FK of ``q`` with ``out`` and ``form`` once ``kernel.run`` has refused them as they are.
 
-    The kernel takes ``q`` as it is if it can (a C-contiguous float64 array of finite values)
-    and a valid ``out``; else ``validate`` checks and converts ``q`` (raising InputError) and
-    ``out`` and ``form`` are checked here. Without a kernel, ``reference`` is the NumPy path
-    (``(..., n) -> (..., *frames, 4, 4)``); ``frames`` is the result's frame axis (``()`` for a
-    chain, ``(n_frames,)`` for a tree).
+    ``validate`` checks and converts ``q`` (raising InputError), then ``out`` and ``form`` are
+    checked here, and the kernel runs on what passed. Without a kernel, ``reference`` is the
+    NumPy path (``(..., n) -> (..., *frames, 4, 4)``); ``frames`` is the result's frame axis
+    (``()`` for a chain, ``(n_frames,)`` for a tree).
     """
-    if kernel is not None and isinstance(form, str) and form in _FORM_CODES:
-        try:
-            result: FloatArray | None = kernel.run(q, out, _FORM_CODES[form])
-        except ValueError:  # a bad out: said below
-            result = None
-        if result is not None:
-            return result
     form = _check_form(form)
     arr = np.require(validate(q), dtype=np.float64, requirements=["C", "A"])
     shape = result_shape(arr.shape[:-1], frames, form)
@@ -310,6 +307,6 @@ def evaluate(
             return result
         out[...] = result
         return out
-    result = kernel.run(arr, out, _FORM_CODES[form])
-    assert result is not None, "validated joint values were refused by the kernel"
-    return result
+    done: FloatArray | None = kernel.run(arr, out, form)
+    assert done is not None, "validated arguments were refused by the kernel"
+    return done

@@ -58,10 +58,12 @@ enum {
     OP_AXIS_X_PITCH = 13,
     OP_AXIS_Y_PITCH = 14,
     OP_AXIS_Z_PITCH = 15,
+    OP_TRANSLATE = 16, /* cur = cur * (I, t); params: t (3) */
 };
-#define N_OPS 16
+#define N_OPS 17
 /* SCREW, HINGE and the AXIS operations turn by an angle; each names its angle's index in slot */
-#define HAS_ANGLE(code) ((code) == OP_SCREW || (code) == OP_HINGE || (code) >= OP_AXIS_X)
+#define HAS_ANGLE(code) \
+    ((code) == OP_SCREW || (code) == OP_HINGE || ((code) >= OP_AXIS_X && (code) <= OP_AXIS_Z_PITCH))
 
 enum { FORM_4X4 = 0, FORM_3X4 = 1, FORM_POS_QUAT = 2 };
 static const int FORM_SIZE[3] = {16, 12, 7};
@@ -311,8 +313,8 @@ static int Kernel_init(KernelObject *self, PyObject *args, PyObject *kwds) {
     const int32_t *code = PyArray_DATA(o);
     npy_intp n_ops = PyArray_DIM(o, 0), n_params = PyArray_DIM(p, 0);
     int n_angles = 0;
-    static const int QSIZE[N_OPS] = {0, 0, 0, 0, 1, 1, 1, 4, 7, 0, 1, 1, 1, 1, 1, 1};
-    static const int PSIZE[N_OPS] = {0, 0, 0, 12, 24, 24, 6, 3, 0, 0, 7, 7, 7, 7, 7, 7};
+    static const int QSIZE[N_OPS] = {0, 0, 0, 0, 1, 1, 1, 4, 7, 0, 1, 1, 1, 1, 1, 1, 0};
+    static const int PSIZE[N_OPS] = {0, 0, 0, 12, 24, 24, 6, 3, 0, 0, 7, 7, 7, 7, 7, 7, 3};
     const double *pd = PyArray_DATA(p);
     for (npy_intp k = 0; k < n_ops; ++k) {
         const int32_t *op = code + 4 * k;
@@ -361,8 +363,24 @@ static int Kernel_init(KernelObject *self, PyObject *args, PyObject *kwds) {
     return 0;
 }
 
-/* run(q, out=None, form=0): the poses of q, or None if q is not a C-contiguous float64 array
- * of shape (..., nq) with finite values (the caller then validates and converts it). */
+/* The forms' names, interned: the callers' literals are the same objects. */
+static PyObject *g_form_names[3];
+
+/* FORM_* of a form's name, or -1. */
+static int form_code(PyObject *form) {
+    for (int k = 0; k < 3; ++k)
+        if (form == g_form_names[k]) return k;
+    if (!PyUnicode_Check(form)) return -1;
+    for (int k = 0; k < 3; ++k)
+        if (PyUnicode_Compare(form, g_form_names[k]) == 0) return k;
+    PyErr_Clear();
+    return -1;
+}
+
+/* run(q, out=None, form="4x4"): the poses of q, or None if it cannot take the arguments as they
+ * are: q not a C-contiguous float64 array of shape (..., nq) with finite values, out not a
+ * writeable C-contiguous float64 array of the result's shape, an unknown form. The caller then
+ * validates and converts, or says what is wrong. */
 static PyObject *Kernel_run(KernelObject *self, PyObject *const *args, Py_ssize_t nargs) {
     if (nargs < 1 || nargs > 3) {
         PyErr_SetString(PyExc_TypeError, "run(q, out=None, form=0)");
@@ -376,15 +394,8 @@ static PyObject *Kernel_run(KernelObject *self, PyObject *const *args, Py_ssize_
     if (nd < 1 || PyArray_TYPE(q) != NPY_FLOAT64 || !PyArray_IS_C_CONTIGUOUS(q) ||
         !PyArray_ISALIGNED(q) || PyArray_ISBYTESWAPPED(q) || PyArray_DIM(q, nd - 1) != prog->nq)
         Py_RETURN_NONE;
-    int form = FORM_4X4;
-    if (nargs == 3) {
-        form = PyLong_AsLong(args[2]);
-        if (form == -1 && PyErr_Occurred()) return NULL;
-        if (form < 0 || form > 2) {
-            PyErr_SetString(PyExc_ValueError, "form must be 0, 1 or 2");
-            return NULL;
-        }
-    }
+    int form = nargs == 3 ? form_code(args[2]) : FORM_4X4;
+    if (form < 0) Py_RETURN_NONE;
     npy_intp dims[NPY_MAXDIMS];
     int out_nd = 0;
     npy_intp n = 1;
@@ -407,11 +418,8 @@ static PyObject *Kernel_run(KernelObject *self, PyObject *const *args, Py_ssize_
             !PyArray_IS_C_CONTIGUOUS(out) || !PyArray_ISALIGNED(out) ||
             !PyArray_ISWRITEABLE(out) || PyArray_ISBYTESWAPPED(out) ||
             PyArray_NDIM(out) != out_nd ||
-            !PyArray_CompareLists(PyArray_DIMS(out), dims, out_nd)) {
-            PyErr_SetString(PyExc_ValueError, "out must be a writeable C-contiguous float64 "
-                                              "array of the result's shape");
-            return NULL;
-        }
+            !PyArray_CompareLists(PyArray_DIMS(out), dims, out_nd))
+            Py_RETURN_NONE;
         Py_INCREF(out);
     } else {
         out = (PyArrayObject *)PyArray_SimpleNew(out_nd, dims, NPY_FLOAT64);
@@ -437,7 +445,7 @@ static PyObject *Kernel_run(KernelObject *self, PyObject *const *args, Py_ssize_
 
 static PyMethodDef Kernel_methods[] = {
     {"run", (PyCFunction)(void (*)(void))Kernel_run, METH_FASTCALL,
-     "run(q, out=None, form=0) -> poses, or None if q needs validating first"},
+     "run(q, out=None, form='4x4') -> poses, or None if the arguments need validating first"},
     {"__reduce__", (PyCFunction)Kernel_reduce, METH_NOARGS, NULL},
     {NULL, NULL, 0, NULL},
 };
@@ -498,6 +506,9 @@ static struct PyModuleDef module_def = {
 
 PyMODINIT_FUNC PyInit__kernel(void) {
     import_array();
+    static const char *FORM_NAMES[3] = {"4x4", "3x4", "pos_quat"};
+    for (int k = 0; k < 3; ++k)
+        if ((g_form_names[k] = PyUnicode_InternFromString(FORM_NAMES[k])) == NULL) return NULL;
     if (PyType_Ready(&KernelType) < 0) return NULL;
     PyObject *m = PyModule_Create(&module_def);
     if (m == NULL) return NULL;

@@ -350,6 +350,11 @@ AI void run_ops(const Program *prog, Pose *restrict slots, const vd *restrict qT
             case OP_CONST:
                 compose_const(&cur, P, P + 9);
                 break;
+            case OP_TRANSLATE: /* compose's translation; R * I = R */
+                for (int i = 0; i < 3; ++i)
+                    cur.t[i] = cur.t[i] +
+                               ((cur.R[3 * i] * P[0] + cur.R[3 * i + 1] * P[1]) + cur.R[3 * i + 2] * P[2]);
+                break;
             case OP_SCREW: /* R = (I + s W) + c W2, c = 1 - cos q; p = (r - R r) + q u */
                 rodrigues(P, P + 9, ang[slot].s, 1.0 - ang[slot].c, Rj);
                 about_point(P + 18, Rj, tj);

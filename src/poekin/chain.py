@@ -233,7 +233,7 @@ class Chain:
         """Number of joints ``n``."""
         return len(self.joint_names)
 
-    def fk(self, q: ArrayLike, *, out: FloatArray | None = None, form: Form = "4x4") -> FloatArray:
+    def fk(self, q: ArrayLike, out: FloatArray | None = None, form: Form = "4x4") -> FloatArray:
         """Space-form PoE ``T_world_frame = exp([S_1] q_1) ... exp([S_n] q_n) M``.
 
         Args:
@@ -248,22 +248,22 @@ class Chain:
             The pose of ``frame`` in the world (base) frame, for each configuration.
         """
         kernel = self._space_kernel
-        if kernel is not None and out is None and form == "4x4":  # the one-call fast path
-            T: FloatArray | None = kernel.run(q)
+        if kernel is not None:  # the fast path: the kernel takes what needs no converting
+            T: FloatArray | None = kernel.run(q, out, form)
             if T is not None:
                 return T
         return _fast.evaluate(kernel, q, out, form, self._joint_values, self._fk_numpy)
 
     def fk_body(
-        self, q: ArrayLike, *, out: FloatArray | None = None, form: Form = "4x4"
+        self, q: ArrayLike, out: FloatArray | None = None, form: Form = "4x4"
     ) -> FloatArray:
         """Body-form PoE ``T_world_frame = M exp([B_1] q_1) ... exp([B_n] q_n)``.
 
         Same arguments and result as :meth:`fk`; equal to it to float precision.
         """
         kernel = self._body_kernel
-        if kernel is not None and out is None and form == "4x4":
-            T: FloatArray | None = kernel.run(q)
+        if kernel is not None:
+            T: FloatArray | None = kernel.run(q, out, form)
             if T is not None:
                 return T
         return _fast.evaluate(kernel, q, out, form, self._joint_values, self._fk_body_numpy)

@@ -404,9 +404,7 @@ class Tree:
             p[..., b + 1, :] = p_b
         return R, p
 
-    def fk(
-        self, qpos: ArrayLike, *, out: FloatArray | None = None, form: Form = "4x4"
-    ) -> FloatArray:
+    def fk(self, qpos: ArrayLike, out: FloatArray | None = None, form: Form = "4x4") -> FloatArray:
         """World poses of every frame (bodies, then sites) in one pass.
 
         Args:
@@ -420,8 +418,8 @@ class Tree:
             ``T_world_frame`` for each of :attr:`frame_names`.
         """
         kernel = self._kernel
-        if kernel is not None and out is None and form == "4x4":  # the one-call fast path
-            T: FloatArray | None = kernel.run(qpos)
+        if kernel is not None:  # the fast path: the kernel takes what needs no converting
+            T: FloatArray | None = kernel.run(qpos, out, form)
             if T is not None:
                 return T
         frames = (self.n_frames,)
