@@ -172,7 +172,27 @@ BAD_INPUTS = [
     (["fk", "aloha", "--all-frames", "--frame", "left/gripper", "--q", "0"], "not --frame"),
     (["verify", "aloha", "--all-frames", "--frame", "left/gripper"], "give no frame"),
     (["screws", "unitree_go2", "--frame", "imu"], "'joint0' on the path to 'imu' is a free"),
+    (["verify", "{mj_rejects}"], "MuJoCo rejected"),
+    (["fk", "--params", "{zero_axis}", "--q", *"000000"], "needs a unit axis w, got |w| = 0;"),
+    (["fk", "--params", "{half_axis}", "--q", *"000000"], "needs a unit axis w, got |w| = 0.5"),
+    (["verify", "--params", "{skewed_home}", "--against", "universal_robots_ur5e"], "orthonormal"),
+    pytest.param(
+        ["verify", "--metrics", "/dev/full"],
+        "No space left on device",
+        marks=pytest.mark.skipif(not os.path.exists("/dev/full"), reason="no /dev/full"),
+    ),
 ]
+
+
+def _param_file(tmp_path: pathlib.Path, name: str, joint: int, screw: list[float]) -> str:
+    """The UR5e's screws as ``poekin screws --json`` writes them, one joint's screw replaced
+    (an empty ``screw`` instead skews the home pose M)."""
+    described = load("universal_robots_ur5e").describe()
+    if screw:
+        described["joints"][joint]["screw"] = screw
+    else:
+        described["home"][0][0] = 2.0
+    return _write(tmp_path, name, json.dumps(described))
 
 
 def assert_one_error_line(err: str, message: str) -> None:
@@ -189,9 +209,18 @@ def test_bad_input_gives_one_line_and_exit_2(
     argv: list[str], message: str, tmp_path: pathlib.Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     other = _write(tmp_path, "other.csv", "a,b,c\n1,2,3\n")
+    zero_axis_joint = '<joint type="hinge" axis="0 0 0"/><geom size="0.1"/>'
     fills = {
         "tmp": str(tmp_path),
         "bad_xml": _write(tmp_path, "bad.xml", "<mujoco><oops>"),
+        "mj_rejects": _write(
+            tmp_path,
+            "rejected.xml",
+            f"<mujoco><worldbody><body>{zero_axis_joint}</body></worldbody></mujoco>",
+        ),
+        "zero_axis": _param_file(tmp_path, "zero.json", 2, [0.0] * 6),
+        "half_axis": _param_file(tmp_path, "half.json", 2, [0.0, -0.5, 0.0, 0.163, 0.0, 0.425]),
+        "skewed_home": _param_file(tmp_path, "skewed.json", 0, []),
         "other_csv": other,
     }
     before = pathlib.Path(other).read_bytes()
@@ -203,7 +232,11 @@ def test_bad_input_gives_one_line_and_exit_2(
 
 @pytest.mark.parametrize(
     ("argv", "message"),
-    [(["verify", "--samples", "many"], "invalid int value"), (["teleport"], "invalid choice")],
+    [
+        (["verify", "--samples", "many"], "invalid int value"),
+        (["teleport"], "invalid choice"),
+        (["fk", "universal_robots_ur5e", "--q", "a", *"00000"], "invalid float value: 'a'"),
+    ],
 )
 def test_argparse_errors_are_one_line(
     argv: list[str], message: str, capsys: pytest.CaptureFixture[str]

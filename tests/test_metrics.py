@@ -297,6 +297,49 @@ def test_each_row_is_one_write_of_a_whole_line(
     assert b"".join(writes) == path.read_bytes()
 
 
+_PROCESSES, _BATCHES, _BATCH = 10, 20, 10
+
+
+def _append_batches(path: str, who: int, start: object) -> None:
+    """One of the concurrent writers: waits for the others, then appends its batches."""
+    start.wait()  # type: ignore[attr-defined]
+    for b in range(_BATCHES):
+        rows = [_row(run_id=f"p{who}", seed=b, notes=f"{who}/{b}/{i}") for i in range(_BATCH)]
+        append_metrics(path, rows)
+
+
+def test_concurrent_appends_lose_nothing_and_do_not_interleave(tmp_path: pathlib.Path) -> None:
+    """Ten processes append to one new file at once: one header, every row whole and present,
+    and each call's rows together (the file lock spans the header check and the batch)."""
+    import multiprocessing
+
+    path = tmp_path / "m.csv"
+    ctx = multiprocessing.get_context("fork" if hasattr(os, "fork") else "spawn")
+    start = ctx.Barrier(_PROCESSES)
+    procs = [
+        ctx.Process(target=_append_batches, args=(str(path), k, start)) for k in range(_PROCESSES)
+    ]
+    for proc in procs:
+        proc.start()
+    for proc in procs:
+        proc.join(60)
+        assert proc.exitcode == 0, f"writer {proc.name} exited {proc.exitcode}"
+    with path.open(newline="") as f:
+        table = list(csv.reader(f))
+    assert table[0] == list(METRICS_HEADER)
+    rows = table[1:]
+    assert len(rows) == _PROCESSES * _BATCHES * _BATCH, "rows lost or header repeated"
+    assert all(len(r) == len(METRICS_HEADER) for r in rows), "a row was cut or merged"
+    notes = [r[-1] for r in rows]
+    assert sorted(notes) == sorted(
+        f"{w}/{b}/{i}" for w in range(_PROCESSES) for b in range(_BATCHES) for i in range(_BATCH)
+    )
+    for k in range(0, len(notes), _BATCH):  # batches are whole and in order
+        batch = notes[k : k + _BATCH]
+        who, b = batch[0].split("/")[:2]
+        assert batch == [f"{who}/{b}/{i}" for i in range(_BATCH)], f"batch at row {k} interleaved"
+
+
 def test_new_run_id() -> None:
     a, b = new_run_id(), new_run_id()
     assert re.fullmatch(r"[0-9a-f]{12}", a)

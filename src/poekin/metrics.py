@@ -140,6 +140,17 @@ def _row_fields(row: MetricRow) -> list[str]:
     return out
 
 
+def _lock(fd: int) -> None:
+    """Hold an exclusive lock on the whole file until ``fd`` is closed (``flock``, advisory:
+    every poekin writer takes it). Without ``fcntl`` (Windows) nothing is locked and appends
+    rely on ``O_APPEND`` alone."""
+    try:
+        import fcntl
+    except ImportError:
+        return
+    fcntl.flock(fd, fcntl.LOCK_EX)
+
+
 def _write_line(fd: int, data: bytes) -> None:
     """Append ``data`` with one ``write(2)``; finish a short write (only seen as the disk fills)."""
     view = memoryview(data)
@@ -218,8 +229,8 @@ def append_metrics(path: str | os.PathLike[str], rows: Sequence[MetricRow]) -> p
     only appended to (``O_APPEND``; never truncated, rewritten or reordered), and only if its
     first line is exactly that header and its last byte is a newline. Each row goes to the OS
     as one ``write`` of its complete CSV line (unbuffered, so nothing is left in a Python buffer
-    when this returns); on a local file system, concurrent appenders therefore do not
-    interleave within a line.
+    when this returns). The file is locked (``flock``) from the header check to the last row, so
+    processes appending at once neither write the header twice nor interleave their batches.
 
     All rows are formatted before the file is opened, so a row with a bad field never leaves
     a partial batch. If the header of a file created here cannot be written (e.g. the disk is
@@ -260,6 +271,7 @@ def append_metrics(path: str | os.PathLike[str], rows: Sequence[MetricRow]) -> p
         raise MetricsFileError(f"{where}: {_os_reason(e)}") from None
 
     try:
+        _lock(fd)  # header check, header and rows as one step among concurrent writers
         size = os.fstat(fd).st_size
         if size > 0:
             _check_head(p, fd, size)
