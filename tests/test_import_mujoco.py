@@ -8,7 +8,7 @@ import pytest
 from helpers import MJ_TOL, assert_close, load_quiet, mj_frame_pose
 
 from poekin import ModelError, UnknownFrameError, chain_from_model, load, sample_joint_values
-from poekin.import_mujoco import find_frame, site_and_body_names
+from poekin.import_mujoco import find_frame, site_and_body_names, tree_from_model
 
 N_SAMPLES = 1000
 
@@ -143,3 +143,35 @@ def test_unnamed_joints_get_names() -> None:
       <site name="s"/></body></worldbody></mujoco>"""
     chain = chain_from_model(mujoco.MjModel.from_xml_string(xml))
     assert chain.joint_names == ("joint0",)
+
+
+# Sites the compiler finds on their body's frame or inertial frame, to its own tolerance (1e-9 m
+# and rad here): MuJoCo then copies that frame (site_sameframe 1-4) instead of applying the
+# site's offset, and so must poekin.
+SAMEFRAME_XML = """<mujoco><worldbody>
+<body name="a" pos="0.1 0.2 0.3" euler="0.3 0.2 0.1"><joint type="hinge" axis="0 1 0"/>
+  <inertial pos="0.05 0.02 0.01" quat="0.9 0.1 0.3 0.2" mass="1" diaginertia="0.1 0.2 0.3"/>
+  <site name="at_body" pos="0 0 1e-9" euler="0 0 1e-9"/>
+  <site name="body_rot" pos="0.3 0 0" euler="0 0 1e-9"/>
+  <site name="at_inertia" pos="0.05 0.02 0.01" quat="0.9 0.1 0.3 0.2"/>
+  <site name="inertia_rot" pos="0.4 0 0" quat="0.9 0.1 0.3 0.2"/>
+  <site name="own_frame" pos="0.4 0 0" quat="0.9 0.3 0.1 0.2"/>
+</body></worldbody></mujoco>"""
+
+
+def test_sites_on_their_body_or_inertial_frame_pose_as_mujoco_does() -> None:
+    model = mujoco.MjModel.from_xml_string(SAMEFRAME_XML)
+    assert sorted(model.site_sameframe) == [0, 1, 2, 3, 4], "every sameframe case is here"
+    tree = tree_from_model(model)
+    qpos = np.random.default_rng(0).uniform(-np.pi, np.pi, (200, 1))
+    data = mujoco.MjData(model)
+    got = tree.fk(qpos)
+    for k, q in enumerate(qpos):
+        data.qpos[:] = q
+        mujoco.mj_kinematics(model, data)
+        for s in range(model.nsite):
+            name = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_SITE, s)
+            f = tree.frame_index(name)
+            assert_close(f"{name} position", got[k, f, :3, 3], data.site_xpos[s], 1e-15)
+            rot = data.site_xmat[s].reshape(3, 3)
+            assert_close(f"{name} rotation", got[k, f, :3, :3], rot, 1e-15)

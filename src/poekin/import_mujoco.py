@@ -115,12 +115,43 @@ def frame_pose(
     return T
 
 
+def _site_offsets(model: mujoco.MjModel) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Each site's ``(pos (nsite, 3), rot (nsite, 3, 3))`` in its body, as ``mj_kinematics``
+    applies them.
+
+    Where the compiler found a site on its body's frame or inertial frame (``site_sameframe``,
+    to its own tolerance: a 1e-7 rad rotation counts), MuJoCo copies that frame's position
+    and/or rotation instead of applying ``site_pos`` and ``site_quat`` (``mj_local2Global``), so
+    poekin does too. The inertial frame is itself the body's frame where ``body_sameframe`` says.
+    """
+    import mujoco
+
+    same = mujoco.mjtSameFrame
+    pos = np.array(model.site_pos, dtype=np.float64)
+    rot = np.asarray(lie.quat_to_rotation(model.site_quat), dtype=np.float64)
+    for s in range(model.nsite):
+        frame, b = int(model.site_sameframe[s]), int(model.site_bodyid[s])
+        if frame in (same.mjSAMEFRAME_INERTIA, same.mjSAMEFRAME_INERTIAROT):
+            inertia = int(model.body_sameframe[b])
+            body_rot = inertia in (same.mjSAMEFRAME_BODY, same.mjSAMEFRAME_BODYROT)
+            rot[s] = np.eye(3) if body_rot else lie.quat_to_rotation(model.body_iquat[b])
+            if frame == same.mjSAMEFRAME_INERTIA:
+                at_body = inertia == same.mjSAMEFRAME_BODY
+                pos[s] = 0.0 if at_body else model.body_ipos[b]
+        elif frame in (same.mjSAMEFRAME_BODY, same.mjSAMEFRAME_BODYROT):
+            rot[s] = np.eye(3)
+            if frame == same.mjSAMEFRAME_BODY:
+                pos[s] = 0.0
+    return pos, rot
+
+
 def tree_from_model(model: mujoco.MjModel, *, robot: str = "") -> Tree:
     """The whole kinematic tree of a compiled MuJoCo model: every body, joint and site.
 
     Body and site offsets, joint axes, anchors and ``ref`` (``qpos0``) are read from the
     compiled model, so ``<default>`` classes, ``childclass``, ``euler``/``axisangle`` frames and
-    the like are already resolved. Mocap bodies sit at their model pose.
+    the like are already resolved. Mocap bodies sit at their model pose, and sites as
+    :func:`_site_offsets` says.
     """
 
     def quat(q: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -136,6 +167,7 @@ def tree_from_model(model: mujoco.MjModel, *, robot: str = "") -> Tree:
         [-np.inf, np.inf],
     )
     refs = np.array([model.qpos0[model.jnt_qposadr[j]] if hinge_like[j] else 0.0 for j in joints])
+    site_pos, site_rot = _site_offsets(model)
     return Tree(
         body_names=tuple(body_names),
         body_parents=model.body_parentid[1:] - 1,
@@ -151,8 +183,8 @@ def tree_from_model(model: mujoco.MjModel, *, robot: str = "") -> Tree:
         mimics=(None,) * model.njnt,
         site_names=tuple(site_names),
         site_bodies=model.site_bodyid - 1,
-        site_pos=model.site_pos,
-        site_rot=quat(model.site_quat),
+        site_pos=site_pos,
+        site_rot=site_rot,
         qpos0=model.qpos0,
         robot=robot,
     )
