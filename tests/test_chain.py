@@ -84,6 +84,22 @@ def test_coordinate_axis_chains_match_reference(seed: int, n: int, shape: tuple[
     assert_close("fk_body(0)", chain.fk_body(np.zeros(n)), chain.home, 0.0)
 
 
+@settings(max_examples=20, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1), aligned=st.booleans())
+def test_whole_turns_do_not_move_the_end(seed: int, aligned: bool) -> None:
+    """Revolute joints without pitch at ~1e6 rad (past the kernel's own reduction, 2^19) pose
+    the end as the same angles mod 2 pi do, to the resolution of the angle (ulp(1e6) =
+    1.2e-10 rad) times the chain's reach of a few metres."""
+    rng = np.random.default_rng(seed)
+    chain = random_chain(rng, 6, aligned=aligned)
+    q = rng.uniform(-np.pi, np.pi, (50, 6))
+    pitch = np.sum(chain.screws[:, :3] * chain.screws[:, 3:], axis=-1)  # helical screws advance
+    turning = np.array([t == "revolute" for t in chain.joint_types]) & (np.abs(pitch) < 1e-12)
+    turns = 2 * np.pi * rng.integers(-160_000, 160_000, (50, 6))
+    assert_close("fk", chain.fk(q + turning * turns), chain.fk(q), 1e-8)
+    assert_close("fk_body", chain.fk_body(q + turning * turns), chain.fk_body(q), 1e-8)
+
+
 @pytest.mark.parametrize("scale", [0.0, 1e-12, 1e-7])
 def test_fk_near_home(scale: float) -> None:
     rng = np.random.default_rng(1)

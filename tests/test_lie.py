@@ -533,6 +533,74 @@ def test_wrong_shape_raises(func: Callable[[Any], Any], bad: np.ndarray, expecte
     assert isinstance(info.value, ValueError)
 
 
+_FINITE_CHECKED = [
+    (lie.hat_so3, (3,)),
+    (lie.vee_so3, (3, 3)),
+    (lie.hat_se3, (6,)),
+    (lie.vee_se3, (4, 4)),
+    (lie.exp_so3, (3,)),
+    (lie.log_so3, (3, 3)),
+    (lie.rotation_angle, (3, 3)),
+    (lie.exp_se3, (6,)),
+    (lie.log_se3, (4, 4)),
+    (lie.adjoint, (4, 4)),
+    (lie.inverse, (4, 4)),
+    (lie.quat_normalize, (4,)),
+    (lie.quat_to_rotation, (4,)),
+    (lie.rotation_to_quat, (3, 3)),
+]
+
+
+@pytest.mark.parametrize("bad", [np.nan, np.inf, -np.inf])
+@pytest.mark.parametrize(("func", "shape"), _FINITE_CHECKED)
+def test_non_finite_input_is_rejected(
+    func: Callable[[Any], Any], shape: tuple[int, ...], bad: float
+) -> None:
+    x = np.zeros((2, *shape))
+    x[1].flat[0] = bad
+    with pytest.raises(InputError, match="contains NaN or inf; every value must be finite"):
+        func(x)
+
+
+@pytest.mark.parametrize("dtype", [np.float32, np.float64])
+@pytest.mark.parametrize("angle", [0.0, 1e-7, 1e-3, PI - 1e-3, PI])
+@FAST
+@given(seed=seeds)
+def test_exp_log_round_trips_in_both_precisions(dtype: type, angle: float, seed: int) -> None:
+    """Near 0, near pi and at pi, in float32 as in float64: each precision keeps its dtype
+    and its own rounding (float32's eps is 1.2e-7; log near pi loses about sqrt(eps))."""
+    tol = 1e-3 if dtype is np.float32 else 1e-7
+    axis = unit_axes(np.random.default_rng(seed), ())
+    omega = (axis * angle).astype(dtype)
+    R = lie.exp_so3(omega)
+    assert R.dtype == dtype
+    assert_close("exp(log(R))", lie.exp_so3(lie.log_so3(R)), R, 10 * tol)
+    back = lie.log_so3(R)
+    if angle < PI:
+        assert_close("log(exp(w))", back, omega, tol)
+    else:  # at pi the axis is only defined up to sign
+        assert_close("|log(exp(w))|", np.abs(back), np.abs(omega), tol)
+    xi = np.concatenate([omega, np.ones(3, dtype=dtype)])
+    T = lie.exp_se3(xi)
+    assert T.dtype == dtype
+    assert_close("exp(log(T))", lie.exp_se3(lie.log_se3(T)), T, 10 * tol)
+
+
+@pytest.mark.parametrize("turns", [1e3, 1.6e5])
+@FAST
+@given(seed=seeds)
+def test_huge_angles_equal_the_reduced_angle(turns: float, seed: int) -> None:
+    """1e6 rad is 1.6e5 turns: exp of it equals exp of the angle mod 2 pi, to the resolution
+    of the angle itself (ulp(1e6) = 1.2e-10 rad; reducing by the float 2 pi adds ~4e-11)."""
+    rng = np.random.default_rng(seed)
+    axis = unit_axes(rng, ())
+    angle = rng.uniform(0, 2 * PI) + 2 * PI * np.floor(turns)
+    reduced = np.fmod(angle, 2 * PI)
+    assert_close("exp_so3", lie.exp_so3(axis * angle), lie.exp_so3(axis * reduced), 1e-9)
+    xi, xi_reduced = np.r_[axis * angle, 0, 0, 0], np.r_[axis * reduced, 0, 0, 0]
+    assert_close("exp_se3", lie.exp_se3(xi), lie.exp_se3(xi_reduced), 1e-9)
+
+
 def test_matrix_exp_se3_wrong_shapes_raise() -> None:
     with pytest.raises(InputError, match=re.escape("(..., 6)")):
         lie.matrix_exp_se3(np.zeros(3), 1.0)

@@ -80,7 +80,8 @@ _SERIES_ANGLE = 0.3
 
 
 def _as_float_array(x: ArrayLike, trailing: tuple[int, ...], func: str, name: str) -> Array:
-    """``x`` as a floating array whose trailing shape is ``trailing``; else ``InputError``."""
+    """``x`` as a finite floating array whose trailing shape is ``trailing``; else
+    ``InputError``."""
     arr = np.asarray(x)
     if arr.dtype.kind in "biu":
         arr = arr.astype(np.float64)
@@ -90,6 +91,8 @@ def _as_float_array(x: ArrayLike, trailing: tuple[int, ...], func: str, name: st
     if arr.ndim < k or arr.shape[arr.ndim - k :] != trailing:
         expected = "(..., " + ", ".join(str(n) for n in trailing) + ")"
         raise InputError(f"{func}: expected {name} of shape {expected}, got shape {arr.shape}")
+    if not np.all(np.isfinite(arr)):
+        raise InputError(f"{func}: {name} contains NaN or inf; every value must be finite")
     return arr
 
 
