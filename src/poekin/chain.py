@@ -22,13 +22,17 @@ from numpy.typing import ArrayLike, NDArray
 
 from poekin import _fast, lie
 from poekin._fast import Form
-from poekin.errors import InputError
+from poekin.errors import InputError, did_you_mean
 
 __all__ = [
+    "JACOBIAN_CONVENTIONS",
     "Chain",
+    "JacobianConvention",
     "JointType",
     "as_joint_values",
+    "check_jacobian_convention",
     "check_pose",
+    "jacobian_from_world",
     "poe",
     "readonly_array",
 ]
@@ -111,6 +115,71 @@ class _ScrewTerms:
         return cls(w, np.cross(w, v), u)
 
 
+def _joint_factors(terms: _ScrewTerms, q: FloatArray) -> tuple[FloatArray, FloatArray]:
+    """``exp([S_i] q_i)`` of every joint as ``R (..., n, 3, 3)`` and ``p (..., n, 3)``."""
+    R_i = np.empty((*q.shape, 3, 3))
+    for i, w in enumerate(terms.w):
+        R_i[..., i, :, :] = lie.axis_rotation(w, q[..., i]) if w.any() else np.eye(3)
+    p_i = (terms.r - lie.rotate(R_i, terms.r)) + q[..., None] * terms.u
+    return R_i, p_i
+
+
+def space_jacobian(terms: _ScrewTerms, screws: FloatArray, q: FloatArray) -> FloatArray:
+    """``(..., 6, n)`` space Jacobian: column ``i`` is ``Ad(T_{i-1}) S_i`` with
+    ``T_{i-1} = exp([S_1] q_1) ... exp([S_{i-1}] q_{i-1})``, rows ``[w; v]``.
+
+    ``Ad((R, p)) [w; v] = [R w; p x R w + R v]``; the partial products use the same joint
+    factors as :func:`poe`.
+    """
+    R_i, p_i = _joint_factors(terms, q)
+    batch, n = q.shape[:-1], screws.shape[0]
+    J = np.empty((*batch, 6, n))
+    R: FloatArray = np.broadcast_to(np.eye(3), (*batch, 3, 3))
+    p = np.zeros((*batch, 3))
+    for i in range(n):
+        w = lie.rotate(R, screws[i, :3])
+        J[..., :3, i] = w
+        J[..., 3:, i] = np.cross(p, w) + lie.rotate(R, screws[i, 3:])
+        p = p + lie.rotate(R, p_i[..., i, :])
+        R = lie.rotate_compose(R, R_i[..., i, :, :]).astype(np.float64, copy=False)
+    return J
+
+
+JacobianConvention = Literal["space", "body", "world"]
+JACOBIAN_CONVENTIONS: tuple[JacobianConvention, ...] = ("space", "body", "world")
+
+
+def _columns_cross(J_w: FloatArray, p: FloatArray) -> FloatArray:
+    """``w_i x p`` for every column ``w_i`` of ``J_w (..., 3, n)`` and one ``p (..., 3)``."""
+    return np.swapaxes(np.cross(np.swapaxes(J_w, -1, -2), p[..., None, :]), -1, -2)
+
+
+def jacobian_from_world(J: FloatArray, T: FloatArray, convention: str) -> FloatArray:
+    """A world Jacobian ``J (..., 6, n)`` (rows ``[w; v_frame]``) of the frame at ``T (..., 4,
+    4)`` in ``convention``: ``"world"`` as it is, ``"space"`` ``[w; v_frame - w x p]`` (the
+    twist in the world frame), ``"body"`` both rows turned into the frame by ``R^T``."""
+    check_jacobian_convention(convention)
+    if convention == "world":
+        return J
+    if convention == "space":
+        out: FloatArray = J.copy()
+        out[..., 3:, :] = J[..., 3:, :] - _columns_cross(J[..., :3, :], T[..., :3, 3])
+        return out
+    R_t = np.swapaxes(T[..., :3, :3], -1, -2)
+    body: FloatArray = np.concatenate([R_t @ J[..., :3, :], R_t @ J[..., 3:, :]], axis=-2)
+    return body
+
+
+def check_jacobian_convention(convention: object) -> None:
+    """Raise :class:`InputError` (naming the valid ones) unless ``convention`` is one of
+    :data:`JACOBIAN_CONVENTIONS`."""
+    if convention not in JACOBIAN_CONVENTIONS:
+        raise InputError(
+            f"unknown Jacobian convention {convention!r}: "
+            f"{did_you_mean(str(convention), list(JACOBIAN_CONVENTIONS))}"
+        )
+
+
 def poe(
     terms: _ScrewTerms, q: FloatArray, *, left: FloatArray | None, right: FloatArray | None
 ) -> FloatArray:
@@ -128,10 +197,7 @@ def poe(
         ``(..., 4, 4)`` poses.
     """
     batch = q.shape[:-1]
-    R_i = np.empty((*q.shape, 3, 3))
-    for i, w in enumerate(terms.w):
-        R_i[..., i, :, :] = lie.axis_rotation(w, q[..., i]) if w.any() else np.eye(3)
-    p_i = (terms.r - lie.rotate(R_i, terms.r)) + q[..., None] * terms.u  # (..., n, 3)
+    R_i, p_i = _joint_factors(terms, q)
     R = np.broadcast_to(np.eye(3), (*batch, 3, 3))
     p = np.zeros((*batch, 3))
     factors = [(R_i[..., i, :, :], p_i[..., i, :]) for i in range(terms.r.shape[0])]
@@ -267,6 +333,34 @@ class Chain:
             if T is not None:
                 return T
         return _fast.evaluate(kernel, q, out, form, self._joint_values, self._fk_body_numpy)
+
+    def jacobian_space(self, q: ArrayLike) -> FloatArray:
+        """Space Jacobian ``J_s(q)``, ``(..., 6, n)``, rows ``[w; v]``: ``J_s q_dot`` is the end
+        frame's twist in the world frame (Modern Robotics' ``JacobianSpace``; column ``i`` is
+        ``Ad(T_{i-1}) S_i``). ``v`` is the velocity of the point at the world origin moving with
+        the end frame, not of the frame's origin: see :meth:`jacobian_world` for that.
+        """
+        return space_jacobian(self._space, self.screws, self._joint_values(q))
+
+    def jacobian_body(self, q: ArrayLike) -> FloatArray:
+        """Body Jacobian ``J_b(q) = Ad(T^-1) J_s(q)``, ``(..., 6, n)``, rows ``[w; v]``: the end
+        frame's twist in the end frame itself (Modern Robotics' ``JacobianBody``). It is
+        :meth:`jacobian_world` with both rows turned into the end frame, ``R^T``."""
+        return jacobian_from_world(*self._world_jacobian(self._joint_values(q)), "body")
+
+    def jacobian_world(self, q: ArrayLike) -> FloatArray:
+        """World Jacobian, ``(..., 6, n)``, rows ``[w; v_frame]``, both in world coordinates:
+        ``v_frame = v + w x p`` is the velocity of the end frame's origin ``p``. This is what
+        MuJoCo's ``mj_jacSite``/``mj_jacBody`` return (as ``jacr``, ``jacp``) and Pinocchio's
+        ``LOCAL_WORLD_ALIGNED`` (with its rows in the other order, ``[v; w]``)."""
+        return self._world_jacobian(self._joint_values(q))[0]
+
+    def _world_jacobian(self, q: FloatArray) -> tuple[FloatArray, FloatArray]:
+        """:meth:`jacobian_world` of validated ``q``, and the end pose ``T (..., 4, 4)``."""
+        J = space_jacobian(self._space, self.screws, q)
+        T = self._fk_numpy(q)
+        J[..., 3:, :] = J[..., 3:, :] + _columns_cross(J[..., :3, :], T[..., :3, 3])
+        return J, T
 
     def _joint_values(self, q: ArrayLike) -> FloatArray:
         return as_joint_values(q, self.n_joints)

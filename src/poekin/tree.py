@@ -33,7 +33,15 @@ from numpy.typing import ArrayLike, NDArray
 
 from poekin import _fast, lie
 from poekin._fast import Form
-from poekin.chain import Chain, JointType, as_joint_values, readonly_array
+from poekin.chain import (
+    Chain,
+    JacobianConvention,
+    JointType,
+    as_joint_values,
+    check_jacobian_convention,
+    jacobian_from_world,
+    readonly_array,
+)
 from poekin.errors import InputError, ModelError, UnknownFrameError, did_you_mean
 
 __all__ = ["Mimic", "Tree", "TreeJointType"]
@@ -136,6 +144,7 @@ class Tree:
     _body_joints: tuple[tuple[int, ...], ...] = dataclasses.field(init=False, repr=False)
     _nq: int = dataclasses.field(init=False, repr=False)
     _full_adr: IntArray = dataclasses.field(init=False, repr=False)
+    _dof_adr: IntArray = dataclasses.field(init=False, repr=False)  # each joint's first qvel column
     _kernel: Any = dataclasses.field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
@@ -264,6 +273,14 @@ class Tree:
         full_adr = np.concatenate([[0], np.cumsum(sizes)[:-1]]).astype(np.intp)
         full_adr.flags.writeable = False
         set_(self, "_full_adr", full_adr)
+        dof_adr = np.zeros(len(self.joint_names), dtype=np.intp)
+        nv = 0
+        for k, (kind, mimic) in enumerate(zip(self.joint_types, self.mimics, strict=True)):
+            if mimic is None:
+                dof_adr[k], nv = nv, nv + _DOF[kind]
+            else:  # moves with its leader: its velocity column adds to the leader's
+                dof_adr[k] = dof_adr[names[mimic.leader]]
+        set_(self, "_dof_adr", dof_adr)
         set_(
             self,
             "_body_joints",
@@ -446,6 +463,73 @@ class Tree:
         T[..., nb:, :3, 3] = p_s
         T[..., 3, 3] = 1.0
         return T
+
+    # --- Jacobians ------------------------------------------------------------------------
+
+    def jacobian(
+        self, qpos: ArrayLike, frame: str, convention: JacobianConvention = "world"
+    ) -> FloatArray:
+        """Jacobian of ``frame`` (a body or site name): ``(..., 6, nv)``.
+
+        Columns follow MuJoCo's velocity layout (``qvel``): one per hinge or slide joint, three
+        per ball joint (angular velocity about the body's own axes), six per free joint (linear
+        velocity along the world axes, then angular velocity about the body's own axes). Rows
+        are ``[w; v_frame]`` in world coordinates, ``v_frame`` the velocity of the frame's
+        origin: MuJoCo's ``mj_jacBody``/``mj_jacSite`` as ``[jacr; jacp]``, and
+        :meth:`Chain.jacobian_world` for a chain. A mimic joint adds its column, times its
+        multiplier, to its leader's. ``convention="space"`` or ``"body"`` gives the rows of
+        :meth:`Chain.jacobian_space` / :meth:`Chain.jacobian_body` instead
+        (:func:`poekin.chain.jacobian_from_world`).
+
+        Raises:
+            UnknownFrameError: no such frame.
+            InputError: ``qpos`` is not ``(..., nq)`` finite numbers, or an unknown convention.
+        """
+        check_jacobian_convention(convention)
+        index = self.frame_index(frame)
+        x = self._expand(self._as_qpos(qpos))
+        batch = x.shape[:-1]
+        axes = np.zeros((*batch, len(self.joint_names), 3))
+        anchors = np.zeros_like(axes)
+        R, p = self._body_poses(x, (axes, anchors))
+        T_frame = self._frame_poses(R, p)[..., index, :, :]
+        p_frame = T_frame[..., :3, 3]
+        J = np.zeros((*batch, 6, self.nv))
+        for k in self.path_joints(frame):
+            kind, d, b = self.joint_types[k], int(self._dof_adr[k]), int(self.joint_bodies[k]) + 1
+            mimic = self.mimics[k]
+            scale = 1.0 if mimic is None else mimic.multiplier
+            if kind == "prismatic":
+                J[..., 3:, d] += scale * axes[..., k, :]
+                continue
+            if kind == "revolute":
+                turning, about = axes[..., k, None, :], anchors[..., k, :]  # (..., 1, 3)
+            else:  # ball, free: about the body's own axes, the rows of R_b^T
+                turning = np.swapaxes(R[..., b, :, :], -1, -2)
+                about = anchors[..., k, :] if kind == "ball" else p[..., b, :]
+                if kind == "free":
+                    J[..., 3:, d : d + 3] = np.eye(3)
+                    d += 3
+            lever = np.cross(turning, (p_frame - about)[..., None, :])
+            m = turning.shape[-2]
+            J[..., :3, d : d + m] += scale * np.swapaxes(turning, -1, -2)
+            J[..., 3:, d : d + m] += scale * np.swapaxes(lever, -1, -2)
+        return jacobian_from_world(J, T_frame, convention)
+
+    def dof_names(self) -> tuple[str, ...]:
+        """A name for each of the ``nv`` Jacobian columns (MuJoCo's ``qvel``): a hinge or slide
+        joint's name, ``name[rx]``... for a ball joint, ``name[x]``... then ``name[rx]``... for a
+        free joint (linear along world x y z, then angular about the body's axes)."""
+        names: list[str] = []
+        for name, kind, mimic in zip(self.joint_names, self.joint_types, self.mimics, strict=True):
+            if mimic is not None:
+                continue
+            if kind in ("revolute", "prismatic"):
+                names.append(name)
+            else:
+                axes = ("x", "y", "z", "rx", "ry", "rz") if kind == "free" else ("rx", "ry", "rz")
+                names.extend(f"{name}[{a}]" for a in axes)
+        return tuple(names)
 
     # --- serial chains --------------------------------------------------------------------
 
