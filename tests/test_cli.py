@@ -125,6 +125,43 @@ def test_fk_batch_files(capsys: pytest.CaptureFixture[str], tmp_path: pathlib.Pa
     assert out_path.read_bytes() == before
 
 
+def test_jacobian_text_json_and_npy(
+    capsys: pytest.CaptureFixture[str], tmp_path: pathlib.Path
+) -> None:
+    chain = load("universal_robots_ur5e")
+    q = [0.1, -1.2, 1.3, 0.4, -0.5, 0.6]
+    argv = ["jacobian", "universal_robots_ur5e", "--q", *map(str, q)]
+    code, text, _ = run(capsys, *argv)
+    assert code == 0 and "J_space of 'attachment_site' (6 x 6), rows [w; v]" in text
+    assert "columns: shoulder_pan_joint, shoulder_lift_joint" in text
+    for convention in ("space", "body", "world"):
+        code, text, _ = run(capsys, *argv, "--convention", convention, "--json")
+        reply = json.loads(text)
+        expected = getattr(chain, f"jacobian_{convention}")(q)
+        assert code == 0 and reply["convention"] == convention
+        assert_close(f"--json {convention}", reply["J"], expected, 0.0)
+    batch = np.random.default_rng(0).uniform(-3, 3, (7, 6))
+    np.save(tmp_path / "q.npy", batch)
+    out_path = tmp_path / "J.npy"
+    code, text, _ = run(
+        capsys, "jacobian", "universal_robots_ur5e", "--convention", "world",
+        "--input", str(tmp_path / "q.npy"), "--output", str(out_path),
+    )  # fmt: skip
+    assert code == 0 and "(7, 6, 6)" in text
+    assert_close("J.npy", np.load(out_path), chain.jacobian_world(batch), 0.0)
+
+
+def test_jacobian_of_a_tree_frame_behind_a_free_joint(capsys: pytest.CaptureFixture[str]) -> None:
+    tree = poekin.load_tree(load_quiet("unitree_go2"))
+    qpos = poekin.sample_qpos(tree, 1, seed=3)[0]
+    argv = ["jacobian", "unitree_go2", "--tree", "--frame", "FL_calf", "--json"]
+    code, text, _ = run(capsys, *argv, "--convention", "body", "--q", *map(str, qpos))
+    reply = json.loads(text)
+    assert code == 0 and reply["columns"][:2] == ["joint0[x]", "joint0[y]"]
+    assert len(reply["columns"]) == tree.nv == 18
+    assert_close("--tree", reply["J"], tree.jacobian(qpos, "FL_calf", "body"), 0.0)
+
+
 def _write(tmp_path: pathlib.Path, name: str, text: str) -> str:
     (tmp_path / name).write_text(text)
     return str(tmp_path / name)
@@ -176,6 +213,13 @@ BAD_INPUTS = [
     (["fk", "--params", "{zero_axis}", "--q", *"000000"], "needs a unit axis w, got |w| = 0;"),
     (["fk", "--params", "{half_axis}", "--q", *"000000"], "needs a unit axis w, got |w| = 0.5"),
     (["verify", "--params", "{skewed_home}", "--against", "universal_robots_ur5e"], "orthonormal"),
+    (["jacobian", "universal_robots_ur5e", "--q", "1", "2"], "expected 6 joint values"),
+    (["jacobian", "universal_robots_ur5e"], "give joint values with --q"),
+    (["jacobian", "unitree_go2", "--frame", "FL_calf", "--q", "0"], "is a free joint"),
+    (["jacobian", "unitree_go2", "--tree", "--frame", "FL_clf", "--q", "0"], "'FL_calf'"),
+    (["jacobian", "aloha", "--tree", "--q", "0"], "name the frame with --frame"),
+    (["jacobian", "--tree", "--params", "ur5e-dh", "--q", "0"], "not --params"),
+    (["jacobian", "universal_robots_ur5e", "--output", "{tmp}/J.npy", "--q", "0"], "goes with"),
     pytest.param(
         ["verify", "--metrics", "/dev/full"],
         "No space left on device",
@@ -261,7 +305,7 @@ def test_no_network_menagerie(
     )
 
 
-@pytest.mark.parametrize("command", ["verify", "screws", "fk", "dh", "diagnose"])
+@pytest.mark.parametrize("command", ["verify", "screws", "fk", "jacobian", "dh", "diagnose"])
 def test_every_command_has_help_with_an_example(
     command: str, capsys: pytest.CaptureFixture[str]
 ) -> None:

@@ -311,6 +311,71 @@ def _cmd_fk(args: argparse.Namespace, out: TextIO) -> int:
     return 0
 
 
+# --- jacobian ----------------------------------------------------------------------------------
+
+
+def _jacobian_function(
+    args: argparse.Namespace,
+) -> tuple[Callable[[Any], Any], str, tuple[str, ...]]:
+    """``(q -> J, frame, column names)``: the chain to the frame, or with ``--tree`` the whole
+    model (q is qpos, columns are qvel)."""
+    from poekin.chain import Chain
+
+    if not args.tree:
+        chain = _params_or_chain(args)
+        if not isinstance(chain, Chain):
+            chain = chain.to_chain()
+        method = getattr(chain, f"jacobian_{args.convention}")
+        return method, chain.frame, chain.joint_names
+    from poekin.loading import load_tree
+
+    if args.params:
+        raise InputError("--tree takes the whole model from SOURCE, not --params")
+    tree = load_tree(_model_source(args, None))
+    frame = args.frame
+    if frame is None:
+        sites = tree.frame_names[len(tree.body_names) :]
+        if len(sites) != 1:
+            raise InputError(
+                f"the model has {len(sites)} sites: name the frame with --frame "
+                f"({', '.join(tree.frame_names[:8])}{', ...' if tree.n_frames > 8 else ''})"
+            )
+        frame = sites[0]
+    tree.frame_index(frame)  # an unknown frame is said now, before q is read
+
+    def jacobian(qpos: Any) -> Any:
+        return tree.jacobian(qpos, frame, args.convention)
+
+    return jacobian, frame, tree.dof_names()
+
+
+def _cmd_jacobian(args: argparse.Namespace, out: TextIO) -> int:
+    if (args.q is None) == (args.input is None):
+        raise InputError("give joint values with --q Q1 ... Qn, or a batch with --input q.npy")
+    if args.input is not None and args.output is None:
+        raise InputError("--input needs --output J.npy for the Jacobians")
+    if args.output is not None:
+        if args.input is None:
+            raise InputError("--output goes with --input q.npy")
+        _check_new_file(args.output, "Jacobians", force=args.force)
+    jacobian, frame, columns = _jacobian_function(args)
+    if args.input is not None:
+        J = jacobian(_load_q_file(args.input))
+        np.save(args.output, J)
+        print(f"{args.convention} Jacobians of shape {J.shape} written to {args.output}", file=out)
+        return 0
+    J = jacobian(args.q)
+    if args.json:
+        body = {"frame": frame, "convention": args.convention, "q": list(args.q)}
+        print(json.dumps({**body, "columns": list(columns), "J": J.tolist()}), file=out)
+        return 0
+    rows = "[w; v_frame] in world coordinates" if args.convention == "world" else "[w; v]"
+    print(f"J_{args.convention} of {frame!r} (6 x {J.shape[-1]}), rows {rows}", file=out)
+    print(f"columns: {', '.join(columns)}", file=out)
+    print("\n".join(_matrix_lines(J)), file=out)
+    return 0
+
+
 # --- dh ----------------------------------------------------------------------------------------
 
 
@@ -559,6 +624,42 @@ def _build_parser() -> argparse.ArgumentParser:
     f.add_argument("--force", action="store_true", help="replace an existing --output file")
     f.add_argument("--json", action="store_true", help="print one JSON object")
     f.set_defaults(run=_cmd_fk)
+
+    j = sub.add_parser(
+        "jacobian",
+        help="the Jacobian of a frame for joint values",
+        description="Print the 6 x n Jacobian of the end frame at joint values q, or map a "
+        "batch of q (an (N, n) .npy file) to an (N, 6, n) .npy file. Rows are [w; v]. "
+        "--convention space: the twist in the world frame (Modern Robotics' J_s); body: in the "
+        "end frame (J_b); world: v is the velocity of the frame's origin in world coordinates, "
+        "as MuJoCo's mj_jacSite. With --tree, q is the whole qpos and the columns are MuJoCo's "
+        "qvel (6 x nv): frames behind ball and free joints too.",
+        epilog="examples:\n  poekin jacobian universal_robots_ur5e --q 0 -1.57 1.57 0 0 0\n"
+        "  poekin jacobian universal_robots_ur5e --q 0 0 0 0 0 0 --convention body --json\n"
+        "  poekin jacobian universal_robots_ur5e --input q.npy --output J.npy\n"
+        "  poekin jacobian unitree_go2 --tree --frame FL_calf --convention world --input qpos.npy "
+        "--output J.npy",
+        formatter_class=fmt,
+    )
+    source(j)
+    params(j, "use these parameters instead of a model")
+    j.add_argument("--q", type=float, nargs="+", metavar="Q", help="joint values (rad, m)")
+    j.add_argument(
+        "--convention",
+        choices=["space", "body", "world"],
+        default="space",
+        help="space (J_s, default), body (J_b) or world (as mj_jacSite)",
+    )
+    j.add_argument(
+        "--tree",
+        action="store_true",
+        help="the whole model: q is qpos (MuJoCo's layout), columns are qvel",
+    )
+    j.add_argument("--input", metavar="Q.npy", help="(N, n) array of joint values")
+    j.add_argument("--output", metavar="J.npy", help="where to save the (N, 6, n) Jacobians")
+    j.add_argument("--force", action="store_true", help="replace an existing --output file")
+    j.add_argument("--json", action="store_true", help="print one JSON object")
+    j.set_defaults(run=_cmd_jacobian)
 
     d = sub.add_parser(
         "dh",
