@@ -327,6 +327,49 @@ def test_without_the_kernel_the_numpy_path_gives_the_same_poses(
         assert_close(f"tree {f}", tree.fk(qpos, form=f), expected[f][1], REF_TOL)
     out = np.empty((200, 4, 4))
     assert chain.fk(q, out=out) is out
+    assert all(k is None for k in chain._jacobian_kernels.values())
+    for c in ("space", "body", "world"):
+        J = getattr(chain, f"jacobian_{c}")(q)
+        assert_close(f"chain jacobian_{c}", J, getattr(ur5e, f"jacobian_{c}")(q), REF_TOL)
+
+
+# --- Jacobians ------------------------------------------------------------------------------
+
+JACOBIANS = ["space", "body", "world"]
+
+
+@pytest.mark.parametrize("convention", JACOBIANS)
+def test_ur5e_jacobians_equal_the_reference(ur5e: Chain, convention: str) -> None:
+    q = np.random.default_rng(15).uniform(-2 * np.pi, 2 * np.pi, (N_SAMPLES, 6))
+    got = getattr(ur5e, f"jacobian_{convention}")(q)
+    assert_close(f"UR5e {convention}", got, ur5e._jacobian_numpy(convention, q), REF_TOL)
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_random_chain_jacobians_equal_the_reference(seed: int) -> None:
+    """Random and coordinate-axis chains, pitched screws and prismatic joints; the tolerance
+    scales with the chain's reach and the Jacobian's size, as rounding does."""
+    rng = np.random.default_rng(seed)
+    chain = random_chain(rng, 7, aligned=seed % 2 == 0)
+    q = rng.uniform(-2 * np.pi, 2 * np.pi, (2_000, 7))
+    reach = float(np.abs(chain.fk(q)[..., :3, 3]).max())  # the world form rounds at w x p
+    for convention in JACOBIANS:
+        expected = chain._jacobian_numpy(convention, q)
+        tol = REF_TOL * max(1.0, reach, float(np.abs(expected).max()))
+        assert_close(convention, getattr(chain, f"jacobian_{convention}")(q), expected, tol)
+
+
+@pytest.mark.parametrize("batch", BATCH_SHAPES)
+def test_jacobian_batches_give_the_same_bits_as_single_calls(ur5e: Chain, batch: tuple) -> None:
+    q = np.random.default_rng(16).uniform(-6, 6, (*batch, 6))
+    J = ur5e.jacobian_body(q)
+    assert J.shape == (*batch, 6, 6)
+    for idx in np.ndindex(batch):
+        assert np.array_equal(J[idx], ur5e.jacobian_body(q[idx]))
+    lists = ur5e.jacobian_world(q.tolist())  # converted, validated, then the kernel
+    assert np.array_equal(lists, ur5e.jacobian_world(q))
+    with pytest.raises(InputError, match="NaN or inf"):
+        ur5e.jacobian_space(np.full((*batch, 6), np.inf))
 
 
 def test_a_kernel_refuses_operations_out_of_range() -> None:

@@ -42,7 +42,8 @@ _FORM_SHAPES: dict[str, tuple[int, ...]] = {"4x4": (4, 4), "3x4": (3, 4), "pos_q
 # operation codes, as in _kernel.c
 _IDENTITY, _LOAD, _STORE, _CONST, _SCREW, _HINGE, _SLIDE, _BALL, _FREE, _EMIT = range(10)
 _AXIS, _AXIS_PITCH = 10, 13  # + 0, 1, 2 for x, y, z
-_TRANSLATE = 16
+_TRANSLATE, _JCOL, _JEMIT = 16, 17, 18
+_JACOBIAN_CODES: dict[str, float] = {"space": 0.0, "body": 1.0, "world": 2.0}
 
 
 def compiled_kernel() -> bool:
@@ -168,6 +169,31 @@ def chain_program(
     if right is not None:
         p.const(right[:3, :3], right[:3, 3])
     p.op(_EMIT, slot=0)
+    return p.kernel(r.shape[0], 0, 1, frame_axis=False)
+
+
+def chain_jacobian_program(
+    w: FloatArray,
+    r: FloatArray,
+    u: FloatArray,
+    *,
+    screws: FloatArray,
+    home: FloatArray,
+    convention: str,
+) -> Any:
+    """Kernel for a chain's Jacobian in ``convention`` (see ``chain.space_jacobian`` and
+    ``chain.jacobian_from_world``): before each joint its column ``Ad(T_{i-1}) S_i``, then the
+    home pose, then the columns turned into the convention at the end pose. None if not
+    compiled, or for a chain without joints (a program with no column is an FK program)."""
+    if _kernel is None or r.shape[0] == 0:
+        return None
+    p = _Program()
+    p.op(_IDENTITY)
+    for i in range(r.shape[0]):
+        p.op(_JCOL, params=screws[i], slot=i)
+        _hinge(p, i, (1.0, 0.0, 0.0), w[i], r[i], u[i], _SCREW)
+    p.const(home[:3, :3], home[:3, 3])
+    p.op(_JEMIT, params=[_JACOBIAN_CODES[convention]])
     return p.kernel(r.shape[0], 0, 1, frame_axis=False)
 
 

@@ -59,8 +59,11 @@ enum {
     OP_AXIS_Y_PITCH = 14,
     OP_AXIS_Z_PITCH = 15,
     OP_TRANSLATE = 16, /* cur = cur * (I, t); params: t (3) */
+    OP_JCOL = 17,      /* Jacobian column a3 = Ad(cur) [w; v]; params: w, v (3 each) */
+    OP_JEMIT = 18,     /* write the columns in a convention at the end pose; params: JAC_* */
 };
-#define N_OPS 17
+#define N_OPS 19
+enum { JAC_SPACE = 0, JAC_BODY = 1, JAC_WORLD = 2 };
 /* SCREW, HINGE and the AXIS operations turn by an angle; each names its angle's index in slot */
 #define HAS_ANGLE(code) \
     ((code) == OP_SCREW || (code) == OP_HINGE || ((code) >= OP_AXIS_X && (code) <= OP_AXIS_Z_PITCH))
@@ -122,6 +125,7 @@ typedef struct {
     int n_out;
     int n_angles;  /* operations that turn by an angle (HAS_ANGLE) */
     const AngleSource *angles; /* where each angle comes from */
+    int jac_cols;  /* JCOL operations: a Jacobian program's output is (6, jac_cols) */
     double huge_q; /* a block with |q| beyond this may have an angle beyond REDUCE_MAX */
 } Program;
 
@@ -133,6 +137,11 @@ typedef struct {
     int form;
     int bad; /* set if some q is not finite */
 } Task;
+
+/* Numbers per output frame: the form's, or a Jacobian's 6 x columns. */
+static int out_size(const Program *prog, int form) {
+    return prog->jac_cols > 0 ? 6 * prog->jac_cols : FORM_SIZE[form];
+}
 
 /* Scratch that fits in this many bytes lives on the stack (no malloc per call). */
 #define STACK_SCRATCH 32768
@@ -312,9 +321,9 @@ static int Kernel_init(KernelObject *self, PyObject *args, PyObject *kwds) {
     /* check every operation's operands, so that running the program cannot go out of bounds */
     const int32_t *code = PyArray_DATA(o);
     npy_intp n_ops = PyArray_DIM(o, 0), n_params = PyArray_DIM(p, 0);
-    int n_angles = 0;
-    static const int QSIZE[N_OPS] = {0, 0, 0, 0, 1, 1, 1, 4, 7, 0, 1, 1, 1, 1, 1, 1, 0};
-    static const int PSIZE[N_OPS] = {0, 0, 0, 12, 24, 24, 6, 3, 0, 0, 7, 7, 7, 7, 7, 7, 3};
+    int n_angles = 0, jac_cols = 0;
+    static const int QSIZE[N_OPS] = {0, 0, 0, 0, 1, 1, 1, 4, 7, 0, 1, 1, 1, 1, 1, 1, 0, 0, 0};
+    static const int PSIZE[N_OPS] = {0, 0, 0, 12, 24, 24, 6, 3, 0, 0, 7, 7, 7, 7, 7, 7, 3, 6, 1};
     const double *pd = PyArray_DATA(p);
     for (npy_intp k = 0; k < n_ops; ++k) {
         const int32_t *op = code + 4 * k;
@@ -323,6 +332,11 @@ static int Kernel_init(KernelObject *self, PyObject *args, PyObject *kwds) {
         if (ok && (op[0] == OP_LOAD || op[0] == OP_STORE)) ok = op[3] >= 0 && op[3] < n_slots;
         if (ok && op[0] == OP_EMIT) ok = op[3] >= 0 && op[3] < n_out;
         if (ok && HAS_ANGLE(op[0])) ok = op[3] == n_angles++;
+        if (ok && op[0] == OP_JCOL) ok = op[3] == jac_cols++;
+        if (ok && op[0] == OP_JEMIT) {
+            double c = pd[op[2]];
+            ok = c == JAC_SPACE || c == JAC_BODY || c == JAC_WORLD;
+        }
         if (!ok) {
             Py_DECREF(o);
             Py_DECREF(p);
@@ -357,8 +371,8 @@ static int Kernel_init(KernelObject *self, PyObject *args, PyObject *kwds) {
         if (fabs(P[1]) + fabs(P[2]) > shift) shift = fabs(P[1]) + fabs(P[2]);
     }
     double huge_q = (REDUCE_MAX - shift) / gain;
-    self->prog = (Program){code,   (int)n_ops, pd, nq, n_slots, n_out, n_angles, angles,
-                           huge_q > 0 ? huge_q : 0.0};
+    self->prog = (Program){code,   (int)n_ops, pd,       nq, n_slots, n_out, n_angles, angles,
+                           jac_cols, huge_q > 0 ? huge_q : 0.0};
     self->frame_axis = frame_axis;
     return 0;
 }
@@ -405,7 +419,11 @@ static PyObject *Kernel_run(KernelObject *self, PyObject *const *args, Py_ssize_
     }
     if (out_nd + 3 > NPY_MAXDIMS) Py_RETURN_NONE;
     if (self->frame_axis) dims[out_nd++] = prog->n_out;
-    if (form == FORM_POS_QUAT) {
+    if (prog->jac_cols > 0) {
+        if (form != FORM_4X4) Py_RETURN_NONE; /* a Jacobian has no other form */
+        dims[out_nd++] = 6;
+        dims[out_nd++] = prog->jac_cols;
+    } else if (form == FORM_POS_QUAT) {
         dims[out_nd++] = 7;
     } else {
         dims[out_nd++] = form == FORM_4X4 ? 4 : 3;

@@ -15,6 +15,8 @@
 #define compose_const GLUE(compose_const, LANES)
 #define rodrigues GLUE(rodrigues, LANES)
 #define about_point GLUE(about_point, LANES)
+#define jacobian_column GLUE(jacobian_column, LANES)
+#define jacobian_emit GLUE(jacobian_emit, LANES)
 #define axis_turn GLUE(axis_turn, LANES)
 #define quat_rotation GLUE(quat_rotation, LANES)
 #define write_quat GLUE(write_quat, LANES)
@@ -303,11 +305,53 @@ typedef struct {
     vd th, s, c; /* angle, sin, cos */
 } Angle;
 
+/* col = Ad(cur) [w; v] for the screw (w, v) = P[0..5]: [a; p x a + R v] with a = R w, the
+ * sums in poekin.chain.space_jacobian's order. */
+AI void jacobian_column(const Pose *cur, const double *P, vd *col) {
+    const vd *R = cur->R, *p = cur->t;
+    vd a[3], Rv[3];
+    for (int i = 0; i < 3; ++i) {
+        a[i] = (R[3 * i] * P[0] + R[3 * i + 1] * P[1]) + R[3 * i + 2] * P[2];
+        Rv[i] = (R[3 * i] * P[3] + R[3 * i + 1] * P[4]) + R[3 * i + 2] * P[5];
+    }
+    col[0] = a[0], col[1] = a[1], col[2] = a[2];
+    col[3] = (p[1] * a[2] - p[2] * a[1]) + Rv[0];
+    col[4] = (p[2] * a[0] - p[0] * a[2]) + Rv[1];
+    col[5] = (p[0] * a[1] - p[1] * a[0]) + Rv[2];
+}
+
+/* Write the n space-Jacobian columns in jac, turned into convention (JAC_SPACE, JAC_BODY,
+ * JAC_WORLD) at the end pose cur, as each lane's (6, n) block of out (poekin.chain.
+ * jacobian_from_world's arithmetic: world v + a x p, body R^T of the world rows). */
+static inline __attribute__((always_inline)) void jacobian_emit(const Pose *cur, int convention,
+                                                                 const vd *jac, int n, double *out,
+                                                                 npy_intp stride, int lanes) {
+    const vd *R = cur->R, *p = cur->t;
+    for (int c = 0; c < n; ++c) {
+        const vd *col = jac + 6 * c;
+        vd J[6] = {col[0], col[1], col[2], col[3], col[4], col[5]};
+        if (convention != JAC_SPACE) { /* the velocity of the frame's origin: v + a x p */
+            J[3] = J[3] + (col[1] * p[2] - col[2] * p[1]);
+            J[4] = J[4] + (col[2] * p[0] - col[0] * p[2]);
+            J[5] = J[5] + (col[0] * p[1] - col[1] * p[0]);
+        }
+        if (convention == JAC_BODY) { /* R^T of both rows */
+            vd W[6] = {J[0], J[1], J[2], J[3], J[4], J[5]};
+            for (int h = 0; h < 2; ++h)
+                for (int i = 0; i < 3; ++i)
+                    J[3 * h + i] = (R[i] * W[3 * h] + R[3 + i] * W[3 * h + 1]) + R[6 + i] * W[3 * h + 2];
+        }
+        for (int l = 0; l < lanes; ++l)
+            for (int r = 0; r < 6; ++r) out[l * stride + r * n + c] = J[r][l];
+    }
+}
+
 /* Run the program on one block of LANES configurations, q transposed in qT; slots hold the
  * stored poses, ang the angles. huge: some |q| may give an angle beyond REDUCE_MAX. */
 AI void run_ops(const Program *prog, Pose *restrict slots, const vd *restrict qT,
-                Angle *restrict ang, double *out, int form, int lanes, int huge) {
-    const int size = FORM_SIZE[form];
+                Angle *restrict ang, vd *restrict jac, double *out, int form, int lanes,
+                int huge) {
+    const int size = out_size(prog, form);
     const npy_intp stride = (npy_intp)prog->n_out * size;
     Pose cur;
     /* first every angle, then their sin and cos two at a time: independent work whose
@@ -400,6 +444,12 @@ AI void run_ops(const Program *prog, Pose *restrict slots, const vd *restrict qT
                 }
                 break;
             }
+            case OP_JCOL: /* column slot: Ad(cur) [w; v] = [R w; p x R w + R v] */
+                jacobian_column(&cur, P, jac + 6 * slot);
+                break;
+            case OP_JEMIT:
+                jacobian_emit(&cur, (int)P[0], jac, prog->jac_cols, out, stride, lanes);
+                break;
             case OP_EMIT:
                 emit(&cur, form, out + (npy_intp)slot * size, stride, lanes);
                 break;
@@ -409,7 +459,7 @@ AI void run_ops(const Program *prog, Pose *restrict slots, const vd *restrict qT
 
 AI void run_block(const Program *prog, const double *q, npy_intp n_rows,
                                 double *out, int form, Pose *slots, vd *qT, Angle *ang,
-                                int *bad) {
+                                vd *jac, int *bad) {
     const int nq = prog->nq;
     const int lanes = n_rows < LANES ? (int)n_rows : LANES;
     const double huge_q = prog->huge_q;
@@ -435,14 +485,16 @@ AI void run_block(const Program *prog, const double *q, npy_intp n_rows,
                     return;
                 }
     }
-    run_ops(prog, slots, qT, ang, out, form, lanes, !ok);
+    run_ops(prog, slots, qT, ang, jac, out, form, lanes, !ok);
 }
 
 TARGET static void run_task(Task *task) {
     const Program *prog = task->prog;
-    const npy_intp stride = (npy_intp)prog->n_out * FORM_SIZE[task->form];
+    const npy_intp stride = (npy_intp)prog->n_out * out_size(prog, task->form);
     size_t n_slots = prog->n_slots, n_q = prog->nq, n_ang = prog->n_angles;
-    size_t bytes = sizeof(Pose) * n_slots + sizeof(vd) * n_q + sizeof(Angle) * n_ang;
+    size_t n_jac = 6 * (size_t)prog->jac_cols;
+    size_t bytes =
+        sizeof(Pose) * n_slots + sizeof(vd) * n_q + sizeof(Angle) * n_ang + sizeof(vd) * n_jac;
     _Alignas(64) unsigned char stack[STACK_SCRATCH];
     unsigned char *heap = bytes > STACK_SCRATCH ? aligned_malloc(bytes) : NULL;
     unsigned char *base = bytes > STACK_SCRATCH ? heap : stack;
@@ -454,10 +506,11 @@ TARGET static void run_task(Task *task) {
     Pose *slots = (Pose *)base;
     vd *qT = (vd *)(base + sizeof(Pose) * n_slots);
     Angle *ang = (Angle *)(base + sizeof(Pose) * n_slots + sizeof(vd) * n_q);
+    vd *jac = (vd *)(base + sizeof(Pose) * n_slots + sizeof(vd) * n_q + sizeof(Angle) * n_ang);
     for (npy_intp i = task->lo; i < task->hi && !task->bad; i += LANES) {
         npy_intp rows = task->hi - i < LANES ? task->hi - i : LANES;
         run_block(prog, task->q + i * prog->nq, rows, task->out + i * stride, task->form, slots,
-                  qT, ang, &task->bad);
+                  qT, ang, jac, &task->bad);
     }
     aligned_free(heap);
 }
@@ -472,6 +525,8 @@ TARGET static void run_task(Task *task) {
 #undef compose_const
 #undef rodrigues
 #undef about_point
+#undef jacobian_column
+#undef jacobian_emit
 #undef axis_turn
 #undef quat_rotation
 #undef write_quat

@@ -245,6 +245,7 @@ class Chain:
     _body: _ScrewTerms = dataclasses.field(init=False, repr=False)
     _space_kernel: Any = dataclasses.field(init=False, repr=False)
     _body_kernel: Any = dataclasses.field(init=False, repr=False)
+    _jacobian_kernels: dict[str, Any] = dataclasses.field(init=False, repr=False)
 
     def __post_init__(self) -> None:
         n = len(self.joint_names)
@@ -275,6 +276,13 @@ class Chain:
         terms = dataclasses.astuple
         set_(self, "_space_kernel", _fast.chain_program(*terms(space), left=None, right=self.home))
         set_(self, "_body_kernel", _fast.chain_program(*terms(body), left=self.home, right=None))
+        jacobians = {
+            c: _fast.chain_jacobian_program(
+                *terms(space), screws=self.screws, home=self.home, convention=c
+            )
+            for c in JACOBIAN_CONVENTIONS
+        }
+        set_(self, "_jacobian_kernels", jacobians)
 
     def _check_screws(self) -> None:
         for name, kind, S in zip(self.joint_names, self.joint_types, self.screws, strict=True):
@@ -340,27 +348,43 @@ class Chain:
         ``Ad(T_{i-1}) S_i``). ``v`` is the velocity of the point at the world origin moving with
         the end frame, not of the frame's origin: see :meth:`jacobian_world` for that.
         """
-        return space_jacobian(self._space, self.screws, self._joint_values(q))
+        return self._jacobian("space", q)
 
     def jacobian_body(self, q: ArrayLike) -> FloatArray:
         """Body Jacobian ``J_b(q) = Ad(T^-1) J_s(q)``, ``(..., 6, n)``, rows ``[w; v]``: the end
         frame's twist in the end frame itself (Modern Robotics' ``JacobianBody``). It is
         :meth:`jacobian_world` with both rows turned into the end frame, ``R^T``."""
-        return jacobian_from_world(*self._world_jacobian(self._joint_values(q)), "body")
+        return self._jacobian("body", q)
 
     def jacobian_world(self, q: ArrayLike) -> FloatArray:
         """World Jacobian, ``(..., 6, n)``, rows ``[w; v_frame]``, both in world coordinates:
         ``v_frame = v + w x p`` is the velocity of the end frame's origin ``p``. This is what
         MuJoCo's ``mj_jacSite``/``mj_jacBody`` return (as ``jacr``, ``jacp``) and Pinocchio's
         ``LOCAL_WORLD_ALIGNED`` (with its rows in the other order, ``[v; w]``)."""
-        return self._world_jacobian(self._joint_values(q))[0]
+        return self._jacobian("world", q)
 
-    def _world_jacobian(self, q: FloatArray) -> tuple[FloatArray, FloatArray]:
-        """:meth:`jacobian_world` of validated ``q``, and the end pose ``T (..., 4, 4)``."""
+    def _jacobian(self, convention: str, q: ArrayLike) -> FloatArray:
+        """The compiled kernel's Jacobian, or the NumPy reference's (validating ``q``)."""
+        kernel = self._jacobian_kernels[convention]
+        if kernel is not None:  # the fast path: q as it is, if it needs no converting
+            J: FloatArray | None = kernel.run(q)
+            if J is not None:
+                return J
+        q = self._joint_values(q)
+        if kernel is not None:
+            J = kernel.run(np.ascontiguousarray(q))
+            assert J is not None, "validated joint values were refused by the kernel"
+            return J
+        return self._jacobian_numpy(convention, q)
+
+    def _jacobian_numpy(self, convention: str, q: FloatArray) -> FloatArray:
+        """The Jacobians' pure-NumPy reference path, for validated float64 ``q``."""
         J = space_jacobian(self._space, self.screws, q)
+        if convention == "space":
+            return J
         T = self._fk_numpy(q)
         J[..., 3:, :] = J[..., 3:, :] + _columns_cross(J[..., :3, :], T[..., :3, 3])
-        return J, T
+        return jacobian_from_world(J, T, convention)
 
     def _joint_values(self, q: ArrayLike) -> FloatArray:
         return as_joint_values(q, self.n_joints)
