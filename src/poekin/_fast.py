@@ -146,6 +146,17 @@ def _hinge(
         p.op(_HINGE, qadr, [*angle, *W.reshape(-1), *W2.reshape(-1), *point])
 
 
+def _chain_joints(
+    p: _Program, w: FloatArray, r: FloatArray, u: FloatArray, columns: FloatArray | None
+) -> None:
+    """Each screw's exponential in turn (``chain._ScrewTerms``); with ``columns`` (the screws),
+    first its Jacobian column ``Ad(cur) S_i``."""
+    for i in range(r.shape[0]):
+        if columns is not None:
+            p.op(_JCOL, params=columns[i], slot=i)
+        _hinge(p, i, (1.0, 0.0, 0.0), w[i], r[i], u[i], _SCREW)
+
+
 def chain_program(
     w: FloatArray,
     r: FloatArray,
@@ -164,8 +175,7 @@ def chain_program(
     p.op(_IDENTITY)
     if left is not None:
         p.const(left[:3, :3], left[:3, 3])
-    for i in range(r.shape[0]):
-        _hinge(p, i, (1.0, 0.0, 0.0), w[i], r[i], u[i], _SCREW)
+    _chain_joints(p, w, r, u, None)
     if right is not None:
         p.const(right[:3, :3], right[:3, 3])
     p.op(_EMIT, slot=0)
@@ -189,9 +199,7 @@ def chain_jacobian_program(
         return None
     p = _Program()
     p.op(_IDENTITY)
-    for i in range(r.shape[0]):
-        p.op(_JCOL, params=screws[i], slot=i)
-        _hinge(p, i, (1.0, 0.0, 0.0), w[i], r[i], u[i], _SCREW)
+    _chain_joints(p, w, r, u, screws)
     p.const(home[:3, :3], home[:3, 3])
     p.op(_JEMIT, params=[_JACOBIAN_CODES[convention]])
     return p.kernel(r.shape[0], 0, 1, frame_axis=False)

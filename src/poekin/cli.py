@@ -280,15 +280,20 @@ def _fk_function(args: argparse.Namespace) -> tuple[Callable[[Any], Any], tuple[
     return tree.fk, tree.frame_names
 
 
-def _cmd_fk(args: argparse.Namespace, out: TextIO) -> int:
+def _check_q_args(args: argparse.Namespace, result: str, file_example: str) -> None:
+    """``--q`` or ``--input`` (one of them); ``--input`` with ``--output``, a new file."""
     if (args.q is None) == (args.input is None):
         raise InputError("give joint values with --q Q1 ... Qn, or a batch with --input q.npy")
     if args.input is not None and args.output is None:
-        raise InputError("--input needs --output T.npy for the poses")
+        raise InputError(f"--input needs --output {file_example} for the {result}")
     if args.output is not None:
         if args.input is None:
             raise InputError("--output goes with --input q.npy")
-        _check_new_file(args.output, "poses", force=args.force)
+        _check_new_file(args.output, result, force=args.force)
+
+
+def _cmd_fk(args: argparse.Namespace, out: TextIO) -> int:
+    _check_q_args(args, "poses", "T.npy")
     fk, frames = _fk_function(args)
     if args.input is not None:
         T = fk(_load_q_file(args.input))
@@ -350,14 +355,7 @@ def _jacobian_function(
 
 
 def _cmd_jacobian(args: argparse.Namespace, out: TextIO) -> int:
-    if (args.q is None) == (args.input is None):
-        raise InputError("give joint values with --q Q1 ... Qn, or a batch with --input q.npy")
-    if args.input is not None and args.output is None:
-        raise InputError("--input needs --output J.npy for the Jacobians")
-    if args.output is not None:
-        if args.input is None:
-            raise InputError("--output goes with --input q.npy")
-        _check_new_file(args.output, "Jacobians", force=args.force)
+    _check_q_args(args, "Jacobians", "J.npy")
     jacobian, frame, columns = _jacobian_function(args)
     if args.input is not None:
         J = jacobian(_load_q_file(args.input))
@@ -535,6 +533,14 @@ def _build_parser() -> argparse.ArgumentParser:
             "(lynch-park-ur5, ur5-dh, ur5e-dh, ur5e-poe)",
         )
 
+    def joint_values(p: argparse.ArgumentParser, output: str, saved: str) -> None:
+        """``--q`` for one configuration, or ``--input``/``--output`` files for a batch."""
+        p.add_argument("--q", type=float, nargs="+", metavar="Q", help="joint values (rad, m)")
+        p.add_argument("--input", metavar="Q.npy", help="(N, n) array of joint values")
+        p.add_argument("--output", metavar=output, help=f"where to save the {saved}")
+        p.add_argument("--force", action="store_true", help="replace an existing --output file")
+        p.add_argument("--json", action="store_true", help="print one JSON object")
+
     def sampling(p: argparse.ArgumentParser) -> None:
         p.add_argument("--samples", type=int, default=1000, help="random configurations (1000)")
         p.add_argument("--seed", type=int, default=0, help="random seed (0)")
@@ -615,14 +621,10 @@ def _build_parser() -> argparse.ArgumentParser:
     )
     source(f)
     params(f, "use these parameters instead of a model")
-    f.add_argument("--q", type=float, nargs="+", metavar="Q", help="joint values (rad, m)")
+    joint_values(f, "T.npy", "(N, 4, 4) poses")
     f.add_argument(
         "--all-frames", action="store_true", help="pose every body and site from the whole qpos"
     )
-    f.add_argument("--input", metavar="Q.npy", help="(N, n) array of joint values")
-    f.add_argument("--output", metavar="T.npy", help="where to save the (N, 4, 4) poses")
-    f.add_argument("--force", action="store_true", help="replace an existing --output file")
-    f.add_argument("--json", action="store_true", help="print one JSON object")
     f.set_defaults(run=_cmd_fk)
 
     j = sub.add_parser(
@@ -643,7 +645,7 @@ def _build_parser() -> argparse.ArgumentParser:
     )
     source(j)
     params(j, "use these parameters instead of a model")
-    j.add_argument("--q", type=float, nargs="+", metavar="Q", help="joint values (rad, m)")
+    joint_values(j, "J.npy", "(N, 6, n) Jacobians")
     j.add_argument(
         "--convention",
         choices=["space", "body", "world"],
@@ -655,10 +657,6 @@ def _build_parser() -> argparse.ArgumentParser:
         action="store_true",
         help="the whole model: q is qpos (MuJoCo's layout), columns are qvel",
     )
-    j.add_argument("--input", metavar="Q.npy", help="(N, n) array of joint values")
-    j.add_argument("--output", metavar="J.npy", help="where to save the (N, 6, n) Jacobians")
-    j.add_argument("--force", action="store_true", help="replace an existing --output file")
-    j.add_argument("--json", action="store_true", help="print one JSON object")
     j.set_defaults(run=_cmd_jacobian)
 
     d = sub.add_parser(
