@@ -5,8 +5,9 @@ One run, the same q for everyone: the UR5e's ``attachment_site`` Jacobian from p
 ``jacobian_body``), a loop of MuJoCo's ``mj_kinematics`` + ``mj_comPos`` + ``mj_jacSite`` (what
 ``mj_jacSite`` needs), and a loop of Pinocchio's ``computeFrameJacobian`` in
 ``LOCAL_WORLD_ALIGNED`` (forward kinematics included). Each competitor's Jacobian is checked to
-agree with poekin's world Jacobian (Pinocchio's rows ``[v; w]`` reordered). Medians and IQR over
-repeats, ratios against poekin, and ``--json``; ``--quick`` is CI's tiny size.
+agree with poekin's world Jacobian (Pinocchio's rows ``[v; w]`` reordered). Then the go2's
+``FL_calf`` (free base, 18 qvel columns) from ``tree.jacobian`` against ``mj_jacBody``. Medians
+and IQR over repeats, ratios against poekin, and ``--json``; ``--quick`` is CI's tiny size.
 
     python benchmarks/bench_jacobian.py [--quick] [--json PATH]
 """
@@ -102,6 +103,53 @@ def agreement(
     row.note = f"{verdict}: max |dJ| {diff:.0e} vs poekin; {row.note}".strip("; ")
 
 
+TREE, TREE_FRAME = "unitree_go2", "FL_calf"
+
+
+def tree_rows(sizes: dict[str, Any], repeats: int, seed: int) -> list[Row]:
+    """go2 (free base + 12 hinges): ``tree.jacobian`` of a calf, world convention, against a
+    loop of ``mj_kinematics`` + ``mj_comPos`` + ``mj_jacBody``."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", poekin.AssetsStrippedWarning)
+        loaded = poekin.load_model(TREE)
+    tree, m = poekin.load_tree(loaded), loaded.model
+    qpos = poekin.sample_qpos(tree, sizes["n"], seed=seed)
+    rows_q = list(qpos[: sizes["single"]])
+    budget = 1.0 if sizes is FULL else 0.1
+
+    def jacobian(x: Any) -> Any:
+        return tree.jacobian(x, TREE_FRAME)
+
+    rows = [
+        Row(
+            "poekin tree.jacobian",
+            time_loop(jacobian, rows_q, repeats, budget) if k == 0 else None,
+            time_batch(jacobian, qpos[:size], size, repeats),
+            "vectorised",
+        )
+        for k, size in enumerate(sizes["batches"])
+    ]
+    data, body = mujoco.MjData(m), m.body(TREE_FRAME).id
+    jacp, jacr = np.zeros((3, m.nv)), np.zeros((3, m.nv))
+
+    def timed(x: FloatArray) -> None:
+        data.qpos[:] = x
+        mujoco.mj_kinematics(m, data)
+        mujoco.mj_comPos(m, data)
+        mujoco.mj_jacBody(m, data, jacp, jacr, body)
+
+    def full(x: FloatArray) -> FloatArray:
+        timed(x)
+        return np.vstack([jacr, jacp])
+
+    row = Row("mujoco mj_jacBody", time_loop(timed, rows_q, repeats, budget), None, "loop")
+    row.batch = time_loop(timed, list(qpos[: sizes["loop"]]), repeats, budget)
+    agreement(row, full, qpos[:50], tree.jacobian(qpos[:50], TREE_FRAME))
+    rows.append(row)
+    add_ratios(rows, "poekin tree.jacobian")
+    return rows
+
+
 def run(sizes: dict[str, Any], repeats: int, seed: int) -> list[Row]:
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", poekin.AssetsStrippedWarning)
@@ -153,8 +201,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     print(f"{info['cpu']}, {info['usable_cores']} cores; medians and IQR over {repeats} repeats")
     rows = run(sizes, repeats, args.seed)
     print_table(f"UR5e Jacobian of {SITE} (ratio = time / poekin jacobian_world's)", rows)
+    trees = tree_rows(sizes, repeats, args.seed)
+    print_table(f"{TREE} Jacobian of {TREE_FRAME}, 18 qvel columns (ratio = / poekin's)", trees)
     if args.json:
-        args.json.write_text(json.dumps(to_json({"machine": info, "rows": rows}), indent=1))
+        results = {"machine": info, "rows": rows, "tree_rows": trees}
+        args.json.write_text(json.dumps(to_json(results), indent=1))
         print(f"wrote {args.json}")
     return 0
 

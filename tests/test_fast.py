@@ -331,6 +331,9 @@ def test_without_the_kernel_the_numpy_path_gives_the_same_poses(
     for c in ("space", "body", "world"):
         J = getattr(chain, f"jacobian_{c}")(q)
         assert_close(f"chain jacobian_{c}", J, getattr(ur5e, f"jacobian_{c}")(q), REF_TOL)
+        J = tree.jacobian(qpos, "finger", c)
+        assert_close(f"tree jacobian {c}", J, features.jacobian(qpos, "finger", c), REF_TOL)
+    assert tree._jacobian_kernels and all(k is None for k in tree._jacobian_kernels.values())
 
 
 # --- Jacobians ------------------------------------------------------------------------------
@@ -357,6 +360,25 @@ def test_random_chain_jacobians_equal_the_reference(seed: int) -> None:
         expected = chain._jacobian_numpy(convention, q)
         tol = REF_TOL * max(1.0, reach, float(np.abs(expected).max()))
         assert_close(convention, getattr(chain, f"jacobian_{convention}")(q), expected, tol)
+
+
+@pytest.mark.parametrize("robot", [*MENAGERIE, "features", "mimic"])
+def test_tree_jacobians_equal_the_reference(robot: str, features: Tree) -> None:
+    """Every frame in every convention: hinge, slide, ball, free and mimic joints."""
+    if robot == "features":
+        tree = features
+    elif robot == "mimic":
+        tree = _two_link((None, Mimic("j1", multiplier=-2.0, offset=0.25)))
+    else:
+        tree = poekin.load_tree(load_quiet(robot))
+    qpos = sample_qpos(tree, 500, seed=17)
+    tol = REF_TOL * max(1.0, float(np.abs(tree.fk(qpos)[..., :3, 3]).max()))
+    for f, name in enumerate(tree.frame_names):
+        for convention in JACOBIANS:
+            expected = tree._jacobian_numpy(qpos, f, convention)
+            assert_close(
+                f"{name} {convention}", tree.jacobian(qpos, name, convention), expected, tol
+            )
 
 
 @pytest.mark.parametrize("batch", BATCH_SHAPES)

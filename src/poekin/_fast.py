@@ -11,6 +11,7 @@ kernels are None and callers use the NumPy path.
 
 from __future__ import annotations
 
+import dataclasses
 import os
 from collections.abc import Callable, Sequence
 from typing import Any, Literal
@@ -28,6 +29,7 @@ except ImportError:  # built without a C compiler: the NumPy path serves
 
 __all__ = [
     "Form",
+    "TreeSpec",
     "compiled_kernel",
     "evaluate",
     "get_threads",
@@ -153,7 +155,7 @@ def _chain_joints(
     first its Jacobian column ``Ad(cur) S_i``."""
     for i in range(r.shape[0]):
         if columns is not None:
-            p.op(_JCOL, params=columns[i], slot=i)
+            p.op(_JCOL, params=[*columns[i], 1.0], slot=i)
         _hinge(p, i, (1.0, 0.0, 0.0), w[i], r[i], u[i], _SCREW)
 
 
@@ -201,40 +203,89 @@ def chain_jacobian_program(
     p.op(_IDENTITY)
     _chain_joints(p, w, r, u, screws)
     p.const(home[:3, :3], home[:3, 3])
-    p.op(_JEMIT, params=[_JACOBIAN_CODES[convention]])
+    p.op(_JEMIT, params=[_JACOBIAN_CODES[convention], r.shape[0]])
     return p.kernel(r.shape[0], 0, 1, frame_axis=False)
 
 
-def tree_program(
-    *,
-    nq: int,
-    body_parents: Sequence[int],
-    body_pos: FloatArray,
-    body_rot: FloatArray,
-    body_joints: Sequence[Sequence[int]],
-    joint_types: Sequence[str],
-    joint_axes: FloatArray,
-    joint_anchors: FloatArray,
-    joint_refs: FloatArray,
-    slot_of_joint: Sequence[int],
-    slots: Sequence[int],
-    slot_scale: Sequence[float],
-    slot_offset: Sequence[float],
-    site_bodies: Sequence[int],
-    site_pos: FloatArray,
-    site_rot: FloatArray,
-) -> Any:
-    """Kernel for the world poses of every body then every site (see ``Tree._body_poses``).
+@dataclasses.dataclass(frozen=True)
+class TreeSpec:
+    """A tree's constants as the kernel programs read them (see ``Tree._body_poses``).
 
     ``slot_of_joint[k]`` is where joint ``k``'s numbers start in the expanded qpos, whose
-    entry ``j`` is ``qpos[slots[j]] * slot_scale[j] + slot_offset[j]``. None if not compiled.
+    entry ``j`` is ``qpos[slots[j]] * slot_scale[j] + slot_offset[j]``.
     """
+
+    nq: int
+    body_parents: Sequence[int]
+    body_pos: FloatArray
+    body_rot: FloatArray
+    body_joints: Sequence[Sequence[int]]
+    joint_types: Sequence[str]
+    joint_axes: FloatArray
+    joint_anchors: FloatArray
+    joint_refs: FloatArray
+    slot_of_joint: Sequence[int]
+    slots: Sequence[int]
+    slot_scale: Sequence[float]
+    slot_offset: Sequence[float]
+    site_bodies: Sequence[int]
+    site_pos: FloatArray
+    site_rot: FloatArray
+
+
+def _column(p: _Program, dof: int, w: ArrayLike, v: ArrayLike, scale: float = 1.0) -> None:
+    p.op(_JCOL, params=[*np.asarray(w, dtype=np.float64), *np.asarray(v), scale], slot=dof)
+
+
+def _body(
+    p: _Program,
+    t: TreeSpec,
+    b: int,
+    columns: tuple[Sequence[int], Sequence[float]] | None = None,
+) -> None:
+    """Body ``b``'s offset, then its joints; with ``columns = (dof_adr, scale)`` per joint, each
+    joint's Jacobian columns too, as MuJoCo's ``cdof``: a hinge's or slide's before it moves,
+    a ball's three about the body's axes after it turns, a free joint's three world linear
+    columns before it sets the pose and three about the body's axes after."""
+    joints = t.body_joints[b]
+    if not (joints and t.joint_types[joints[0]] == "free"):  # a free joint sets the pose
+        p.const(t.body_rot[b], t.body_pos[b])
+    eye = np.eye(3)
+    for k in joints:
+        j = t.slot_of_joint[k]
+        kind, qadr = t.joint_types[k], int(t.slots[j])
+        axis, anchor = t.joint_axes[k], t.joint_anchors[k]
+        dof, scale = (int(columns[0][k]), float(columns[1][k])) if columns else (0, 1.0)
+        if kind == "revolute":
+            if columns:
+                _column(p, dof, axis, -np.cross(axis, anchor), scale)
+            angle = (t.slot_scale[j], t.slot_offset[j], t.joint_refs[k])
+            _hinge(p, qadr, angle, axis, anchor, np.zeros(3), _HINGE)
+        elif kind == "prismatic":
+            if columns:
+                _column(p, dof, np.zeros(3), axis, scale)
+            p.op(_SLIDE, qadr, [t.slot_scale[j], t.slot_offset[j], t.joint_refs[k], *axis])
+        elif kind == "ball":
+            p.op(_BALL, qadr, anchor)
+            for e in range(3 if columns else 0):
+                _column(p, dof + e, eye[e], -np.cross(eye[e], anchor))
+        else:
+            for e in range(3 if columns else 0):
+                _column(p, dof + e, np.zeros(3), eye[e])
+            p.op(_FREE, qadr)
+            for e in range(3 if columns else 0):
+                _column(p, dof + 3 + e, eye[e], np.zeros(3))
+
+
+def tree_program(t: TreeSpec) -> Any:
+    """Kernel for the world poses of every body then every site (see ``Tree._body_poses``);
+    None if not compiled."""
     if _kernel is None:
         return None
-    nb = len(body_parents)
+    nb = len(t.body_parents)
     p = _Program()
     held = -2  # the body whose pose the kernel's state holds right now (-1: the world)
-    loaded_later = {int(b) for b in body_parents} | {int(b) for b in site_bodies}
+    loaded_later = {int(b) for b in t.body_parents} | {int(b) for b in t.site_bodies}
 
     def start_from(body: int) -> None:
         nonlocal held
@@ -243,32 +294,49 @@ def tree_program(
         held = -3  # about to change
 
     for b in range(nb):
-        joints = body_joints[b]
-        start_from(int(body_parents[b]))
-        if not (joints and joint_types[joints[0]] == "free"):  # a free joint sets the pose
-            p.const(body_rot[b], body_pos[b])
-        for k in joints:
-            j = slot_of_joint[k]
-            kind, qadr = joint_types[k], int(slots[j])
-            if kind == "revolute":
-                angle = (slot_scale[j], slot_offset[j], joint_refs[k])
-                no_pitch = np.zeros(3)
-                _hinge(p, qadr, angle, joint_axes[k], joint_anchors[k], no_pitch, _HINGE)
-            elif kind == "prismatic":
-                p.op(_SLIDE, qadr, [slot_scale[j], slot_offset[j], joint_refs[k], *joint_axes[k]])
-            elif kind == "ball":
-                p.op(_BALL, qadr, joint_anchors[k])
-            else:
-                p.op(_FREE, qadr)
+        start_from(int(t.body_parents[b]))
+        _body(p, t, b)
         if b in loaded_later:  # a child body or a site starts from it
             p.op(_STORE, slot=b)
         p.op(_EMIT, slot=b)
         held = b
-    for s, body in enumerate(site_bodies):
+    for s, body in enumerate(t.site_bodies):
         start_from(int(body))
-        p.const(site_rot[s], site_pos[s])
+        p.const(t.site_rot[s], t.site_pos[s])
         p.op(_EMIT, slot=nb + s)
-    return p.kernel(nq, nb, nb + len(site_bodies), frame_axis=True)
+    return p.kernel(t.nq, nb, nb + len(t.site_bodies), frame_axis=True)
+
+
+def tree_jacobian_program(
+    t: TreeSpec,
+    frame: int,
+    *,
+    dof_adr: Sequence[int],
+    dof_scale: Sequence[float],
+    nv: int,
+    convention: str,
+) -> Any:
+    """Kernel for the Jacobian of frame ``frame`` (bodies, then sites) in ``convention``, in
+    qvel's ``nv`` columns (see ``Tree.jacobian``): the bodies from the world to the frame with
+    their joints' columns, then the site's offset, then the columns in the convention at the
+    frame's pose. ``dof_adr[k]`` is joint ``k``'s first column, ``dof_scale[k]`` 1 or a mimic
+    joint's multiplier. None if not compiled, or for a tree without degrees of freedom."""
+    if _kernel is None or nv == 0:
+        return None
+    nb = len(t.body_parents)
+    body = frame if frame < nb else int(t.site_bodies[frame - nb])
+    path: list[int] = []
+    while body >= 0:
+        path.append(body)
+        body = int(t.body_parents[body])
+    p = _Program()
+    p.op(_IDENTITY)
+    for b in reversed(path):
+        _body(p, t, b, (dof_adr, dof_scale))
+    if frame >= nb:
+        p.const(t.site_rot[frame - nb], t.site_pos[frame - nb])
+    p.op(_JEMIT, params=[_JACOBIAN_CODES[convention], nv])
+    return p.kernel(t.nq, 0, 1, frame_axis=False)
 
 
 # --- evaluation -----------------------------------------------------------------------------

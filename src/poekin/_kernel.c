@@ -59,8 +59,8 @@ enum {
     OP_AXIS_Y_PITCH = 14,
     OP_AXIS_Z_PITCH = 15,
     OP_TRANSLATE = 16, /* cur = cur * (I, t); params: t (3) */
-    OP_JCOL = 17,      /* Jacobian column a3 = Ad(cur) [w; v]; params: w, v (3 each) */
-    OP_JEMIT = 18,     /* write the columns in a convention at the end pose; params: JAC_* */
+    OP_JCOL = 17,      /* Jacobian column a3 += scale Ad(cur) [w; v]; params: w, v, scale */
+    OP_JEMIT = 18,     /* write the columns in a convention at the end pose; params: JAC_*, n */
 };
 #define N_OPS 19
 enum { JAC_SPACE = 0, JAC_BODY = 1, JAC_WORLD = 2 };
@@ -125,7 +125,7 @@ typedef struct {
     int n_out;
     int n_angles;  /* operations that turn by an angle (HAS_ANGLE) */
     const AngleSource *angles; /* where each angle comes from */
-    int jac_cols;  /* JCOL operations: a Jacobian program's output is (6, jac_cols) */
+    int jac_cols;  /* JEMIT's column count: a Jacobian program's output is (6, jac_cols) */
     double huge_q; /* a block with |q| beyond this may have an angle beyond REDUCE_MAX */
 } Program;
 
@@ -323,7 +323,7 @@ static int Kernel_init(KernelObject *self, PyObject *args, PyObject *kwds) {
     npy_intp n_ops = PyArray_DIM(o, 0), n_params = PyArray_DIM(p, 0);
     int n_angles = 0, jac_cols = 0;
     static const int QSIZE[N_OPS] = {0, 0, 0, 0, 1, 1, 1, 4, 7, 0, 1, 1, 1, 1, 1, 1, 0, 0, 0};
-    static const int PSIZE[N_OPS] = {0, 0, 0, 12, 24, 24, 6, 3, 0, 0, 7, 7, 7, 7, 7, 7, 3, 6, 1};
+    static const int PSIZE[N_OPS] = {0, 0, 0, 12, 24, 24, 6, 3, 0, 0, 7, 7, 7, 7, 7, 7, 3, 7, 2};
     const double *pd = PyArray_DATA(p);
     for (npy_intp k = 0; k < n_ops; ++k) {
         const int32_t *op = code + 4 * k;
@@ -332,12 +332,22 @@ static int Kernel_init(KernelObject *self, PyObject *args, PyObject *kwds) {
         if (ok && (op[0] == OP_LOAD || op[0] == OP_STORE)) ok = op[3] >= 0 && op[3] < n_slots;
         if (ok && op[0] == OP_EMIT) ok = op[3] >= 0 && op[3] < n_out;
         if (ok && HAS_ANGLE(op[0])) ok = op[3] == n_angles++;
-        if (ok && op[0] == OP_JCOL) ok = op[3] == jac_cols++;
-        if (ok && op[0] == OP_JEMIT) {
-            double c = pd[op[2]];
-            ok = c == JAC_SPACE || c == JAC_BODY || c == JAC_WORLD;
+        if (ok && op[0] == OP_JEMIT) { /* one column count for the whole program */
+            double c = pd[op[2]], cols = pd[op[2] + 1];
+            ok = (c == JAC_SPACE || c == JAC_BODY || c == JAC_WORLD) && cols >= 1 &&
+                 cols <= 65536 && cols == (int)cols && (jac_cols == 0 || jac_cols == (int)cols);
+            jac_cols = (int)cols;
         }
         if (!ok) {
+            Py_DECREF(o);
+            Py_DECREF(p);
+            PyErr_Format(PyExc_ValueError, "operation %zd is out of range", (Py_ssize_t)k);
+            return -1;
+        }
+    }
+    for (npy_intp k = 0; k < n_ops; ++k) { /* a column is one the program writes out */
+        const int32_t *op = code + 4 * k;
+        if (op[0] == OP_JCOL && !(op[3] >= 0 && op[3] < jac_cols)) {
             Py_DECREF(o);
             Py_DECREF(p);
             PyErr_Format(PyExc_ValueError, "operation %zd is out of range", (Py_ssize_t)k);

@@ -305,8 +305,8 @@ typedef struct {
     vd th, s, c; /* angle, sin, cos */
 } Angle;
 
-/* col = Ad(cur) [w; v] for the screw (w, v) = P[0..5]: [a; p x a + R v] with a = R w, the
- * sums in poekin.chain.space_jacobian's order. */
+/* col += P[6] Ad(cur) [w; v] for the screw (w, v) = P[0..5]: [a; p x a + R v] with a = R w,
+ * the sums in poekin.chain.space_jacobian's order; P[6] is 1, or a mimic joint's multiplier. */
 AI void jacobian_column(const Pose *cur, const double *P, vd *col) {
     const vd *R = cur->R, *p = cur->t;
     vd a[3], Rv[3];
@@ -314,10 +314,9 @@ AI void jacobian_column(const Pose *cur, const double *P, vd *col) {
         a[i] = (R[3 * i] * P[0] + R[3 * i + 1] * P[1]) + R[3 * i + 2] * P[2];
         Rv[i] = (R[3 * i] * P[3] + R[3 * i + 1] * P[4]) + R[3 * i + 2] * P[5];
     }
-    col[0] = a[0], col[1] = a[1], col[2] = a[2];
-    col[3] = (p[1] * a[2] - p[2] * a[1]) + Rv[0];
-    col[4] = (p[2] * a[0] - p[0] * a[2]) + Rv[1];
-    col[5] = (p[0] * a[1] - p[1] * a[0]) + Rv[2];
+    const vd c[6] = {a[0], a[1], a[2], (p[1] * a[2] - p[2] * a[1]) + Rv[0],
+                     (p[2] * a[0] - p[0] * a[2]) + Rv[1], (p[0] * a[1] - p[1] * a[0]) + Rv[2]};
+    for (int r = 0; r < 6; ++r) col[r] = col[r] + P[6] * c[r];
 }
 
 /* Write the n space-Jacobian columns in jac, turned into convention (JAC_SPACE, JAC_BODY,
@@ -356,6 +355,7 @@ AI void run_ops(const Program *prog, Pose *restrict slots, const vd *restrict qT
     Pose cur;
     /* first every angle, then their sin and cos two at a time: independent work whose
      * latencies overlap */
+    for (int k = 0; k < 6 * prog->jac_cols; ++k) jac[k] = (vd){0}; /* columns add up */
     for (int k = 0; k < prog->n_angles; ++k) {
         const AngleSource *src = prog->angles + k;
         const double *P = src->P;

@@ -146,6 +146,11 @@ class Tree:
     _full_adr: IntArray = dataclasses.field(init=False, repr=False)
     _dof_adr: IntArray = dataclasses.field(init=False, repr=False)  # each joint's first qvel column
     _kernel: Any = dataclasses.field(init=False, repr=False, compare=False)
+    _spec: Any = dataclasses.field(init=False, repr=False, compare=False)
+    # (frame index, convention) -> compiled Jacobian, built at first use
+    _jacobian_kernels: dict[tuple[int, str], Any] = dataclasses.field(
+        init=False, repr=False, compare=False
+    )
 
     def __post_init__(self) -> None:
         set_ = object.__setattr__
@@ -181,7 +186,7 @@ class Tree:
         self._layout()
         qpos0 = self._default_qpos() if np.size(self.qpos0) == 0 else self.qpos0
         set_(self, "qpos0", readonly_array(qpos0, (self.nq,), "qpos0"))
-        kernel = _fast.tree_program(
+        spec = _fast.TreeSpec(
             nq=self.nq,
             body_parents=self.body_parents.tolist(),
             body_pos=self.body_pos,
@@ -199,7 +204,9 @@ class Tree:
             site_pos=self.site_pos,
             site_rot=self.site_rot,
         )
-        set_(self, "_kernel", kernel)
+        set_(self, "_spec", spec)
+        set_(self, "_kernel", _fast.tree_program(spec))
+        set_(self, "_jacobian_kernels", {})
 
     def _check_topology(self) -> None:
         for b, parent in enumerate(self.body_parents):
@@ -487,7 +494,35 @@ class Tree:
         """
         check_jacobian_convention(convention)
         index = self.frame_index(frame)
-        x = self._expand(self._as_qpos(qpos))
+        kernel = self._jacobian_kernel(index, convention)
+        if kernel is not None:  # the fast path: qpos as it is, if it needs no converting
+            J: FloatArray | None = kernel.run(qpos)
+            if J is not None:
+                return J
+        checked = self._as_qpos(qpos)
+        if kernel is not None:
+            J = kernel.run(np.ascontiguousarray(checked))
+            assert J is not None, "validated qpos was refused by the kernel"
+            return J
+        return self._jacobian_numpy(checked, index, convention)
+
+    def _jacobian_kernel(self, index: int, convention: str) -> Any:
+        key = (index, convention)
+        if key not in self._jacobian_kernels:
+            scale = [1.0 if m is None else m.multiplier for m in self.mimics]
+            self._jacobian_kernels[key] = _fast.tree_jacobian_program(
+                self._spec,
+                index,
+                dof_adr=self._dof_adr.tolist(),
+                dof_scale=scale,
+                nv=self.nv,
+                convention=convention,
+            )
+        return self._jacobian_kernels[key]
+
+    def _jacobian_numpy(self, qpos: FloatArray, index: int, convention: str) -> FloatArray:
+        """:meth:`jacobian` on the pure-NumPy reference path, for validated ``qpos``."""
+        x = self._expand(qpos)
         batch = x.shape[:-1]
         axes = np.zeros((*batch, len(self.joint_names), 3))
         anchors = np.zeros_like(axes)
@@ -495,7 +530,7 @@ class Tree:
         T_frame = self._frame_poses(R, p)[..., index, :, :]
         p_frame = T_frame[..., :3, 3]
         J = np.zeros((*batch, 6, self.nv))
-        for k in self.path_joints(frame):
+        for k in self.path_joints(self.frame_names[index]):
             kind, d, b = self.joint_types[k], int(self._dof_adr[k]), int(self.joint_bodies[k]) + 1
             mimic = self.mimics[k]
             scale = 1.0 if mimic is None else mimic.multiplier
