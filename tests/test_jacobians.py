@@ -60,17 +60,13 @@ def twist_of(dT: np.ndarray, T: np.ndarray, form: str) -> np.ndarray:
 
 @pytest.mark.parametrize("robot", MENAGERIE)
 def test_every_frame_of_every_menagerie_model_matches_mj_jac(robot: str) -> None:
-    """Every body and site on 50 qpos, and the last frame (the deepest tool) on 10,000."""
+    """Every body and site on 10,000 random qpos (issue #7)."""
     model = load_quiet(robot).model
     tree = poekin.load_tree(load_quiet(robot))
-    qpos = sample_qpos(tree, 50, seed=1)
+    qpos = sample_qpos(tree, 10_000, seed=1)
     for f, name in enumerate(tree.frame_names):
         expected = mj_jacobians(model, qpos, f)
         assert_close(f"{robot} {name}", tree.jacobian(qpos, name), expected, MJ_JAC_TOL)
-    last = tree.n_frames - 1
-    qpos = sample_qpos(tree, 10_000, seed=2)
-    got = tree.jacobian(qpos, tree.frame_names[last])
-    assert_close(f"{robot} 10k", got, mj_jacobians(model, qpos, last), MJ_JAC_TOL)
 
 
 @pytest.mark.parametrize("robot", MENAGERIE)
