@@ -34,6 +34,7 @@ __all__ = [
     "evaluate",
     "get_threads",
     "result_shape",
+    "run_checked",
     "set_threads",
 ]
 
@@ -412,3 +413,23 @@ def evaluate(
     done: FloatArray | None = kernel.run(arr, out, form)
     assert done is not None, "validated arguments were refused by the kernel"
     return done
+
+
+def run_checked(
+    kernel: Any,
+    x: ArrayLike,
+    validate: Callable[[ArrayLike], FloatArray],
+    reference: Callable[[FloatArray], FloatArray],
+) -> FloatArray:
+    """``kernel.run(x)`` if the kernel takes ``x`` as it is; else ``validate(x)`` (which raises
+    InputError) run by the kernel, or by ``reference``, the NumPy path, without one."""
+    if kernel is not None:
+        result: FloatArray | None = kernel.run(x)
+        if result is not None:
+            return result
+    checked = validate(x)
+    if kernel is None:
+        return reference(checked)
+    result = kernel.run(np.ascontiguousarray(checked))
+    assert result is not None, "validated input was refused by the kernel"
+    return result

@@ -15,6 +15,7 @@ Body form (screws ``B_i = Ad(M^-1) S_i`` in the end frame at ``q = 0``)::
 from __future__ import annotations
 
 import dataclasses
+import functools
 from typing import Any, Literal
 
 import numpy as np
@@ -365,17 +366,12 @@ class Chain:
 
     def _jacobian(self, convention: str, q: ArrayLike) -> FloatArray:
         """The compiled kernel's Jacobian, or the NumPy reference's (validating ``q``)."""
-        kernel = self._jacobian_kernels[convention]
-        if kernel is not None:  # the fast path: q as it is, if it needs no converting
-            J: FloatArray | None = kernel.run(q)
-            if J is not None:
-                return J
-        q = self._joint_values(q)
-        if kernel is not None:
-            J = kernel.run(np.ascontiguousarray(q))
-            assert J is not None, "validated joint values were refused by the kernel"
-            return J
-        return self._jacobian_numpy(convention, q)
+        return _fast.run_checked(
+            self._jacobian_kernels[convention],
+            q,
+            self._joint_values,
+            functools.partial(self._jacobian_numpy, convention),
+        )
 
     def _jacobian_numpy(self, convention: str, q: FloatArray) -> FloatArray:
         """The Jacobians' pure-NumPy reference path, for validated float64 ``q``."""

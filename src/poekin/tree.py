@@ -494,17 +494,12 @@ class Tree:
         """
         check_jacobian_convention(convention)
         index = self.frame_index(frame)
-        kernel = self._jacobian_kernel(index, convention)
-        if kernel is not None:  # the fast path: qpos as it is, if it needs no converting
-            J: FloatArray | None = kernel.run(qpos)
-            if J is not None:
-                return J
-        checked = self._as_qpos(qpos)
-        if kernel is not None:
-            J = kernel.run(np.ascontiguousarray(checked))
-            assert J is not None, "validated qpos was refused by the kernel"
-            return J
-        return self._jacobian_numpy(checked, index, convention)
+        return _fast.run_checked(
+            self._jacobian_kernel(index, convention),
+            qpos,
+            self._as_qpos,
+            lambda checked: self._jacobian_numpy(checked, index, convention),
+        )
 
     def _jacobian_kernel(self, index: int, convention: str) -> Any:
         key = (index, convention)
