@@ -366,8 +366,13 @@ class Chain:
 
     def _jacobian(self, convention: str, q: ArrayLike) -> FloatArray:
         """The compiled kernel's Jacobian, or the NumPy reference's (validating ``q``)."""
+        kernel = self._jacobian_kernels[convention]
+        if kernel is not None:  # the one-call fast path, as in fk
+            J: FloatArray | None = kernel.run(q)
+            if J is not None:
+                return J
         return _fast.run_checked(
-            self._jacobian_kernels[convention],
+            kernel,
             q,
             self._joint_values,
             functools.partial(self._jacobian_numpy, convention),

@@ -494,8 +494,13 @@ class Tree:
         """
         check_jacobian_convention(convention)
         index = self.frame_index(frame)
+        kernel = self._jacobian_kernel(index, convention)
+        if kernel is not None:  # the one-call fast path, as in fk
+            J: FloatArray | None = kernel.run(qpos)
+            if J is not None:
+                return J
         return _fast.run_checked(
-            self._jacobian_kernel(index, convention),
+            kernel,
             qpos,
             self._as_qpos,
             lambda checked: self._jacobian_numpy(checked, index, convention),
