@@ -322,6 +322,7 @@ static int Kernel_init(KernelObject *self, PyObject *args, PyObject *kwds) {
     const int32_t *code = PyArray_DATA(o);
     npy_intp n_ops = PyArray_DIM(o, 0), n_params = PyArray_DIM(p, 0);
     int n_angles = 0, jac_cols = 0;
+    npy_intp bad = -1; /* the first operation out of range */
     static const int QSIZE[N_OPS] = {0, 0, 0, 0, 1, 1, 1, 4, 7, 0, 1, 1, 1, 1, 1, 1, 0, 0, 0};
     static const int PSIZE[N_OPS] = {0, 0, 0, 12, 24, 24, 6, 3, 0, 0, 7, 7, 7, 7, 7, 7, 3, 7, 2};
     const double *pd = PyArray_DATA(p);
@@ -339,20 +340,19 @@ static int Kernel_init(KernelObject *self, PyObject *args, PyObject *kwds) {
             jac_cols = (int)cols;
         }
         if (!ok) {
-            Py_DECREF(o);
-            Py_DECREF(p);
-            PyErr_Format(PyExc_ValueError, "operation %zd is out of range", (Py_ssize_t)k);
-            return -1;
+            bad = k;
+            break;
         }
     }
-    for (npy_intp k = 0; k < n_ops; ++k) { /* a column is one the program writes out */
+    for (npy_intp k = 0; k < n_ops && bad < 0; ++k) { /* a column is one the program writes */
         const int32_t *op = code + 4 * k;
-        if (op[0] == OP_JCOL && !(op[3] >= 0 && op[3] < jac_cols)) {
-            Py_DECREF(o);
-            Py_DECREF(p);
-            PyErr_Format(PyExc_ValueError, "operation %zd is out of range", (Py_ssize_t)k);
-            return -1;
-        }
+        if (op[0] == OP_JCOL && !(op[3] >= 0 && op[3] < jac_cols)) bad = k;
+    }
+    if (bad >= 0) {
+        Py_DECREF(o);
+        Py_DECREF(p);
+        PyErr_Format(PyExc_ValueError, "operation %zd is out of range", (Py_ssize_t)bad);
+        return -1;
     }
     AngleSource *angles = PyMem_Malloc(sizeof(AngleSource) * (n_angles > 0 ? n_angles : 1));
     if (angles == NULL) {
