@@ -116,10 +116,15 @@ typedef struct {
     int32_t plain;
 } AngleSource;
 
+/* One operation, decoded: its code, qpos address, slot (or angle index) and parameters. */
 typedef struct {
-    const int32_t *ops;
+    int32_t code, a, slot;
+    const double *P;
+} Op;
+
+typedef struct {
+    const Op *ops; /* decoded; their parameters point into the params array */
     int n_ops;
-    const double *params;
     int nq;
     int n_slots;
     int n_out;
@@ -282,6 +287,7 @@ typedef struct {
     PyObject *ops_obj;    /* keeps the int32 ops array alive */
     PyObject *params_obj; /* keeps the float64 params array alive */
     AngleSource *angles;  /* owned: Program.angles */
+    Op *ops;              /* owned: Program.ops */
     int frame_axis;       /* output shape (..., n_out, ...) rather than (...) */
 } KernelObject;
 
@@ -295,6 +301,7 @@ static void Kernel_dealloc(KernelObject *self) {
     Py_XDECREF(self->ops_obj);
     Py_XDECREF(self->params_obj);
     PyMem_Free(self->angles);
+    PyMem_Free(self->ops);
     Py_TYPE(self)->tp_free((PyObject *)self);
 }
 
@@ -355,7 +362,10 @@ static int Kernel_init(KernelObject *self, PyObject *args, PyObject *kwds) {
         return -1;
     }
     AngleSource *angles = PyMem_Malloc(sizeof(AngleSource) * (n_angles > 0 ? n_angles : 1));
-    if (angles == NULL) {
+    Op *decoded = PyMem_Malloc(sizeof(Op) * (n_ops > 0 ? n_ops : 1));
+    if (angles == NULL || decoded == NULL) {
+        PyMem_Free(angles);
+        PyMem_Free(decoded);
         Py_DECREF(o);
         Py_DECREF(p);
         PyErr_NoMemory();
@@ -363,13 +373,16 @@ static int Kernel_init(KernelObject *self, PyObject *args, PyObject *kwds) {
     }
     for (npy_intp k = 0; k < n_ops; ++k) {
         const int32_t *op = code + 4 * k;
-        if (!HAS_ANGLE(op[0])) continue;
         const double *P = pd + op[2];
+        decoded[k] = (Op){op[0], op[1], op[3], P};
+        if (!HAS_ANGLE(op[0])) continue;
         int plain = op[0] == OP_SCREW || (P[0] == 1.0 && P[1] == 0.0 && P[2] == 0.0);
         angles[op[3]] = (AngleSource){P, op[1], plain};
     }
     PyMem_Free(self->angles);
+    PyMem_Free(self->ops);
     self->angles = angles;
+    self->ops = decoded;
     Py_XSETREF(self->ops_obj, (PyObject *)o);
     Py_XSETREF(self->params_obj, (PyObject *)p);
     /* the angles are q (screws) or (q scale + offset) - ref (hinges, axes): bound them */
@@ -381,8 +394,8 @@ static int Kernel_init(KernelObject *self, PyObject *args, PyObject *kwds) {
         if (fabs(P[1]) + fabs(P[2]) > shift) shift = fabs(P[1]) + fabs(P[2]);
     }
     double huge_q = (REDUCE_MAX - shift) / gain;
-    self->prog = (Program){code,   (int)n_ops, pd,       nq, n_slots, n_out, n_angles, angles,
-                           jac_cols, huge_q > 0 ? huge_q : 0.0};
+    self->prog = (Program){decoded,  (int)n_ops, nq, n_slots, n_out, n_angles, angles, jac_cols,
+                           huge_q > 0 ? huge_q : 0.0};
     self->frame_axis = frame_axis;
     return 0;
 }

@@ -82,6 +82,10 @@ typedef struct {
     vd t[3];
 } Pose;
 
+typedef struct {
+    vd th, s, c; /* angle, sin, cos */
+} Angle;
+
 /* cur = cur * (Rj, tj): t += R tj, then R = R Rj (the reference's order and sums). */
 AI void compose(Pose *cur, const vd *Rj, const vd *tj) {
     vd R[9];
@@ -118,15 +122,15 @@ AI void about_point(const double *anchor, const vd *Rj, vd *tj) {
  * cancels. Only columns a and b of R change, each c R_a + s R_b or c R_b - s R_a: the arithmetic
  * of the full product with Rk's zeros and ones left out, equal to it but for signs of zero.
  * Params: scale, offset, ref, sign, point[a], point[b], pitch. */
-AI void axis_turn(Pose *cur, const int k, const int pitched, vd s, vd c, vd th,
-                  const double *P) {
+AI void axis_turn(Pose *cur, const int k, const int pitched, const Angle *A, const double *P) {
     const int a = (k + 1) % 3, b = (k + 2) % 3;
+    const vd s = P[3] * A->s, c = A->c;
     const double ra = P[4], rb = P[5];
     vd pj[3];
     pj[a] = ra - (c * ra - s * rb);
     pj[b] = rb - (s * ra + c * rb);
     if (pitched) {
-        pj[k] = th * P[6];
+        pj[k] = A->th * P[6];
         for (int i = 0; i < 3; ++i)
             cur->t[i] = cur->t[i] + ((cur->R[3 * i] * pj[0] + cur->R[3 * i + 1] * pj[1]) +
                                      cur->R[3 * i + 2] * pj[2]);
@@ -301,10 +305,6 @@ static inline __attribute__((always_inline)) void emit(const Pose *p, int form, 
     }
 }
 
-typedef struct {
-    vd th, s, c; /* angle, sin, cos */
-} Angle;
-
 /* col += P[6] Ad(cur) [w; v] for the screw (w, v) = P[0..5]: [a; p x a + R v] with a = R w,
  * the sums in poekin.chain.space_jacobian's order; P[6] is 1, or a mimic joint's multiplier. */
 AI void jacobian_column(const Pose *cur, const double *P, vd *col) {
@@ -353,34 +353,30 @@ AI void run_ops(const Program *prog, Pose *restrict slots, const vd *restrict qT
     const int size = out_size(prog, form);
     const npy_intp stride = (npy_intp)prog->n_out * size;
     Pose cur;
-    /* first every angle, then their sin and cos two at a time: independent work whose
-     * latencies overlap */
     for (int k = 0; k < 6 * prog->jac_cols; ++k) jac[k] = (vd){0}; /* columns add up */
-    for (int k = 0; k < prog->n_angles; ++k) {
-        const AngleSource *src = prog->angles + k;
-        const double *P = src->P;
-        ang[k].th = src->plain ? qT[src->qadr] : (qT[src->qadr] * P[0] + P[1]) - P[2];
-    }
+    /* every angle's sin and cos first, two at a time: independent work whose latencies overlap */
     for (int k = 0; k < prog->n_angles; k += 2) {
+        const AngleSource *src = prog->angles + k;
         Angle *A = ang + k, *B = ang + (k + 1 < prog->n_angles ? k + 1 : k);
+        const AngleSource *srcb = prog->angles + (k + 1 < prog->n_angles ? k + 1 : k);
+        vd ta = qT[src->qadr], tb = qT[srcb->qadr];
+        if (!src->plain) ta = (ta * src->P[0] + src->P[1]) - src->P[2];
+        if (!srcb->plain) tb = (tb * srcb->P[0] + srcb->P[1]) - srcb->P[2];
         vd sa, ca, sb, cb;
-        sincos_fast(A->th, &sa, &ca);
-        sincos_fast(B->th, &sb, &cb);
+        sincos_fast(ta, &sa, &ca);
+        sincos_fast(tb, &sb, &cb);
         if (huge) {
-            sincos_fixup(A->th, &sa, &ca);
-            sincos_fixup(B->th, &sb, &cb);
+            sincos_fixup(ta, &sa, &ca);
+            sincos_fixup(tb, &sb, &cb);
         }
-        A->s = sa;
-        A->c = ca;
-        B->s = sb;
-        B->c = cb;
+        *A = (Angle){ta, sa, ca};
+        *B = (Angle){tb, sb, cb};
     }
-    for (int k = 0; k < prog->n_ops; ++k) {
-        const int32_t *op = prog->ops + 4 * k;
-        const int a = op[1], slot = op[3];
-        const double *P = prog->params + op[2];
+    for (const Op *op = prog->ops, *end = prog->ops + prog->n_ops; op < end; ++op) {
+        const int a = op->a, slot = op->slot;
+        const double *P = op->P;
         vd Rj[9], tj[3];
-        switch (op[0]) {
+        switch (op->code) {
             case OP_IDENTITY:
                 for (int i = 0; i < 9; ++i) cur.R[i] = (vd){0} + ((i % 4 == 0) ? 1.0 : 0.0);
                 for (int i = 0; i < 3; ++i) cur.t[i] = (vd){0};
@@ -427,23 +423,14 @@ AI void run_ops(const Program *prog, Pose *restrict slots, const vd *restrict qT
                 quat_rotation(qT + a + 3, cur.R);
                 for (int i = 0; i < 3; ++i) cur.t[i] = qT[a + i];
                 break;
-            case OP_AXIS_X:
-            case OP_AXIS_Y:
-            case OP_AXIS_Z:
-            case OP_AXIS_X_PITCH:
-            case OP_AXIS_Y_PITCH:
-            case OP_AXIS_Z_PITCH: { /* literal k and pitch for each, so R stays in registers */
-                vd s = P[3] * ang[slot].s, c = ang[slot].c, th = ang[slot].th;
-                switch (op[0]) {
-                    case OP_AXIS_X: axis_turn(&cur, 0, 0, s, c, th, P); break;
-                    case OP_AXIS_Y: axis_turn(&cur, 1, 0, s, c, th, P); break;
-                    case OP_AXIS_Z: axis_turn(&cur, 2, 0, s, c, th, P); break;
-                    case OP_AXIS_X_PITCH: axis_turn(&cur, 0, 1, s, c, th, P); break;
-                    case OP_AXIS_Y_PITCH: axis_turn(&cur, 1, 1, s, c, th, P); break;
-                    default: axis_turn(&cur, 2, 1, s, c, th, P); break;
-                }
-                break;
-            }
+            /* one case per axis and pitch, each with literal k and pitch, so R stays in
+             * registers */
+            case OP_AXIS_X: axis_turn(&cur, 0, 0, ang + slot, P); break;
+            case OP_AXIS_Y: axis_turn(&cur, 1, 0, ang + slot, P); break;
+            case OP_AXIS_Z: axis_turn(&cur, 2, 0, ang + slot, P); break;
+            case OP_AXIS_X_PITCH: axis_turn(&cur, 0, 1, ang + slot, P); break;
+            case OP_AXIS_Y_PITCH: axis_turn(&cur, 1, 1, ang + slot, P); break;
+            case OP_AXIS_Z_PITCH: axis_turn(&cur, 2, 1, ang + slot, P); break;
             case OP_JCOL: /* column slot: Ad(cur) [w; v] = [R w; p x R w + R v] */
                 jacobian_column(&cur, P, jac + 6 * slot);
                 break;
