@@ -128,8 +128,8 @@ typedef struct {
     int nq;
     int n_slots;
     int n_out;
-    int n_angles;  /* operations that turn by an angle (HAS_ANGLE) */
-    const AngleSource *angles; /* where each angle comes from */
+    int n_angles;  /* operations that turn by an angle (HAS_ANGLE), rounded up to even */
+    const AngleSource *angles; /* where each angle comes from (an odd count's last twice) */
     int jac_cols;  /* JEMIT's column count: a Jacobian program's output is (6, jac_cols) */
     double huge_q; /* a block with |q| beyond this may have an angle beyond REDUCE_MAX */
 } Program;
@@ -361,7 +361,9 @@ static int Kernel_init(KernelObject *self, PyObject *args, PyObject *kwds) {
         PyErr_Format(PyExc_ValueError, "operation %zd is out of range", (Py_ssize_t)bad);
         return -1;
     }
-    AngleSource *angles = PyMem_Malloc(sizeof(AngleSource) * (n_angles > 0 ? n_angles : 1));
+    /* an even count, the last repeated: the kernel takes the angles two at a time */
+    const int n_paired = (n_angles + 1) / 2 * 2;
+    AngleSource *angles = PyMem_Malloc(sizeof(AngleSource) * (n_paired > 0 ? n_paired : 1));
     Op *decoded = PyMem_Malloc(sizeof(Op) * (n_ops > 0 ? n_ops : 1));
     if (angles == NULL || decoded == NULL) {
         PyMem_Free(angles);
@@ -379,6 +381,7 @@ static int Kernel_init(KernelObject *self, PyObject *args, PyObject *kwds) {
         int plain = op[0] == OP_SCREW || (P[0] == 1.0 && P[1] == 0.0 && P[2] == 0.0);
         angles[op[3]] = (AngleSource){P, op[1], plain};
     }
+    if (n_paired > n_angles) angles[n_angles] = angles[n_angles - 1];
     PyMem_Free(self->angles);
     PyMem_Free(self->ops);
     self->angles = angles;
@@ -394,7 +397,7 @@ static int Kernel_init(KernelObject *self, PyObject *args, PyObject *kwds) {
         if (fabs(P[1]) + fabs(P[2]) > shift) shift = fabs(P[1]) + fabs(P[2]);
     }
     double huge_q = (REDUCE_MAX - shift) / gain;
-    self->prog = (Program){decoded,  (int)n_ops, nq, n_slots, n_out, n_angles, angles, jac_cols,
+    self->prog = (Program){decoded,  (int)n_ops, nq, n_slots, n_out, n_paired, angles, jac_cols,
                            huge_q > 0 ? huge_q : 0.0};
     self->frame_axis = frame_axis;
     return 0;

@@ -356,9 +356,7 @@ AI void run_ops(const Program *prog, Pose *restrict slots, const vd *restrict qT
     for (int k = 0; k < 6 * prog->jac_cols; ++k) jac[k] = (vd){0}; /* columns add up */
     /* every angle's sin and cos first, two at a time: independent work whose latencies overlap */
     for (int k = 0; k < prog->n_angles; k += 2) {
-        const AngleSource *src = prog->angles + k;
-        Angle *A = ang + k, *B = ang + (k + 1 < prog->n_angles ? k + 1 : k);
-        const AngleSource *srcb = prog->angles + (k + 1 < prog->n_angles ? k + 1 : k);
+        const AngleSource *src = prog->angles + k, *srcb = src + 1;
         vd ta = qT[src->qadr], tb = qT[srcb->qadr];
         if (!src->plain) ta = (ta * src->P[0] + src->P[1]) - src->P[2];
         if (!srcb->plain) tb = (tb * srcb->P[0] + srcb->P[1]) - srcb->P[2];
@@ -369,8 +367,8 @@ AI void run_ops(const Program *prog, Pose *restrict slots, const vd *restrict qT
             sincos_fixup(ta, &sa, &ca);
             sincos_fixup(tb, &sb, &cb);
         }
-        *A = (Angle){ta, sa, ca};
-        *B = (Angle){tb, sb, cb};
+        ang[k] = (Angle){ta, sa, ca};
+        ang[k + 1] = (Angle){tb, sb, cb};
     }
     for (const Op *op = prog->ops, *end = prog->ops + prog->n_ops; op < end; ++op) {
         const int a = op->a, slot = op->slot;
@@ -440,6 +438,8 @@ AI void run_ops(const Program *prog, Pose *restrict slots, const vd *restrict qT
             case OP_EMIT:
                 emit(&cur, form, out + (npy_intp)slot * size, stride, lanes);
                 break;
+            default: /* Kernel_init took only the codes above */
+                __builtin_unreachable();
         }
     }
 }
