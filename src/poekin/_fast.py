@@ -285,27 +285,28 @@ def tree_program(t: TreeSpec) -> Any:
         return None
     nb = len(t.body_parents)
     p = _Program()
-    held = -2  # the body whose pose the kernel's state holds right now (-1: the world)
-    loaded_later = {int(b) for b in t.body_parents} | {int(b) for b in t.site_bodies}
-
-    def start_from(body: int) -> None:
-        nonlocal held
-        if body != held:
-            p.op(_IDENTITY) if body < 0 else p.op(_LOAD, slot=body)
-        held = -3  # about to change
-
+    # Each body, then each site, starts from its parent's pose: the state's pose when the
+    # parent is the body just done, else a stored one. Only the latter need storing.
+    starts = [int(b) for b in t.body_parents] + [int(b) for b in t.site_bodies]
+    held = [-2, *range(nb), *([-3] * len(t.site_bodies))][: len(starts)]  # state before each
+    loaded = {b for b, h in zip(starts, held, strict=True) if b >= 0 and b != h}
     for b in range(nb):
-        start_from(int(t.body_parents[b]))
+        _start_from(p, starts[b], held[b])
         _body(p, t, b)
-        if b in loaded_later:  # a child body or a site starts from it
+        if b in loaded:
             p.op(_STORE, slot=b)
         p.op(_EMIT, slot=b)
-        held = b
-    for s, body in enumerate(t.site_bodies):
-        start_from(int(body))
+    for s in range(len(t.site_bodies)):
+        _start_from(p, starts[nb + s], held[nb + s])
         p.const(t.site_rot[s], t.site_pos[s])
         p.op(_EMIT, slot=nb + s)
     return p.kernel(t.nq, nb, nb + len(t.site_bodies), frame_axis=True)
+
+
+def _start_from(p: _Program, body: int, held: int) -> None:
+    """Make the state ``body``'s pose (the world's for -1), given it holds ``held``'s."""
+    if body != held:
+        p.op(_IDENTITY) if body < 0 else p.op(_LOAD, slot=body)
 
 
 def tree_jacobian_program(
