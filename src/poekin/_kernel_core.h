@@ -7,10 +7,12 @@
 #define GLUE(a, b) GLUE_(a, b)
 #define vd GLUE(vd, LANES)
 #define vl GLUE(vl, LANES)
+#define vd_unaligned GLUE(vd_unaligned, LANES)
 #define vselect GLUE(vselect, LANES)
 #define sincos_fast GLUE(sincos_fast, LANES)
 #define sincos_fixup GLUE(sincos_fixup, LANES)
 #define Pose GLUE(Pose, LANES)
+#define copy_pose GLUE(copy_pose, LANES)
 #define compose GLUE(compose, LANES)
 #define compose_const GLUE(compose_const, LANES)
 #define rodrigues GLUE(rodrigues, LANES)
@@ -33,6 +35,9 @@
  * instruction set chosen at run time has (one zmm on AVX-512, two ymm on AVX2, four xmm). */
 typedef double vd __attribute__((vector_size(8 * LANES)));
 typedef int64_t vl __attribute__((vector_size(8 * LANES)));
+/* For one unaligned store of a whole vector: GCC splits a memcpy of one into 16-byte moves,
+ * or into rep movs when its size is not a constant. */
+typedef double vd_unaligned __attribute__((vector_size(8 * LANES), aligned(8), may_alias));
 
 AI vd vselect(vl mask, vd yes, vd no) { return (vd)(((vl)yes & mask) | ((vl)no & ~mask)); }
 
@@ -85,6 +90,12 @@ typedef struct {
 typedef struct {
     vd th, s, c; /* angle, sin, cos */
 } Angle;
+
+/* *dst = *src one vector at a time (GCC copies a whole Pose with rep movs) */
+AI void copy_pose(Pose *restrict dst, const Pose *restrict src) {
+    for (int k = 0; k < 9; ++k) dst->R[k] = src->R[k];
+    for (int i = 0; i < 3; ++i) dst->t[i] = src->t[i];
+}
 
 /* cur = cur * (Rj, tj): t += R tj, then R = R Rj (the reference's order and sums). */
 AI void compose(Pose *cur, const vd *Rj, const vd *tj) {
@@ -235,8 +246,12 @@ AI void transpose4(vd r[4]) {
 #if LANES == 8
 /* Lane l's pose from the transposed halves lo and hi: 16 numbers for 4x4, 12 for 3x4. */
 AI void store_rows(const vd lo[8], const vd hi[8], int l, int form, double *o) {
-    memcpy(o, &lo[l], sizeof(vd));
-    memcpy(o + 8, &hi[l], form == FORM_4X4 ? sizeof(vd) : sizeof(vd) / 2);
+    typedef double half_unaligned __attribute__((vector_size(32), aligned(8), may_alias));
+    *(vd_unaligned *)o = lo[l];
+    if (form == FORM_4X4)
+        *(vd_unaligned *)(o + 8) = hi[l];
+    else
+        *(half_unaligned *)(o + 8) = __builtin_shufflevector(hi[l], hi[l], 0, 1, 2, 3);
 }
 #endif
 
@@ -244,8 +259,8 @@ AI void store_rows(const vd lo[8], const vd hi[8], int l, int form, double *o) {
 /* Lane l's pose from transposed rows: [R_i0 R_i1 R_i2 t_i] for i < 3, then [0 0 0 1] for 4x4. */
 AI void store_rows(vd rows[3][4], int l, int form, double *o) {
     const vd last = {0.0, 0.0, 0.0, 1.0};
-    for (int i = 0; i < 3; ++i) memcpy(o + 4 * i, &rows[i][l], sizeof(vd));
-    if (form == FORM_4X4) memcpy(o + 12, &last, sizeof(vd));
+    for (int i = 0; i < 3; ++i) *(vd_unaligned *)(o + 4 * i) = rows[i][l];
+    if (form == FORM_4X4) *(vd_unaligned *)(o + 12) = last;
 }
 #endif
 
@@ -380,10 +395,10 @@ AI void run_ops(const Program *prog, Pose *restrict slots, const vd *restrict qT
                 for (int i = 0; i < 3; ++i) cur.t[i] = (vd){0};
                 break;
             case OP_LOAD:
-                cur = slots[slot];
+                copy_pose(&cur, slots + slot);
                 break;
             case OP_STORE:
-                slots[slot] = cur;
+                copy_pose(slots + slot, &cur);
                 break;
             case OP_CONST:
                 compose_const(&cur, P, P + 9);
@@ -504,10 +519,12 @@ TARGET static void run_task(Task *task) {
 
 #undef vd
 #undef vl
+#undef vd_unaligned
 #undef vselect
 #undef sincos_fast
 #undef sincos_fixup
 #undef Pose
+#undef copy_pose
 #undef compose
 #undef compose_const
 #undef rodrigues
