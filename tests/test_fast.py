@@ -5,8 +5,10 @@ from __future__ import annotations
 
 import copy
 import dataclasses
+import inspect
 import os
 import pickle
+import re
 
 import mujoco
 import numpy as np
@@ -334,6 +336,84 @@ def test_without_the_kernel_the_numpy_path_gives_the_same_poses(
         J = tree.jacobian(qpos, "finger", c)
         assert_close(f"tree jacobian {c}", J, features.jacobian(qpos, "finger", c), REF_TOL)
     assert tree._jacobian_kernels and all(k is None for k in tree._jacobian_kernels.values())
+
+
+# --- the methods that run the kernel before any Python (_fast.fast_method) -----------------
+
+FAST_METHODS = [(Chain, "fk"), (Chain, "fk_body"), (Tree, "fk")]
+
+
+@pytest.mark.parametrize(("cls", "name"), FAST_METHODS)
+def test_fast_methods_keep_the_signature_name_and_docs(cls: type, name: str) -> None:
+    method = getattr(cls, name)
+    python = method.__wrapped__
+    assert isinstance(method, poekin._kernel.FastMethod) and callable(python)
+    assert inspect.signature(method) == inspect.signature(python)
+    assert (method.__name__, method.__qualname__) == (name, f"{cls.__name__}.{name}")
+    assert method.__doc__ and method.__doc__ == python.__doc__
+
+
+CALLS = [  # (args, kwargs) after q; all ask for the same 3x4 poses written into out
+    ((), {"out": "out", "form": "3x4"}),
+    (("out",), {"form": "3x4"}),
+    (("out", "3x4"), {}),
+    ((), {"form": "3x4", "out": "out"}),
+]
+
+
+@pytest.mark.parametrize(("args", "kwargs"), CALLS)
+@pytest.mark.parametrize("q_by_name", [False, True])
+def test_fast_methods_take_arguments_by_position_or_name(
+    ur5e: Chain, args: tuple, kwargs: dict, q_by_name: bool
+) -> None:
+    q = np.random.default_rng(15).uniform(-6, 6, (5, 6))
+    expected = ur5e.fk(q)[..., :3, :]
+    out = np.empty((5, 3, 4))
+    args = tuple(out if a == "out" else a for a in args)
+    kwargs = {k: out if v == "out" else v for k, v in kwargs.items()}
+    got = ur5e.fk(q=q, **kwargs) if q_by_name and not args else ur5e.fk(q, *args, **kwargs)
+    assert got is out
+    assert np.array_equal(out, expected)
+
+
+@pytest.mark.parametrize(
+    ("args", "kwargs"),
+    [
+        ((), {}),
+        ((np.zeros(6),), {"bogus": 1}),
+        ((np.zeros(6),), {"q": np.zeros(6)}),
+        ((np.zeros(6), None, "4x4", 1), {}),
+        ((np.zeros(6), None), {"out": None}),
+    ],
+)
+def test_fast_methods_refuse_bad_calls_as_python_does(
+    ur5e: Chain, args: tuple, kwargs: dict
+) -> None:
+    with pytest.raises(TypeError) as python:
+        Chain.fk.__wrapped__(ur5e, *args, **kwargs)
+    with pytest.raises(TypeError, match="^" + re.escape(str(python.value)) + "$"):
+        ur5e.fk(*args, **kwargs)
+
+
+def test_fast_methods_work_unbound_and_bound(ur5e: Chain, features: Tree) -> None:
+    q = np.random.default_rng(16).uniform(-6, 6, (3, 6))
+    qpos = sample_qpos(features, 3, seed=16)
+    assert np.array_equal(Chain.fk(ur5e, q), ur5e.fk(q))
+    bound = ur5e.fk_body  # a bound method object, called later
+    assert bound.__self__ is ur5e
+    assert np.array_equal(bound(q), ur5e.fk_body(q))
+    assert np.array_equal(
+        Tree.fk(features, qpos, None, "pos_quat"), features.fk(qpos, form="pos_quat")
+    )
+
+
+def test_without_the_kernel_fast_method_is_the_function(monkeypatch: pytest.MonkeyPatch) -> None:
+    def fk(self: object, q: object, out: object = None, form: str = "4x4") -> object:
+        return q
+
+    assert isinstance(_fast.fast_method("_kernel")(fk), poekin._kernel.FastMethod)
+    monkeypatch.setattr(_fast, "_kernel", None)
+    assert _fast.fast_method("_kernel")(fk) is fk
 
 
 # --- Jacobians ------------------------------------------------------------------------------

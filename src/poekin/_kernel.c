@@ -26,6 +26,7 @@
 #include <numpy/arrayobject.h>
 
 #include <math.h>
+#include <stddef.h>
 #include <stdint.h>
 #include <stdlib.h>
 #include <string.h>
@@ -505,6 +506,141 @@ static PyTypeObject KernelType = {
     .tp_new = PyType_GenericNew,
 };
 
+/* ------------------------------------------------------------------------------------------ */
+/* Python type: FastMethod(kernel_attr, fallback, names), a method that runs the kernel first */
+
+/* A method whose call `obj.m(q, out, form)` first runs `getattr(obj, kernel_attr).run(q, out,
+ * form)` in C, and calls the Python function `fallback(obj, ...)` with the arguments as given
+ * only when there is no kernel or it answers None (arguments that need validating or converting,
+ * or errors to report). names: the fallback's parameter names after self, for keywords. It saves
+ * a Python frame per call: a controller's single calls are as fast as the kernel's own. */
+typedef struct {
+    PyObject_HEAD PyObject *attr; /* interned name of the instance attribute holding the Kernel */
+    PyObject *fallback;
+    PyObject *names; /* tuple of 3 interned parameter names: q, out, form */
+    PyObject *dict;  /* __doc__, __wrapped__, ... (functools.update_wrapper) */
+    vectorcallfunc vectorcall;
+} FastMethodObject;
+
+static PyObject *FastMethod_vectorcall(FastMethodObject *self, PyObject *const *args,
+                                       size_t nargsf, PyObject *kwnames) {
+    Py_ssize_t nargs = PyVectorcall_NARGS(nargsf);
+    if (nargs < 1 || nargs > 4) goto slow;
+    /* the call's q, out and form, by position then by keyword */
+    PyObject *given[3] = {NULL, NULL, NULL};
+    for (Py_ssize_t k = 1; k < nargs; ++k) given[k - 1] = args[k];
+    Py_ssize_t n_kw = kwnames == NULL ? 0 : PyTuple_GET_SIZE(kwnames);
+    for (Py_ssize_t k = 0; k < n_kw; ++k) {
+        PyObject *name = PyTuple_GET_ITEM(kwnames, k);
+        int slot = -1;
+        for (int j = 0; j < 3 && slot < 0; ++j)
+            if (name == PyTuple_GET_ITEM(self->names, j)) slot = j;
+        if (slot < 0 || given[slot] != NULL) goto slow; /* the fallback says what is wrong */
+        given[slot] = args[nargs + k];
+    }
+    if (given[0] == NULL) goto slow;
+    PyObject *kernel = PyObject_GetAttr(args[0], self->attr);
+    if (kernel == NULL) return NULL;
+    if (Py_IS_TYPE(kernel, &KernelType)) {
+        PyObject *run_args[3] = {given[0], given[1] != NULL ? given[1] : Py_None, given[2]};
+        PyObject *result = Kernel_run((KernelObject *)kernel, run_args, given[2] != NULL ? 3 : 2);
+        Py_DECREF(kernel);
+        if (result != Py_None) return result; /* the poses, or NULL for an error */
+        Py_DECREF(result);
+    } else {
+        Py_DECREF(kernel);
+    }
+slow:
+    return PyObject_Vectorcall(self->fallback, args, nargsf, kwnames);
+}
+
+static int FastMethod_init(FastMethodObject *self, PyObject *args, PyObject *kwds) {
+    PyObject *attr, *fallback, *names;
+    if (!PyArg_ParseTuple(args, "UOO!:FastMethod", &attr, &fallback, &PyTuple_Type, &names))
+        return -1;
+    if (!PyCallable_Check(fallback) || PyTuple_GET_SIZE(names) != 3) {
+        PyErr_SetString(PyExc_TypeError, "FastMethod(attr, fallback, (q, out, form names))");
+        return -1;
+    }
+    PyObject *interned = PyTuple_New(3);
+    if (interned == NULL) return -1;
+    for (int j = 0; j < 3; ++j) {
+        PyObject *name = PyTuple_GET_ITEM(names, j);
+        if (!PyUnicode_Check(name)) {
+            Py_DECREF(interned);
+            PyErr_SetString(PyExc_TypeError, "parameter names must be str");
+            return -1;
+        }
+        Py_INCREF(name);
+        PyUnicode_InternInPlace(&name);
+        PyTuple_SET_ITEM(interned, j, name);
+    }
+    Py_INCREF(attr);
+    PyUnicode_InternInPlace(&attr);
+    Py_XSETREF(self->attr, attr);
+    Py_INCREF(fallback);
+    Py_XSETREF(self->fallback, fallback);
+    Py_XSETREF(self->names, interned);
+    self->vectorcall = (vectorcallfunc)FastMethod_vectorcall;
+    return 0;
+}
+
+/* Accessed on an instance: a bound method (LOAD_METHOD calls skip this; see the flags). */
+static PyObject *FastMethod_get(PyObject *self, PyObject *obj, PyObject *Py_UNUSED(type)) {
+    if (obj == NULL || obj == Py_None) return Py_NewRef(self);
+    return PyMethod_New(self, obj);
+}
+
+static int FastMethod_traverse(FastMethodObject *self, visitproc visit, void *arg) {
+    Py_VISIT(self->attr);
+    Py_VISIT(self->fallback);
+    Py_VISIT(self->names);
+    Py_VISIT(self->dict);
+    return 0;
+}
+
+static int FastMethod_clear(FastMethodObject *self) {
+    Py_CLEAR(self->attr);
+    Py_CLEAR(self->fallback);
+    Py_CLEAR(self->names);
+    Py_CLEAR(self->dict);
+    return 0;
+}
+
+static void FastMethod_dealloc(FastMethodObject *self) {
+    PyObject_GC_UnTrack(self);
+    FastMethod_clear(self);
+    Py_TYPE(self)->tp_free((PyObject *)self);
+}
+
+static PyObject *FastMethod_repr(FastMethodObject *self) {
+    return PyUnicode_FromFormat("<fast method %R>", self->fallback);
+}
+
+static PyGetSetDef FastMethod_getset[] = {
+    {"__dict__", PyObject_GenericGetDict, PyObject_GenericSetDict, NULL, NULL},
+    {NULL, NULL, NULL, NULL, NULL},
+};
+
+static PyTypeObject FastMethodType = {
+    PyVarObject_HEAD_INIT(NULL, 0).tp_name = "poekin._kernel.FastMethod",
+    .tp_basicsize = sizeof(FastMethodObject),
+    .tp_dealloc = (destructor)FastMethod_dealloc,
+    .tp_vectorcall_offset = offsetof(FastMethodObject, vectorcall),
+    .tp_call = PyVectorcall_Call,
+    .tp_repr = (reprfunc)FastMethod_repr,
+    .tp_flags = Py_TPFLAGS_DEFAULT | Py_TPFLAGS_HAVE_GC | Py_TPFLAGS_HAVE_VECTORCALL |
+                Py_TPFLAGS_METHOD_DESCRIPTOR,
+    .tp_doc = "A method that runs its object's compiled kernel before any Python (poekin._fast).",
+    .tp_traverse = (traverseproc)FastMethod_traverse,
+    .tp_clear = (inquiry)FastMethod_clear,
+    .tp_descr_get = FastMethod_get,
+    .tp_getset = FastMethod_getset,
+    .tp_dictoffset = offsetof(FastMethodObject, dict),
+    .tp_init = (initproc)FastMethod_init,
+    .tp_new = PyType_GenericNew,
+};
+
 static PyObject *set_threads(PyObject *Py_UNUSED(mod), PyObject *arg) {
     long n = PyLong_AsLong(arg);
     if (n == -1 && PyErr_Occurred()) return NULL;
@@ -553,12 +689,18 @@ PyMODINIT_FUNC PyInit__kernel(void) {
     static const char *FORM_NAMES[3] = {"4x4", "3x4", "pos_quat"};
     for (int k = 0; k < 3; ++k)
         if ((g_form_names[k] = PyUnicode_InternFromString(FORM_NAMES[k])) == NULL) return NULL;
-    if (PyType_Ready(&KernelType) < 0) return NULL;
+    if (PyType_Ready(&KernelType) < 0 || PyType_Ready(&FastMethodType) < 0) return NULL;
     PyObject *m = PyModule_Create(&module_def);
     if (m == NULL) return NULL;
     Py_INCREF(&KernelType);
     if (PyModule_AddObject(m, "Kernel", (PyObject *)&KernelType) < 0) {
         Py_DECREF(&KernelType);
+        Py_DECREF(m);
+        return NULL;
+    }
+    Py_INCREF(&FastMethodType);
+    if (PyModule_AddObject(m, "FastMethod", (PyObject *)&FastMethodType) < 0) {
+        Py_DECREF(&FastMethodType);
         Py_DECREF(m);
         return NULL;
     }

@@ -308,6 +308,7 @@ class Chain:
         """Number of joints ``n``."""
         return len(self.joint_names)
 
+    @_fast.fast_method("_space_kernel")
     def fk(self, q: ArrayLike, out: FloatArray | None = None, form: Form = "4x4") -> FloatArray:
         """Space-form PoE ``T_world_frame = exp([S_1] q_1) ... exp([S_n] q_n) M``.
 
@@ -322,13 +323,11 @@ class Chain:
         Returns:
             The pose of ``frame`` in the world (base) frame, for each configuration.
         """
+        # the kernel has run already where it takes the arguments as they are (fast_method)
         kernel = self._space_kernel
-        if kernel is not None:  # the fast path: the kernel takes what needs no converting
-            T: FloatArray | None = kernel.run(q, out, form)
-            if T is not None:
-                return T
         return _fast.evaluate(kernel, q, out, form, self._joint_values, self._fk_numpy)
 
+    @_fast.fast_method("_body_kernel")
     def fk_body(
         self, q: ArrayLike, out: FloatArray | None = None, form: Form = "4x4"
     ) -> FloatArray:
@@ -336,11 +335,7 @@ class Chain:
 
         Same arguments and result as :meth:`fk`; equal to it to float precision.
         """
-        kernel = self._body_kernel
-        if kernel is not None:
-            T: FloatArray | None = kernel.run(q, out, form)
-            if T is not None:
-                return T
+        kernel = self._body_kernel  # as in fk
         return _fast.evaluate(kernel, q, out, form, self._joint_values, self._fk_body_numpy)
 
     def jacobian_space(self, q: ArrayLike) -> FloatArray:

@@ -428,6 +428,7 @@ class Tree:
             p[..., b + 1, :] = p_b
         return R, p
 
+    @_fast.fast_method("_kernel")
     def fk(self, qpos: ArrayLike, out: FloatArray | None = None, form: Form = "4x4") -> FloatArray:
         """World poses of every frame (bodies, then sites) in one pass.
 
@@ -441,13 +442,9 @@ class Tree:
             ``(..., n_frames, 4, 4)`` (or ``(..., n_frames, 3, 4)``, ``(..., n_frames, 7)``):
             ``T_world_frame`` for each of :attr:`frame_names`.
         """
-        kernel = self._kernel
-        if kernel is not None:  # the fast path: the kernel takes what needs no converting
-            T: FloatArray | None = kernel.run(qpos, out, form)
-            if T is not None:
-                return T
+        # the kernel has run already where it takes the arguments as they are (fast_method)
         frames = (self.n_frames,)
-        return _fast.evaluate(kernel, qpos, out, form, self._as_qpos, self._fk_numpy, frames)
+        return _fast.evaluate(self._kernel, qpos, out, form, self._as_qpos, self._fk_numpy, frames)
 
     def _fk_numpy(self, qpos: FloatArray) -> FloatArray:
         """:meth:`fk` on the pure-NumPy reference path (the compiled kernel's specification),
