@@ -18,7 +18,7 @@ from test_chain import random_chain
 from test_tree import FEATURES_XML, MENAGERIE, _two_link
 
 import poekin
-from poekin import InputError, _fast
+from poekin import InputError, _fast, lie
 from poekin.chain import Chain
 from poekin.import_mujoco import tree_from_model
 from poekin.tree import Mimic, Tree
@@ -142,6 +142,20 @@ def test_forms_are_views_of_the_4x4_pose(ur5e: Chain, features: Tree, form: str)
     assert np.all(quat[..., 0] >= 0), "quaternions are wxyz with w >= 0"
     # Shepperd's method does not renormalise: R's own rounding (~1e-15) shows in |quat|
     assert_close("unit quaternions", np.linalg.norm(quat, axis=-1), np.ones(500), 1e-14)
+
+
+def test_pos_quat_is_rotation_to_quat_bit_for_bit_in_every_case(ur5e: Chain) -> None:
+    rng = np.random.default_rng(17)
+    q = rng.uniform(-6, 6, (2000, 6))
+    q[:1000] = rng.integers(-4, 5, (1000, 6)) * (np.pi / 2)  # ties between the candidates
+    T = ur5e.fk(q)
+    R = T[..., :3, :3]
+    d0, d1, d2 = np.moveaxis(np.diagonal(R, 0, -2, -1), -1, 0)
+    diag = np.stack([1 + d0 + d1 + d2, 1 + d0 - d1 - d2, 1 - d0 + d1 - d2, 1 - d0 - d1 + d2], -1)
+    assert set(np.argmax(diag, -1)) == {0, 1, 2, 3}, "w, x, y and z each the largest somewhere"
+    pq = ur5e.fk(q, form="pos_quat")  # every width's the same bits: see the test below
+    assert np.array_equal(pq[..., 3:], lie.rotation_to_quat(R))
+    assert np.array_equal(pq[..., :3], T[..., :3, 3])
 
 
 @pytest.mark.parametrize("batch", BATCH_SHAPES)

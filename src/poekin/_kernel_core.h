@@ -21,7 +21,7 @@
 #define jacobian_emit GLUE(jacobian_emit, LANES)
 #define axis_turn GLUE(axis_turn, LANES)
 #define quat_rotation GLUE(quat_rotation, LANES)
-#define write_quat GLUE(write_quat, LANES)
+#define pose_quat GLUE(pose_quat, LANES)
 #define transpose8 GLUE(transpose8, LANES)
 #define transpose4 GLUE(transpose4, LANES)
 #define store_rows GLUE(store_rows, LANES)
@@ -186,28 +186,36 @@ AI void quat_rotation(const vd *q, vd *Rj) {
 /* ------------------------------------------------------------------------------------------ */
 /* output */
 
-/* Quaternion wxyz with w >= 0 of R (Shepperd's method, as poekin.lie.rotation_to_quat). */
-static inline __attribute__((always_inline)) void write_quat(const Pose *p, int l, double *o) {
-    double m00 = p->R[0][l], m01 = p->R[1][l], m02 = p->R[2][l];
-    double m10 = p->R[3][l], m11 = p->R[4][l], m12 = p->R[5][l];
-    double m20 = p->R[6][l], m21 = p->R[7][l], m22 = p->R[8][l];
-    double a = m21 - m12, b = m02 - m20, c = m10 - m01;
-    double xy = m01 + m10, xz = m02 + m20, yz = m12 + m21;
-    double d[4] = {1 + m00 + m11 + m22, 1 + m00 - m11 - m22, 1 - m00 + m11 - m22,
-                   1 - m00 - m11 + m22};
-    int k = 0;
-    for (int i = 1; i < 4; ++i)
-        if (d[i] > d[k]) k = i;
-    double big = sqrt(d[k] > 0.25 ? d[k] : 0.25) * 2;
-    double q[4];
-    switch (k) {
-        case 0: q[0] = big / 4; q[1] = a / big; q[2] = b / big; q[3] = c / big; break;
-        case 1: q[0] = a / big; q[1] = big / 4; q[2] = xy / big; q[3] = xz / big; break;
-        case 2: q[0] = b / big; q[1] = xy / big; q[2] = big / 4; q[3] = yz / big; break;
-        default: q[0] = c / big; q[1] = xz / big; q[2] = yz / big; q[3] = big / 4; break;
+/* Quaternion wxyz with w >= 0 of R (Shepperd's method, as poekin.lie.rotation_to_quat): the
+ * largest component from the diagonal (the first of equals), the others divided by it. */
+AI void pose_quat(const Pose *p, vd *q) {
+    const vd *M = p->R;
+    vd a = M[7] - M[5], b = M[2] - M[6], c = M[3] - M[1];
+    vd xy = M[1] + M[3], xz = M[2] + M[6], yz = M[5] + M[7];
+    vd d[4] = {((1 + M[0]) + M[4]) + M[8], ((1 + M[0]) - M[4]) - M[8],
+               ((1 - M[0]) + M[4]) - M[8], ((1 - M[0]) - M[4]) + M[8]};
+    vd best = d[0];
+    vl k = {0};
+    for (int i = 1; i < 4; ++i) {
+        vl more = d[i] > best;
+        best = vselect(more, d[i], best);
+        k = (vl)vselect(more, (vd)((vl){0} + i), (vd)k);
     }
-    double sign = q[0] < 0 ? -1.0 : 1.0;
-    for (int i = 0; i < 4; ++i) o[i] = q[i] * sign;
+    vd big = vselect(best > 0.25, best, (vd){0} + 0.25);
+    for (int l = 0; l < LANES; ++l) big[l] = sqrt(big[l]);
+    big = big * 2;
+    /* numerator of component i when component j is the largest: (a, b, c) against w, xy, xz,
+     * yz between x, y, z */
+    const vd *num[4][4] = {{NULL, &a, &b, &c}, {&a, NULL, &xy, &xz}, {&b, &xy, NULL, &yz},
+                           {&c, &xz, &yz, NULL}};
+    for (int i = 0; i < 4; ++i) {
+        vd top = big / 4; /* where component i is the largest */
+        for (int j = 0; j < 4; ++j)
+            if (j != i) top = vselect(k == j, *num[i][j], top);
+        q[i] = vselect(k == i, top, top / big);
+    }
+    vl negative = q[0] < 0;
+    for (int i = 0; i < 4; ++i) q[i] = vselect(negative, -q[i], q[i]);
 }
 
 #if LANES == 8
@@ -296,15 +304,29 @@ static inline __attribute__((always_inline)) void emit(const Pose *p, int form, 
         return;
     }
 #endif
+    if (form == FORM_POS_QUAT) {
+        vd q[4];
+        pose_quat(p, q);
+#if LANES == 4
+        /* lane l's [t0 t1 t2 q0] and [q0 q1 q2 q3]: two stores that overlap at q0 */
+        vd head[4] = {p->t[0], p->t[1], p->t[2], q[0]}, tail[4] = {q[0], q[1], q[2], q[3]};
+        transpose4(head);
+        transpose4(tail);
+        for (int l = 0; l < lanes; ++l) {
+            *(vd_unaligned *)(out + l * stride) = head[l];
+            *(vd_unaligned *)(out + l * stride + 3) = tail[l];
+        }
+#else
+        for (int l = 0; l < lanes; ++l) {
+            double *o = out + l * stride;
+            for (int i = 0; i < 3; ++i) o[i] = p->t[i][l];
+            for (int i = 0; i < 4; ++i) o[3 + i] = q[i][l];
+        }
+#endif
+        return;
+    }
     for (int l = 0; l < lanes; ++l) {
         double *o = out + l * stride;
-        if (form == FORM_POS_QUAT) {
-            o[0] = p->t[0][l];
-            o[1] = p->t[1][l];
-            o[2] = p->t[2][l];
-            write_quat(p, l, o + 3);
-            continue;
-        }
         for (int i = 0; i < 3; ++i) {
             o[4 * i] = p->R[3 * i][l];
             o[4 * i + 1] = p->R[3 * i + 1][l];
@@ -533,7 +555,7 @@ TARGET static void run_task(Task *task) {
 #undef jacobian_emit
 #undef axis_turn
 #undef quat_rotation
-#undef write_quat
+#undef pose_quat
 #undef transpose8
 #undef transpose4
 #undef store_rows
