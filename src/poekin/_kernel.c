@@ -72,8 +72,9 @@ enum { JAC_SPACE = 0, JAC_BODY = 1, JAC_WORLD = 2 };
 enum { FORM_4X4 = 0, FORM_3X4 = 1, FORM_POS_QUAT = 2 };
 static const int FORM_SIZE[3] = {16, 12, 7};
 
-/* Work per thread below which another thread does not pay for its start. */
-#define MIN_CONFIGS_PER_THREAD 8192
+/* Work per thread, in operations times configurations, below which another thread does not
+ * pay for its start: 8,192 UR5e configurations (9 operations each), 1,602 of a go2 (46). */
+#define MIN_WORK_PER_THREAD 73728
 /* Batches at least this big run without the GIL. */
 #define MIN_CONFIGS_NO_GIL 256
 #define MAX_THREADS 256
@@ -238,7 +239,8 @@ static void *thread_main(void *arg) {
 static int run_program(const Program *prog, const double *q, npy_intp n, double *out, int form,
                        int threads) {
     Task tasks[MAX_THREADS];
-    npy_intp most = n / MIN_CONFIGS_PER_THREAD;
+    npy_intp per_thread = MIN_WORK_PER_THREAD / (prog->n_ops > 0 ? prog->n_ops : 1);
+    npy_intp most = n / (per_thread > 0 ? per_thread : 1);
     int nt = threads < most ? threads : (int)(most > 0 ? most : 1);
     if (nt > MAX_THREADS) nt = MAX_THREADS;
     npy_intp chunk = (n + nt - 1) / nt;
