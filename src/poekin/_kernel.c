@@ -104,7 +104,9 @@ static int g_threads = 1;
 #define C5 2.08757232129817482790e-09
 #define C6 -1.13596475577881948265e-11
 
-#define AI static inline __attribute__((always_inline))
+/* Inlined helpers of the kernel, compiled for the instruction set of the kernel that uses them
+ * (TARGET, set before each inclusion of _kernel_core.h). */
+#define AI static inline __attribute__((always_inline)) TARGET
 
 
 /* ------------------------------------------------------------------------------------------ */

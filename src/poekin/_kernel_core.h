@@ -39,7 +39,14 @@ typedef int64_t vl __attribute__((vector_size(8 * LANES)));
  * or into rep movs when its size is not a constant. */
 typedef double vd_unaligned __attribute__((vector_size(8 * LANES), aligned(8), may_alias));
 
+#if LANES == 4
+/* one blend; the generic form below is three instructions (GCC does not fuse them) */
+AI vd vselect(vl mask, vd yes, vd no) {
+    return __builtin_ia32_blendvpd256(no, yes, (vd)mask);
+}
+#else
 AI vd vselect(vl mask, vd yes, vd no) { return (vd)(((vl)yes & mask) | ((vl)no & ~mask)); }
+#endif
 
 /* sin and cos of |x| < REDUCE_MAX: x = n pi/2 + (y0 + y1) with pi/2 to 99 bits, then fdlibm's
  * __kernel_sin(y0, y1) and __kernel_cos(y0, y1) by the last two bits of n. Lanes with a larger
@@ -273,8 +280,7 @@ AI void store_rows(vd rows[3][4], int l, int form, double *o) {
 #endif
 
 /* Write each lane's pose to its row of the output, in the form asked for. */
-static inline __attribute__((always_inline)) void emit(const Pose *p, int form, double *out,
-                                                        npy_intp stride, int lanes) {
+AI void emit(const Pose *p, int form, double *out, npy_intp stride, int lanes) {
 #if LANES == 8
     if (form != FORM_POS_QUAT) { /* rows [R0 R1 R2 t0 R3 R4 R5 t1 | R6 R7 R8 t2 0 0 0 1] */
         vd zero = {0};
@@ -359,9 +365,8 @@ AI void jacobian_column(const Pose *cur, const double *P, vd *col) {
 /* Write the n space-Jacobian columns in jac, turned into convention (JAC_SPACE, JAC_BODY,
  * JAC_WORLD) at the end pose cur, as each lane's (6, n) block of out (poekin.chain.
  * jacobian_from_world's arithmetic: world v + a x p, body R^T of the world rows). */
-static inline __attribute__((always_inline)) void jacobian_emit(const Pose *cur, int convention,
-                                                                 const vd *jac, int n, double *out,
-                                                                 npy_intp stride, int lanes) {
+AI void jacobian_emit(const Pose *cur, int convention, const vd *jac, int n, double *out,
+                      npy_intp stride, int lanes) {
     const vd *R = cur->R, *p = cur->t;
     for (int c = 0; c < n; ++c) {
         const vd *col = jac + 6 * c;
