@@ -261,12 +261,13 @@ AI void transpose4(vd r[4]) {
 #if LANES == 8
 /* Lane l's pose from the transposed halves lo and hi: 16 numbers for 4x4, 12 for 3x4. */
 AI void store_rows(const vd lo[8], const vd hi[8], int l, int form, double *o) {
+    typedef double half __attribute__((vector_size(32)));
     typedef double half_unaligned __attribute__((vector_size(32), aligned(8), may_alias));
     *(vd_unaligned *)o = lo[l];
     if (form == FORM_4X4)
         *(vd_unaligned *)(o + 8) = hi[l];
     else
-        *(half_unaligned *)(o + 8) = __builtin_shufflevector(hi[l], hi[l], 0, 1, 2, 3);
+        *(half_unaligned *)(o + 8) = (half){hi[l][0], hi[l][1], hi[l][2], hi[l][3]};
 }
 #endif
 
