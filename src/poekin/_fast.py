@@ -61,10 +61,10 @@ _Method = TypeVar("_Method", bound=Callable[..., Any])
 
 
 def fast_method(kernel_attr: str) -> Callable[[_Method], _Method]:
-    """Decorator for an FK method ``m(self, q, out=None, form="4x4")``: a call first runs
-    ``getattr(self, kernel_attr).run(q, out, form)`` in C, and runs the decorated function only
-    when that attribute is None or the kernel answers None (arguments to validate, convert or
-    refuse). Without the compiled kernel the function is returned as it is.
+    """Decorator for a method ``m(self, q, out=None, form="4x4")`` or ``m(self, q)``: a call
+    first runs ``getattr(self, kernel_attr).run(q, out, form)`` in C, and runs the decorated
+    function only when that attribute is None or the kernel answers None (arguments to
+    validate, convert or refuse). Without the compiled kernel the function is returned as it is.
 
     A Python method around the kernel costs a frame per call, ~25% of a single call.
     """

@@ -513,15 +513,16 @@ static PyTypeObject KernelType = {
 /* ------------------------------------------------------------------------------------------ */
 /* Python type: FastMethod(kernel_attr, fallback, names), a method that runs the kernel first */
 
-/* A method whose call `obj.m(q, out, form)` first runs `getattr(obj, kernel_attr).run(q, out,
- * form)` in C, and calls the Python function `fallback(obj, ...)` with the arguments as given
- * only when there is no kernel or it answers None (arguments that need validating or converting,
- * or errors to report). names: the fallback's parameter names after self, for keywords. It saves
- * a Python frame per call: a controller's single calls are as fast as the kernel's own. */
+/* A method whose call `obj.m(q, out, form)` (or `obj.m(q)`) first runs `getattr(obj,
+ * kernel_attr).run(q, out, form)` in C, and calls the Python function `fallback(obj, ...)` with
+ * the arguments as given only when there is no kernel or it answers None (arguments that need
+ * validating or converting, or errors to report). names: the fallback's parameter names after
+ * self, for keywords: (q, out, form) or (q,). It saves a Python frame per call: a controller's
+ * single calls are as fast as the kernel's own. */
 typedef struct {
     PyObject_HEAD PyObject *attr; /* interned name of the instance attribute holding the Kernel */
     PyObject *fallback;
-    PyObject *names; /* tuple of 3 interned parameter names: q, out, form */
+    PyObject *names; /* tuple of 1 to 3 interned parameter names: q, out, form */
     PyObject *dict;  /* __doc__, __wrapped__, ... (functools.update_wrapper) */
     vectorcallfunc vectorcall;
 } FastMethodObject;
@@ -529,15 +530,16 @@ typedef struct {
 static PyObject *FastMethod_vectorcall(FastMethodObject *self, PyObject *const *args,
                                        size_t nargsf, PyObject *kwnames) {
     Py_ssize_t nargs = PyVectorcall_NARGS(nargsf);
-    if (nargs < 1 || nargs > 4) goto slow;
-    /* the call's q, out and form, by position then by keyword */
+    const Py_ssize_t n_names = PyTuple_GET_SIZE(self->names);
+    if (nargs < 1 || nargs > 1 + n_names) goto slow;
+    /* the call's q, out and form, by position then by keyword; out missing is None */
     PyObject *given[3] = {NULL, NULL, NULL};
     for (Py_ssize_t k = 1; k < nargs; ++k) given[k - 1] = args[k];
     Py_ssize_t n_kw = kwnames == NULL ? 0 : PyTuple_GET_SIZE(kwnames);
     for (Py_ssize_t k = 0; k < n_kw; ++k) {
         PyObject *name = PyTuple_GET_ITEM(kwnames, k);
-        int slot = -1;
-        for (int j = 0; j < 3 && slot < 0; ++j)
+        Py_ssize_t slot = -1;
+        for (Py_ssize_t j = 0; j < n_names && slot < 0; ++j)
             if (name == PyTuple_GET_ITEM(self->names, j)) slot = j;
         if (slot < 0 || given[slot] != NULL) goto slow; /* the fallback says what is wrong */
         given[slot] = args[nargs + k];
@@ -547,7 +549,8 @@ static PyObject *FastMethod_vectorcall(FastMethodObject *self, PyObject *const *
     if (kernel == NULL) return NULL;
     if (Py_IS_TYPE(kernel, &KernelType)) {
         PyObject *run_args[3] = {given[0], given[1] != NULL ? given[1] : Py_None, given[2]};
-        PyObject *result = Kernel_run((KernelObject *)kernel, run_args, given[2] != NULL ? 3 : 2);
+        Py_ssize_t n_run = given[2] != NULL ? 3 : given[1] != NULL ? 2 : 1;
+        PyObject *result = Kernel_run((KernelObject *)kernel, run_args, n_run);
         Py_DECREF(kernel);
         if (result != Py_None) return result; /* the poses, or NULL for an error */
         Py_DECREF(result);
@@ -562,13 +565,14 @@ static int FastMethod_init(FastMethodObject *self, PyObject *args, PyObject *kwd
     PyObject *attr, *fallback, *names;
     if (!PyArg_ParseTuple(args, "UOO!:FastMethod", &attr, &fallback, &PyTuple_Type, &names))
         return -1;
-    if (!PyCallable_Check(fallback) || PyTuple_GET_SIZE(names) != 3) {
-        PyErr_SetString(PyExc_TypeError, "FastMethod(attr, fallback, (q, out, form names))");
+    const Py_ssize_t n_names = PyTuple_GET_SIZE(names);
+    if (!PyCallable_Check(fallback) || n_names < 1 || n_names > 3) {
+        PyErr_SetString(PyExc_TypeError, "FastMethod(attr, fallback, names of q[, out[, form]])");
         return -1;
     }
-    PyObject *interned = PyTuple_New(3);
+    PyObject *interned = PyTuple_New(n_names);
     if (interned == NULL) return -1;
-    for (int j = 0; j < 3; ++j) {
+    for (Py_ssize_t j = 0; j < n_names; ++j) {
         PyObject *name = PyTuple_GET_ITEM(names, j);
         if (!PyUnicode_Check(name)) {
             Py_DECREF(interned);

@@ -246,7 +246,9 @@ class Chain:
     _body: _ScrewTerms = dataclasses.field(init=False, repr=False)
     _space_kernel: Any = dataclasses.field(init=False, repr=False)
     _body_kernel: Any = dataclasses.field(init=False, repr=False)
-    _jacobian_kernels: dict[str, Any] = dataclasses.field(init=False, repr=False)
+    _jacobian_space_kernel: Any = dataclasses.field(init=False, repr=False)
+    _jacobian_body_kernel: Any = dataclasses.field(init=False, repr=False)
+    _jacobian_world_kernel: Any = dataclasses.field(init=False, repr=False)
 
     def __post_init__(self) -> None:
         n = len(self.joint_names)
@@ -277,13 +279,11 @@ class Chain:
         terms = dataclasses.astuple
         set_(self, "_space_kernel", _fast.chain_program(*terms(space), left=None, right=self.home))
         set_(self, "_body_kernel", _fast.chain_program(*terms(body), left=self.home, right=None))
-        jacobians = {
-            c: _fast.chain_jacobian_program(
+        for c in JACOBIAN_CONVENTIONS:
+            kernel = _fast.chain_jacobian_program(
                 *terms(space), screws=self.screws, home=self.home, convention=c
             )
-            for c in JACOBIAN_CONVENTIONS
-        }
-        set_(self, "_jacobian_kernels", jacobians)
+            set_(self, f"_jacobian_{c}_kernel", kernel)
 
     def _check_screws(self) -> None:
         for name, kind, S in zip(self.joint_names, self.joint_types, self.screws, strict=True):
@@ -338,6 +338,7 @@ class Chain:
         kernel = self._body_kernel  # as in fk
         return _fast.evaluate(kernel, q, out, form, self._joint_values, self._fk_body_numpy)
 
+    @_fast.fast_method("_jacobian_space_kernel")
     def jacobian_space(self, q: ArrayLike) -> FloatArray:
         """Space Jacobian ``J_s(q)``, ``(..., 6, n)``, rows ``[w; v]``: ``J_s q_dot`` is the end
         frame's twist in the world frame (Modern Robotics' ``JacobianSpace``; column ``i`` is
@@ -346,12 +347,14 @@ class Chain:
         """
         return self._jacobian("space", q)
 
+    @_fast.fast_method("_jacobian_body_kernel")
     def jacobian_body(self, q: ArrayLike) -> FloatArray:
         """Body Jacobian ``J_b(q) = Ad(T^-1) J_s(q)``, ``(..., 6, n)``, rows ``[w; v]``: the end
         frame's twist in the end frame itself (Modern Robotics' ``JacobianBody``). It is
         :meth:`jacobian_world` with both rows turned into the end frame, ``R^T``."""
         return self._jacobian("body", q)
 
+    @_fast.fast_method("_jacobian_world_kernel")
     def jacobian_world(self, q: ArrayLike) -> FloatArray:
         """World Jacobian, ``(..., 6, n)``, rows ``[w; v_frame]``, both in world coordinates:
         ``v_frame = v + w x p`` is the velocity of the end frame's origin ``p``. This is what
@@ -360,12 +363,9 @@ class Chain:
         return self._jacobian("world", q)
 
     def _jacobian(self, convention: str, q: ArrayLike) -> FloatArray:
-        """The compiled kernel's Jacobian, or the NumPy reference's (validating ``q``)."""
-        kernel = self._jacobian_kernels[convention]
-        if kernel is not None:  # the one-call fast path, as in fk
-            J: FloatArray | None = kernel.run(q)
-            if J is not None:
-                return J
+        """The compiled kernel's Jacobian for ``q`` to validate or convert first (the methods
+        have tried the kernel on ``q`` as it is: fast_method), or the NumPy reference's."""
+        kernel = getattr(self, f"_jacobian_{convention}_kernel")
         return _fast.run_checked(
             kernel,
             q,
