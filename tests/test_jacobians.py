@@ -176,6 +176,20 @@ def test_jacobian_errors_are_one_line(features_tree: Tree) -> None:
         chain.jacobian_body([0.0, np.nan, 0.0])
 
 
+def test_a_frame_seen_before_is_still_checked(features_tree: Tree) -> None:
+    """Later calls of a frame take a cached kernel; the arguments are still validated."""
+    qpos = sample_qpos(features_tree, 4, seed=3)
+    first = features_tree.jacobian(qpos, "finger")
+    assert np.array_equal(features_tree.jacobian(qpos, "finger"), first)
+    assert np.array_equal(features_tree.jacobian(list(qpos[0]), "finger"), first[0])
+    with pytest.raises(InputError, match="expected 17 qpos values"):
+        features_tree.jacobian(qpos[:, :3], "finger")
+    with pytest.raises(InputError, match="did you mean 'world'"):
+        features_tree.jacobian(qpos, "finger", "wrld")  # type: ignore[arg-type]
+    with pytest.raises(UnknownFrameError, match="no site or body named"):
+        features_tree.jacobian(qpos, ["finger"])  # type: ignore[arg-type]  # unhashable
+
+
 @pytest.fixture(scope="module")
 def features_tree() -> Tree:
     return tree_from_model(mujoco.MjModel.from_xml_string(FEATURES_XML))

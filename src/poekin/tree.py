@@ -147,8 +147,8 @@ class Tree:
     _dof_adr: IntArray = dataclasses.field(init=False, repr=False)  # each joint's first qvel column
     _kernel: Any = dataclasses.field(init=False, repr=False, compare=False)
     _spec: Any = dataclasses.field(init=False, repr=False, compare=False)
-    # (frame index, convention) -> compiled Jacobian, built at first use
-    _jacobian_kernels: dict[tuple[int, str], Any] = dataclasses.field(
+    # (frame name, convention) -> compiled Jacobian, built at first use
+    _jacobian_kernels: dict[tuple[str, str], Any] = dataclasses.field(
         init=False, repr=False, compare=False
     )
 
@@ -489,13 +489,19 @@ class Tree:
             UnknownFrameError: no such frame.
             InputError: ``qpos`` is not ``(..., nq)`` finite numbers, or an unknown convention.
         """
-        check_jacobian_convention(convention)
-        index = self.frame_index(frame)
-        kernel = self._jacobian_kernel(index, convention)
-        if kernel is not None:  # the one-call fast path, as in fk
+        # the one-call fast path: a frame and convention seen before (so valid) and qpos the
+        # kernel takes as it is
+        try:
+            kernel = self._jacobian_kernels.get((frame, convention))
+        except TypeError:  # unhashable: refused below
+            kernel = None
+        if kernel is not None:
             J: FloatArray | None = kernel.run(qpos)
             if J is not None:
                 return J
+        check_jacobian_convention(convention)
+        index = self.frame_index(frame)
+        kernel = self._jacobian_kernel(frame, index, convention)
         return _fast.run_checked(
             kernel,
             qpos,
@@ -503,8 +509,9 @@ class Tree:
             lambda checked: self._jacobian_numpy(checked, index, convention),
         )
 
-    def _jacobian_kernel(self, index: int, convention: str) -> Any:
-        key = (index, convention)
+    def _jacobian_kernel(self, frame: str, index: int, convention: str) -> Any:
+        """The compiled Jacobian of frame ``frame`` (at ``index``), built at the first call."""
+        key = (frame, convention)
         if key not in self._jacobian_kernels:
             scale = [1.0 if m is None else m.multiplier for m in self.mimics]
             self._jacobian_kernels[key] = _fast.tree_jacobian_program(
