@@ -14,8 +14,9 @@ from helpers import assert_close
 from test_params import BOOK_BODY_SCREWS, BOOK_HOME
 
 from poekin import Chain, InputError, exp_se3
+from poekin._extras import install_command
 from poekin.dh import DHTable
-from poekin.errors import UnknownParamsError
+from poekin.errors import MissingExtraError, UnknownParamsError
 from poekin.paramfile import load_params, params_from_dict
 from poekin.params import PARAM_SETS, UR5E_DH, lynch_park_ur5_chain, ur5e_chain
 
@@ -260,10 +261,11 @@ def test_yaml_without_pyyaml(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) ->
     path = tmp_path / "mine.yaml"
     path.write_text("convention: standard\nrows:\n  - {a: 0, alpha: 0, d: 0}\n")
     monkeypatch.setitem(sys.modules, "yaml", None)  # makes `import yaml` raise ImportError
-    with pytest.raises(InputError) as info:
+    with pytest.raises(MissingExtraError) as info:
         load_params(path)
     assert str(info.value) == (
-        f"reading {path} needs PyYAML: pip install 'poekin[yaml]' (or save the table as JSON)"
+        f"reading {path} needs PyYAML, which is not installed: {install_command('yaml')} "
+        "(or save it as JSON)"
     )
 
 

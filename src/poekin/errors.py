@@ -13,6 +13,7 @@ __all__ = [
     "InputError",
     "MenagerieUnavailableError",
     "MetricsFileError",
+    "MissingExtraError",
     "ModelError",
     "PoekinError",
     "UnknownFrameError",
@@ -73,3 +74,7 @@ def did_you_mean(name: str, valid: Iterable[str], *, listed: int = 12) -> str:
     shown = ", ".join(repr(v) for v in valid[:listed])
     more = f", ... ({len(valid) - listed} more)" if len(valid) > listed else ""
     return f"{hint}Valid names: {shown}{more}" if valid else f"{hint}there are no valid names"
+
+
+class MissingExtraError(PoekinError, ImportError):
+    """An optional feature's library is not installed; the message names the pip command."""

@@ -354,12 +354,11 @@ def _parse_json(text: str, source: str) -> object:
 
 
 def _parse_yaml(text: str, source: str) -> object:
-    try:
-        import yaml
-    except ImportError as e:
-        raise InputError(
-            f"reading {source} needs PyYAML: pip install 'poekin[yaml]' (or save the table as JSON)"
-        ) from e
+    from poekin._extras import require
+
+    yaml = require(
+        "yaml", "yaml", f"reading {source}", package="PyYAML", instead="or save it as JSON"
+    )
     try:
         result: object = yaml.safe_load(text)
     except yaml.YAMLError as e:
@@ -394,7 +393,7 @@ def load_params(spec: str | os.PathLike[str]) -> Chain | DHTable:
     Args:
         spec: a key of :data:`~poekin.params.PARAM_SETS` (e.g. ``"ur5e-dh"``), or the path of
             a ``.json``, ``.yaml`` or ``.yml`` file in a shape :func:`params_from_dict` accepts.
-            YAML needs PyYAML (``pip install 'poekin[yaml]'``).
+            YAML needs PyYAML (the extra ``poekin[yaml]``).
 
     Returns:
         A :class:`Chain` or a :class:`~poekin.dh.DHTable`.
