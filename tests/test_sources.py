@@ -743,4 +743,4 @@ def test_download_that_cannot_happen(
     monkeypatch.setenv("MENAGERIE_CACHE_DIR", str(tmp_path / "cache"))
     monkeypatch.setenv("MENAGERIE_BASE_URL", (tmp_path / "no-archives").as_uri())
     with pytest.raises(MenagerieUnavailableError, match="set MENAGERIE_ROOT to a local"):
-        load_model("universal_robots_ur5e")
+        load_model("franka_fr3")

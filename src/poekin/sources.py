@@ -47,7 +47,14 @@ if TYPE_CHECKING:  # MuJoCo is imported when a model is first loaded, not with p
     # A model element that reads a file.
     _Asset: TypeAlias = mujoco.MjsMesh | mujoco.MjsHField | mujoco.MjsSkin | mujoco.MjsTexture
 
-__all__ = ["AssetsStrippedWarning", "LoadedModel", "load_model", "resolve_source"]
+__all__ = [
+    "BUILTIN_ROBOTS",
+    "AssetsStrippedWarning",
+    "LoadedModel",
+    "Resolved",
+    "load_model",
+    "resolve_source",
+]
 
 _MODEL_SUFFIXES = (".xml", ".mjcf", ".urdf")
 _MENAGERIE_FIX = (
@@ -77,6 +84,9 @@ class LoadedModel:
         files: the model's files that exist on disk (XML, includes, assets), for hashing,
             whether or not the kinematics-only compile read them.
         stripped: what was missing and stripped, as the warning says it (empty if nothing).
+        origin: where a Menagerie robot's files came from, in words (empty for a path given):
+            a clone at ``MENAGERIE_ROOT``, the ``mujoco_menagerie`` download cache, or poekin's
+            built-in copy.
     """
 
     model: mujoco.MjModel
@@ -85,17 +95,44 @@ class LoadedModel:
     xml_path: pathlib.Path
     files: tuple[pathlib.Path, ...]
     stripped: tuple[str, ...] = ()
+    origin: str = ""
 
 
 def _looks_like_path(source: str) -> bool:
-    return os.sep in source or "/" in source or source.lower().endswith(_MODEL_SUFFIXES)
+    return os.sep in source or "/" in source or "." in pathlib.PurePath(source).name
 
 
-def resolve_source(source: str | os.PathLike[str]) -> tuple[pathlib.Path, str]:
-    """Turn a Menagerie robot name or a model path into ``(xml_path, robot_label)``.
+@dataclasses.dataclass(frozen=True)
+class Resolved:
+    """Where a source's model file is: ``path``, a ``robot`` label, and its ``origin`` in words
+    (empty for a file path the user gave)."""
+
+    path: pathlib.Path
+    robot: str
+    origin: str = ""
+
+
+def _check_kind(path: pathlib.Path) -> None:
+    """Refuse a file whose suffix names no model format, before MuJoCo tries to read it."""
+    if path.suffix.lower() not in _MODEL_SUFFIXES:
+        said = f"its suffix {path.suffix!r}" if path.suffix else "it has no suffix"
+        raise ModelError(
+            f"{path}: {said} is not a model format poekin reads: an MJCF file (.xml, .mjcf) or "
+            "a URDF file (.urdf), any case"
+        )
+
+
+def resolve_source(source: str | os.PathLike[str]) -> Resolved:
+    """Turn a Menagerie robot name or a model path into the model file to read.
+
+    A path is used as it is (any case of ``.xml``, ``.mjcf``, ``.urdf``). A Menagerie name is
+    resolved by ``mujoco_menagerie``: a clone at ``MENAGERIE_ROOT`` if set, else its download
+    cache, downloading if needed; for the robots poekin ships (:data:`BUILTIN_ROBOTS`), its own
+    copy when ``MENAGERIE_ROOT`` is not set and the cache does not hold the robot, so nothing
+    is downloaded.
 
     Raises:
-        ModelError: the path does not exist or is a directory.
+        ModelError: the path does not exist, is a directory, or names no model format.
         UnknownRobotError: not a path, and not a Menagerie robot name.
         MenagerieUnavailableError: a known robot that cannot be fetched here.
     """
@@ -106,26 +143,58 @@ def resolve_source(source: str | os.PathLike[str]) -> tuple[pathlib.Path, str]:
         hint = f" (it holds {', '.join(candidates[:6])})" if candidates else ""
         raise ModelError(f"{text} is a directory; pass the model's XML file inside it{hint}")
     if path.is_file():
-        return path.resolve(), path.name
+        _check_kind(path)
+        return Resolved(path.resolve(), path.name)
     if _looks_like_path(text):
         raise ModelError(f"model file not found: {text}; check the path")
-    return _resolve_menagerie(text), text
+    return _resolve_menagerie(text)
 
 
-def _resolve_menagerie(name: str) -> pathlib.Path:
+#: Menagerie robots whose model file poekin ships (XML and license, no meshes), by name.
+BUILTIN_ROBOTS: dict[str, str] = {"universal_robots_ur5e": "ur5e.xml"}
+
+
+def _builtin(name: str) -> pathlib.Path:
+    return pathlib.Path(__file__).parent / "data" / name / BUILTIN_ROBOTS[name]
+
+
+def _unknown_robot(name: str, names: list[str]) -> UnknownRobotError:
+    """The error for a name that is not a Menagerie robot, suggesting the names that contain it
+    (``ur5e``: ``universal_robots_ur5e``) or are spelled like it."""
+    low = name.lower()
+    containing = [n for n in names if low in n.lower()] if len(low) >= 2 else []
+    if containing:
+        shown = ", ".join(repr(n) for n in containing[:6])
+        more = f" ({len(containing) - 6} more)" if len(containing) > 6 else ""
+        return UnknownRobotError(
+            f"unknown robot {name!r} (not a file, not a Menagerie name): did you mean "
+            f"{shown}{more}?"
+        )
+    return UnknownRobotError(
+        f"unknown robot {name!r} (not a file, not a Menagerie name): "
+        f"{did_you_mean(name, names, listed=8)}"
+    )
+
+
+def _resolve_menagerie(name: str) -> Resolved:
     import mujoco_menagerie as mm
 
     try:
         robot = mm.get(name)
     except mm.UnknownRobotError:
-        raise UnknownRobotError(
-            f"unknown robot {name!r} (not a file, not a Menagerie name): "
-            f"{did_you_mean(name, mm.names(), listed=8)}"
-        ) from None
+        raise _unknown_robot(name, mm.names()) from None
+    root = os.environ.get("MENAGERIE_ROOT")
+    cache = mm.Cache()
+    if not root and name in BUILTIN_ROBOTS and not cache.is_cached(robot):
+        return Resolved(
+            _builtin(name),
+            name,
+            f"poekin's built-in copy of Menagerie's {name} (XML only; set MENAGERIE_ROOT to use "
+            "your own clone)",
+        )
     try:
-        xml = pathlib.Path(robot.xml(robot.default_model))
+        xml = pathlib.Path(robot.xml(robot.default_model, cache))
     except mm.MenagerieError as e:
-        root = os.environ.get("MENAGERIE_ROOT")
         where = f" under MENAGERIE_ROOT={root}" if root else " (no network for the download?)"
         raise MenagerieUnavailableError(
             f"Menagerie robot {name!r} is not available{where}: {_MENAGERIE_FIX}"
@@ -134,12 +203,14 @@ def _resolve_menagerie(name: str) -> pathlib.Path:
         raise MenagerieUnavailableError(
             f"Menagerie robot {name!r}: {xml} is missing; {_MENAGERIE_FIX}"
         )
-    return xml
+    origin = f"Menagerie clone at MENAGERIE_ROOT={root}" if root else "Menagerie download cache"
+    return Resolved(xml, name, origin)
 
 
-def _first_line(e: Exception) -> str:
+def _reason(e: Exception) -> str:
+    """MuJoCo's whole message on one line (it puts the element and line number on the next)."""
     lines = [ln.strip() for ln in str(e).splitlines() if ln.strip()]
-    return lines[0] if lines else type(e).__name__
+    return "; ".join(lines) if lines else type(e).__name__
 
 
 def _count(n: int, noun: str) -> str:
@@ -466,6 +537,21 @@ def _check_alignment(
     return needed
 
 
+def _includes(xml_path: pathlib.Path) -> dict[str, bytes]:
+    """Every file that ``xml_path`` and its includes name in ``<include>``, by the name written
+    there, for a model that MuJoCo reads from a string."""
+    found: dict[str, bytes] = {}
+    pending = [xml_path]
+    while pending:
+        path = pending.pop()
+        for kind, name in _xml_references(path):
+            if kind == "include" and name not in found:
+                child = _find_xml(xml_path, path, xml_path.parent, kind, name)
+                found[name] = child.read_bytes()
+                pending.append(child)
+    return found
+
+
 def _read_spec(xml_path: pathlib.Path) -> mujoco.MjSpec:
     """Parse the model (no asset file is read yet).
 
@@ -475,9 +561,15 @@ def _read_spec(xml_path: pathlib.Path) -> mujoco.MjSpec:
     import mujoco
 
     try:
-        spec = mujoco.MjSpec.from_file(str(xml_path))
+        if xml_path.suffix in (".xml", ".urdf"):
+            spec = mujoco.MjSpec.from_file(str(xml_path))
+        else:  # MuJoCo picks its reader by these two suffixes, in lower case only
+            spec = mujoco.MjSpec.from_string(
+                xml_path.read_text(encoding="utf-8"), include=_includes(xml_path)
+            )
+            spec.modelfiledir = str(xml_path.parent) + os.sep
     except Exception as e:  # MuJoCo raises ValueError for XML errors, but be robust
-        raise ModelError(f"cannot read {xml_path}: {_first_line(e)}") from e
+        raise ModelError(f"cannot read {xml_path}: {_reason(e)}") from e
     if xml_path.suffix.lower() == ".urdf":
         spec.compiler.fusestatic = False  # keep fixed-joint links as bodies: they are frames
         _floor_inertia(spec)  # URDF links often have no <inertial>
@@ -488,7 +580,7 @@ def _compile(spec: mujoco.MjSpec, xml_path: pathlib.Path) -> mujoco.MjModel:
     try:
         return spec.compile()
     except Exception as e:
-        raise ModelError(f"MuJoCo rejected {xml_path}: {_first_line(e)}") from e
+        raise ModelError(f"MuJoCo rejected {xml_path}: {_reason(e)}") from e
 
 
 def load_model(source: str | os.PathLike[str]) -> LoadedModel:
@@ -513,7 +605,8 @@ def load_model(source: str | os.PathLike[str]) -> LoadedModel:
         ModelError (or a subclass): the model cannot be found, parsed or compiled, an included
             or sub-model file is missing, or missing files shaped a free body's aligned frame.
     """
-    xml_path, robot = resolve_source(source)
+    resolved = resolve_source(source)
+    xml_path = resolved.path
     xml = _model_xml(xml_path)
     spec = _read_spec(xml_path)
     found, missing, present = _scan_assets(spec, xml)
@@ -526,10 +619,13 @@ def load_model(source: str | os.PathLike[str]) -> LoadedModel:
         _, missing, present = _scan_assets(spec, xml)
         _strip_for_kinematics(spec, missing, [a for a in present if _asset_key(a) not in needed])
         model = _compile(spec, xml_path)
-    if stripped:
+    builtin = resolved.robot in BUILTIN_ROBOTS and xml_path == _builtin(resolved.robot)
+    if stripped and not builtin:  # the built-in copy has no meshes by design, and says so
         warnings.warn(
             f"{xml_path.name}: loaded for kinematics only, stripped {'; '.join(stripped)}",
             AssetsStrippedWarning,
             stacklevel=2,
         )
-    return LoadedModel(model, robot, xml_path.stem, xml_path, files, stripped)
+    return LoadedModel(
+        model, resolved.robot, xml_path.stem, xml_path, files, stripped, resolved.origin
+    )
