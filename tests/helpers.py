@@ -17,7 +17,7 @@ from poekin.sources import LoadedModel
 MJ_TOL = 1e-13
 
 
-# `poekin verify --json` keys, in order, as issue #2 specifies them.
+# `poekin verify --json` keys, in order: issue #2's, then issue #15's.
 SUMMARY_KEYS = [
     "robot",
     "frame",
@@ -28,6 +28,14 @@ SUMMARY_KEYS = [
     "max_ori_err_rad",
     "median_ori_err_rad",
     "passed",
+    # issue #15: every figure the table prints, what was checked, and how
+    "params",
+    "pos_tol",
+    "ori_tol",
+    "sample_range",
+    "methods",
+    "model_file",
+    "model_origin",
 ]
 
 

@@ -99,7 +99,7 @@ def test_screws(capsys: pytest.CaptureFixture[str]) -> None:
     assert_close("body screws", [j["body_screw"] for j in info["joints"]], chain.body_screws, 0.0)
     assert_close("home", info["home"], chain.home, 0.0)
     code, out, _ = run(capsys, "screws", str(UR5E_XML), "--body")
-    assert code == 0 and "body B_i" in out and "wrist_3_joint" in out
+    assert code == 0 and "body screws B_i" in out and "wrist_3_joint" in out
 
 
 def test_fk_single(capsys: pytest.CaptureFixture[str]) -> None:
@@ -188,7 +188,7 @@ BAD_INPUTS = [
     ),
     (
         ["fk", "universal_robots_ur5e", "--input", "{bad_xml}", "--output", "{tmp}/T.npy"],
-        "not a .npy",
+        "its suffix '.xml' names no format poekin knows: .npy, .npz, .csv, .txt",
     ),
     (["dh"], "give a model"),
     (["dh", "universal_robots_ur5e", "--params", "ur5e-dh"], "not both"),
@@ -203,10 +203,10 @@ BAD_INPUTS = [
     (["diagnose", "--params", "ur5e-dh", "--samples", "0"], "--samples must be at least 1"),
     (["diagnose", "--params", "ur5e-dh", "--pos-tol", "-1"], "--pos-tol must be a positive"),
     (["verify", "--ori-tol", "nan"], "--ori-tol must be a positive number"),
-    (["diagnose", "--params", "ur5e-dh", "--plot", "{other_csv}"], "already exists"),
+    (["diagnose", "--params", "ur5e-dh", "--plot", "{other_png}"], "already exists"),
     (["fk", "unitree_go2", "--all-frames", "--q", "0", "1"], "expected 19 qpos values"),
-    (["fk", "unitree_go2", "--frame", "FL_calf", "--q", "0"], "--all-frames"),
-    (["fk", "aloha", "--all-frames", "--frame", "left/gripper", "--q", "0"], "not --frame"),
+    (["fk", "unitree_go2", "--frame", "FL_calf", "--q", "0"], "free joint 'joint0'"),
+    (["fk", "aloha", "--all-frames", "--frame", "left/gripper", "--q", "0"], "drop --frame"),
     (["verify", "aloha", "--all-frames", "--frame", "left/gripper"], "give no frame"),
     (["screws", "unitree_go2", "--frame", "imu"], "'joint0' on the path to 'imu' is a free"),
     (["verify", "{mj_rejects}"], "MuJoCo rejected"),
@@ -215,9 +215,9 @@ BAD_INPUTS = [
     (["verify", "--params", "{skewed_home}", "--against", "universal_robots_ur5e"], "orthonormal"),
     (["jacobian", "universal_robots_ur5e", "--q", "1", "2"], "expected 6 joint values"),
     (["jacobian", "universal_robots_ur5e"], "give joint values with --q"),
-    (["jacobian", "unitree_go2", "--frame", "FL_calf", "--q", "0"], "is a free joint"),
+    (["jacobian", "unitree_go2", "--frame", "FL_calf", "--q", "0"], "pass --tree"),
     (["jacobian", "unitree_go2", "--tree", "--frame", "FL_clf", "--q", "0"], "'FL_calf'"),
-    (["jacobian", "aloha", "--tree", "--q", "0"], "name the frame with --frame"),
+    (["jacobian", "aloha", "--tree", "--q", "0"], "name the end frame with --frame"),
     (["jacobian", "--tree", "--params", "ur5e-dh", "--q", "0"], "not --params"),
     (["jacobian", "universal_robots_ur5e", "--output", "{tmp}/J.npy", "--q", "0"], "goes with"),
     pytest.param(
@@ -253,6 +253,7 @@ def test_bad_input_gives_one_line_and_exit_2(
     argv: list[str], message: str, tmp_path: pathlib.Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     other = _write(tmp_path, "other.csv", "a,b,c\n1,2,3\n")
+    other_png = _write(tmp_path, "other.png", "not really a picture")
     zero_axis_joint = '<joint type="hinge" axis="0 0 0"/><geom size="0.1"/>'
     fills = {
         "tmp": str(tmp_path),
@@ -266,6 +267,7 @@ def test_bad_input_gives_one_line_and_exit_2(
         "half_axis": _param_file(tmp_path, "half.json", 2, [0.0, -0.5, 0.0, 0.163, 0.0, 0.425]),
         "skewed_home": _param_file(tmp_path, "skewed.json", 0, []),
         "other_csv": other,
+        "other_png": other_png,
     }
     before = pathlib.Path(other).read_bytes()
     code, _, err = run(capsys, *[a.format(**fills) for a in argv])
@@ -298,7 +300,7 @@ def test_no_network_menagerie(
     monkeypatch.delenv("MENAGERIE_ROOT")
     monkeypatch.setenv("MENAGERIE_CACHE_DIR", str(tmp_path))
     monkeypatch.setenv("MENAGERIE_BASE_URL", (tmp_path / "offline").as_uri())
-    code, _, err = run(capsys, "verify")
+    code, _, err = run(capsys, "verify", "franka_fr3")
     assert code == 2
     assert_one_error_line(
         err, "set MENAGERIE_ROOT to a local mujoco_menagerie clone, or pass a path"
@@ -481,3 +483,297 @@ def test_verify_a_frame_behind_a_free_joint_checks_the_tree(
     code, out, _ = run(capsys, "verify", "unitree_go2", "--frame", "FL_calf", "--samples", "50")
     assert code == 0
     assert "frame 'FL_calf'" in out and "tree FK" in out and "space PoE" not in out
+
+
+# --- issue #15: what a new user hit ------------------------------------------------------------
+
+Q_UR5E = ["0.1", "-1.2", "1.3", "0.4", "-0.5", "2.0"]
+
+
+@pytest.mark.parametrize("command", [["verify"], ["diagnose", "--params", "ur5e-dh"]])
+def test_a_negative_seed_is_one_line_and_exit_2(
+    command: list[str], capsys: pytest.CaptureFixture[str]
+) -> None:
+    code, out, err = run(capsys, *command, "--seed", "-1")
+    assert code == 2 and out == ""
+    assert_one_error_line(err, "--seed must be a whole number, 0 or more, got -1")
+
+
+@pytest.mark.parametrize(
+    "q",
+    [
+        ["0", "-1e-3", "0", "0", "0", "0"],
+        ["-1e-3", "0", "0", "0", "0", "0"],
+        ["-.5", "-1E+0", "-2.", "0.25", "-1.5e-1", "-0"],
+    ],
+)
+def test_negative_numbers_in_any_form(q: list[str], capsys: pytest.CaptureFixture[str]) -> None:
+    code, out, err = run(capsys, "fk", "universal_robots_ur5e", "--json", "--q", *q)
+    assert code == 0, err
+    expected = load("universal_robots_ur5e").fk([float(x) for x in q])
+    assert_close("T", json.loads(out)["T"], expected, 0.0)
+
+
+def test_minus_inf_is_a_number_then_refused_as_not_finite(
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    code, _, err = run(capsys, "fk", "universal_robots_ur5e", "--q", "-inf", *"00000")
+    assert code == 2
+    assert_one_error_line(err, "NaN or inf")
+    code, _, err = run(capsys, "verify", "--pos-tol", "-1e-3")
+    assert code == 2
+    assert_one_error_line(err, "--pos-tol must be a positive number, got -0.001")
+
+
+@pytest.mark.parametrize("suffix", [".npy", ".npz", ".csv", ".txt"])
+def test_fk_output_goes_exactly_where_asked_in_that_format(
+    suffix: str, capsys: pytest.CaptureFixture[str], tmp_path: pathlib.Path
+) -> None:
+    q = np.random.default_rng(1).uniform(-3, 3, size=(4, 6))
+    np.save(tmp_path / "q.npy", q)
+    target = tmp_path / f"T{suffix}"
+    code, out, _ = run(
+        capsys, "fk", "universal_robots_ur5e", "--input", str(tmp_path / "q.npy"),
+        "--output", str(target),
+    )  # fmt: skip
+    assert code == 0 and f"written to {target}" in out
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted(["q.npy", target.name])
+    expected = load("universal_robots_ur5e").fk(q)
+    if suffix == ".npy":
+        got = np.load(target)
+    elif suffix == ".npz":
+        got = np.load(target)["T"]
+    else:
+        got = np.loadtxt(target, delimiter="," if suffix == ".csv" else None, skiprows=1)
+        got = got.reshape(4, 4, 4)
+    assert_close(f"T{suffix}", got, expected, 0.0)
+
+
+def test_fk_reads_joint_values_from_csv(
+    capsys: pytest.CaptureFixture[str], tmp_path: pathlib.Path
+) -> None:
+    (tmp_path / "q.csv").write_text("q1,q2,q3,q4,q5,q6\n" + ",".join(Q_UR5E) + "\n")
+    code, _, err = run(
+        capsys, "fk", "universal_robots_ur5e", "--input", str(tmp_path / "q.csv"),
+        "--output", str(tmp_path / "T.npy"),
+    )  # fmt: skip
+    assert code == 0, err
+    expected = load("universal_robots_ur5e").fk([[float(x) for x in Q_UR5E]])
+    assert_close("T", np.load(tmp_path / "T.npy"), expected, 0.0)
+
+
+@pytest.mark.parametrize(
+    ("name", "content", "message"),
+    [
+        ("q.npy", "0,0,0,0,0,0\n", "is not a NumPy .npy file"),
+        ("complex.npy", None, "holds complex numbers"),
+    ],
+)
+def test_input_files_that_are_not_what_they_say(
+    name: str,
+    content: str | None,
+    message: str,
+    capsys: pytest.CaptureFixture[str],
+    tmp_path: pathlib.Path,
+) -> None:
+    path = tmp_path / name
+    if content is None:
+        np.save(path, np.zeros((2, 6)) + 1j)
+    else:
+        path.write_text(content)
+    code, _, err = run(
+        capsys, "fk", "universal_robots_ur5e", "--input", str(path),
+        "--output", str(tmp_path / "T.npy"),
+    )  # fmt: skip
+    assert code == 2
+    assert_one_error_line(err, message)
+    assert "pickle" not in err and not (tmp_path / "T.npy").exists()
+
+
+FIGURE_MAGIC = [(".pdf", b"%PDF"), (".svg", b"<?xml"), (".jpg", b"\xff\xd8"), (".PNG", b"\x89PNG")]
+
+
+@pytest.mark.parametrize(("suffix", "magic"), FIGURE_MAGIC)
+def test_verify_plot_in_the_format_its_suffix_names(
+    suffix: str, magic: bytes, capsys: pytest.CaptureFixture[str], tmp_path: pathlib.Path
+) -> None:
+    plot = tmp_path / f"fig{suffix}"
+    code, _, _ = run(capsys, "verify", "--samples", "20", "--plot", str(plot))
+    assert code == 0
+    assert plot.read_bytes().startswith(magic)
+
+
+@pytest.mark.parametrize("name", ["fig", "fig.gif.bak", "fig.txt"])
+def test_verify_plot_suffix_refused_before_any_work(
+    name: str, capsys: pytest.CaptureFixture[str], tmp_path: pathlib.Path
+) -> None:
+    code, out, err = run(capsys, "verify", "--plot", str(tmp_path / name))
+    assert code == 2 and out == ""
+    assert_one_error_line(err, "names no format poekin knows: .png, .pdf, .svg")
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_output_suffix_refused_before_any_work(
+    capsys: pytest.CaptureFixture[str], tmp_path: pathlib.Path
+) -> None:
+    np.save(tmp_path / "q.npy", np.zeros((2, 6)))
+    code, out, err = run(
+        capsys, "fk", "universal_robots_ur5e", "--input", str(tmp_path / "q.npy"),
+        "--output", str(tmp_path / "T.dat"),
+    )  # fmt: skip
+    assert code == 2 and out == ""
+    assert_one_error_line(err, "--output")
+    assert [p.name for p in tmp_path.iterdir()] == ["q.npy"]
+
+
+def test_dh_columns_stay_apart_for_any_magnitude(capsys: pytest.CaptureFixture[str]) -> None:
+    """ufactory_lite6's nearly parallel joints 2 and 3 put d2 at 27 km."""
+    code, out, _ = run(capsys, "dh", "ufactory_lite6")
+    assert code == 0
+    lines = out.splitlines()
+    header, rows = lines[1], lines[2:8]
+    assert header == "  " + header.strip() and header.split()[:2] == ["joint", "type"]
+    assert header.split()[2:] == ["a", "[m]", "alpha", "[rad]", "d", "[m]", "theta_off", "[rad]"]
+    for row in rows:
+        cells = row.split()
+        assert len(cells) == 6, row
+        assert [float(c) for c in cells[2:]]  # each a number of its own
+    # right-aligned: every number ends where its column header ends
+    for name in ("[m]", "alpha [rad]", "theta_off [rad]"):
+        end = header.index(name) + len(name)
+        assert all(row[end - 1] != " " and (len(row) == end or row[end] == " ") for row in rows)
+
+
+def test_verify_json_has_every_figure_the_table_prints(capsys: pytest.CaptureFixture[str]) -> None:
+    code, out, _ = run(capsys, "verify", "--params", "ur5e-dh", "--samples", "50", "--json")
+    result = json.loads(out)
+    assert code == 1 and list(result) == SUMMARY_KEYS
+    assert result["params"] == "ur5e-dh" and result["robot"] == "universal_robots_ur5e"
+    assert result["pos_tol"] == 1e-5 and result["ori_tol"] == 1e-4
+    assert result["sample_range"] == "in [-2 pi, 2 pi]"
+    assert list(result["methods"]) == ["DH table", "space PoE", "body PoE"]
+    code, text, _ = run(capsys, "verify", "--params", "ur5e-dh", "--samples", "50")
+    keys = ("max_pos_err_m", "median_pos_err_m", "max_ori_err_rad", "median_ori_err_rad")
+    for method, figures in result["methods"].items():
+        row = next(ln for ln in text.splitlines() if ln.startswith(method))
+        printed = [float(x) for x in row[len(method) :].split()]
+        assert printed == pytest.approx([figures[k] for k in keys], rel=5e-3)
+
+
+def test_a_malformed_model_keeps_mujocos_whole_reason(
+    capsys: pytest.CaptureFixture[str], tmp_path: pathlib.Path
+) -> None:
+    bad = _write(tmp_path, "bad.xml", "<mujoco>\n<worldbody>\n<body>\n<oops>\n</mujoco>\n")
+    code, _, err = run(capsys, "verify", bad)
+    assert code == 2
+    assert_one_error_line(err, "XML_ERROR_MISMATCHED_ELEMENT")
+    assert "Line number=4" in err
+    geom = '<body><geom size="a"/></body>'
+    bad = _write(tmp_path, "size.xml", f"<mujoco><worldbody>{geom}</worldbody></mujoco>")
+    code, _, err = run(capsys, "verify", bad)
+    assert_one_error_line(err, "bad format in attribute 'size'; Element 'geom', line 1")
+
+
+def test_a_near_miss_matches_the_tail_of_a_robot_name(capsys: pytest.CaptureFixture[str]) -> None:
+    code, _, err = run(capsys, "verify", "ur5e")
+    assert code == 2
+    assert_one_error_line(err, "did you mean 'universal_robots_ur5e'")
+
+
+def test_model_kinds_by_suffix_in_any_case(
+    capsys: pytest.CaptureFixture[str], tmp_path: pathlib.Path
+) -> None:
+    urdf = tmp_path / "arm3.URDF"
+    urdf.write_bytes(
+        (pathlib.Path(__file__).parent / "data" / "urdf" / "serial_arm.urdf").read_bytes()
+    )
+    code, out, err = run(capsys, "verify", str(urdf), "--samples", "20")
+    assert code == 0 and "PASS" in out, err
+    mjcf = tmp_path / "UR5E.XML"
+    mjcf.write_bytes(UR5E_XML.read_bytes())
+    code, out, err = run(capsys, "verify", str(mjcf), "--samples", "20")
+    assert code == 0 and "PASS" in out, err
+    readme = _write(tmp_path, "README.md", "# not a robot\n")
+    code, _, err = run(capsys, "verify", readme)
+    assert code == 2
+    assert_one_error_line(err, "is not a model format poekin reads: an MJCF file (.xml, .mjcf)")
+
+
+def test_one_tree_vocabulary_for_fk_and_jacobian(capsys: pytest.CaptureFixture[str]) -> None:
+    tree = poekin.load_tree(load_quiet("unitree_go2"))
+    qpos = poekin.sample_qpos(tree, 1, seed=5)[0]
+    q = [repr(float(x)) for x in qpos]
+    for command in ("fk", "jacobian"):
+        code, _, err = run(capsys, command, "unitree_go2", "--frame", "FL_calf", "--q", *q)
+        assert code == 2
+        assert_one_error_line(err, "sits behind the free joint 'joint0'")
+        assert "pass --tree" in err and "--all-frames" not in err
+    argv = ["fk", "unitree_go2", "--frame", "FL_calf", "--json", "--q", *q]
+    code, out, _ = run(capsys, *argv, "--tree")
+    assert code == 0
+    assert_close("T", json.loads(out)["T"], tree.fk(qpos)[tree.frame_index("FL_calf")], 0.0)
+    code, out, _ = run(
+        capsys, "fk", "unitree_go2", "--frame", "FL_calf", "--relative-to", "base", "--json",
+        "--q", *q,
+    )  # fmt: skip
+    assert code == 0 and json.loads(out)["relative_to"] == "base"
+    T = tree.fk(qpos)
+    T_base_calf = np.linalg.inv(T[tree.frame_index("base")]) @ T[tree.frame_index("FL_calf")]
+    assert_close("T_base_FL_calf", json.loads(out)["T"], T_base_calf, 1e-15)
+    argv = ["fk", "unitree_go2", "--frame", "FL_calf", "--relative-to", "base", "--q", *q]
+    code, out, _ = run(capsys, *argv)
+    assert out.startswith("T_base_FL_calf =")
+
+
+def test_dh_of_a_model_without_joints_names_it(
+    capsys: pytest.CaptureFixture[str], tmp_path: pathlib.Path
+) -> None:
+    xml = _write(
+        tmp_path,
+        "nojoint.xml",
+        '<mujoco><worldbody><body name="b" pos="0 0 1"><geom size="0.1"/>'
+        '<site name="tip" pos="0 0 0.5"/></body></worldbody></mujoco>',
+    )
+    code, out, _ = run(capsys, "dh", xml, "--json")
+    table = json.loads(out)
+    assert code == 0 and table["rows"] == []
+    assert table["robot"] == "nojoint.xml" and table["frame"] == "tip"
+    tool = np.eye(4)
+    tool[2, 3] = 1.5
+    assert_close("tool", table["tool"], tool, 0.0)
+
+
+def test_json_goes_with_q_not_with_input(
+    capsys: pytest.CaptureFixture[str], tmp_path: pathlib.Path
+) -> None:
+    np.save(tmp_path / "q.npy", np.zeros((2, 6)))
+    code, out, err = run(
+        capsys, "fk", "universal_robots_ur5e", "--input", str(tmp_path / "q.npy"),
+        "--output", str(tmp_path / "T.npy"), "--json",
+    )  # fmt: skip
+    assert code == 2 and out == ""
+    assert_one_error_line(err, "--json prints the result of one --q")
+    assert [p.name for p in tmp_path.iterdir()] == ["q.npy"]
+
+
+def test_diagnose_a_table_typed_with_four_decimals(
+    capsys: pytest.CaptureFixture[str], tmp_path: pathlib.Path
+) -> None:
+    """UR's published UR5e table with pi/2 typed as 1.5708."""
+    table = poekin.named_params("ur5e-dh").describe()
+    for row in table["rows"]:
+        row["alpha"] = round(row["alpha"], 4)
+    path = tmp_path / "ur5e_1p5708.json"
+    path.write_text(json.dumps(table))
+    code, out, _ = run(capsys, "diagnose", "--params", str(path))
+    assert code == 1
+    line = next(ln for ln in out.splitlines() if "alpha1:" in ln)
+    assert "1.5708 rad" in line and "1.570796 rad" in line and "+3.67e-06 rad" in line
+    mismatch = next(ln for ln in out.splitlines() if ln.startswith("MISMATCH"))
+    assert "aligning the base does not reduce it" in mismatch
+    steps = [ln for ln in out.splitlines() if ln.startswith("  ") and "-> max error" in ln]
+    assert steps and not any("unchanged" in s for s in steps)
+    last = float(steps[-1].split("max error ")[1].split(" m")[0])
+    assert last <= 1e-6  # the bisection reaches the tolerance
+    errors = [float(s.split("max error ")[1].split(" m")[0]) for s in steps]
+    assert errors == sorted(errors, reverse=True) and len(set(errors)) == len(errors)

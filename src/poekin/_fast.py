@@ -15,6 +15,7 @@ import dataclasses
 import functools
 import inspect
 import os
+import warnings
 from collections.abc import Callable, Sequence
 from typing import Any, Literal, TypeVar
 
@@ -30,12 +31,15 @@ except ImportError:  # built without a C compiler: the NumPy path serves
     _kernel = None
 
 __all__ = [
+    "NUMPY_PATH_SLOWDOWN",
     "Form",
+    "SlowPathWarning",
     "TreeSpec",
     "compiled_kernel",
     "evaluate",
     "fast_method",
     "get_threads",
+    "kernel_description",
     "result_shape",
     "run_checked",
     "set_threads",
@@ -55,6 +59,39 @@ _JACOBIAN_CODES: dict[str, float] = {"space": 0.0, "body": 1.0, "world": 2.0}
 def compiled_kernel() -> bool:
     """Whether the compiled kernel is installed (else FK runs on the pure-NumPy path)."""
     return _kernel is not None
+
+
+#: How much slower the NumPy path is than the kernel on a batch (UR5e ``chain.fk``, 1e5
+#: configurations; measured: README "Install").
+NUMPY_PATH_SLOWDOWN = 136
+_VECTOR_UNITS = {8: "AVX-512", 4: "AVX2", 2: "SSE2"}
+# A batch of at least this many configurations on the NumPy path gets a note, once a process.
+_SLOW_NOTE_BATCH = 10_000
+_slow_noted = False
+
+
+class SlowPathWarning(UserWarning):
+    """poekin was installed without its compiled kernel, so big batches are slow."""
+
+
+def kernel_description() -> str:
+    """The FK kernel in words: its vector unit and width, or the NumPy path's cost."""
+    if _kernel is None:
+        return (
+            "no compiled kernel: FK runs on the NumPy path, about "
+            f"{NUMPY_PATH_SLOWDOWN}x slower in batches; reinstall poekin with a C compiler"
+        )
+    width = int(_kernel.get_width())
+    return f"compiled FK kernel, {_VECTOR_UNITS[width]}: {width} configurations per vector"
+
+
+def _note_slow_path(batch: tuple[int, ...]) -> None:
+    """Warn once a process when a big batch runs on the NumPy path."""
+    global _slow_noted
+    if _slow_noted or int(np.prod(batch)) < _SLOW_NOTE_BATCH:
+        return
+    _slow_noted = True
+    warnings.warn(kernel_description(), SlowPathWarning, stacklevel=4)
 
 
 _Method = TypeVar("_Method", bound=Callable[..., Any])
@@ -433,6 +470,7 @@ def evaluate(
     if out is not None:
         _check_out(out, shape)
     if kernel is None:
+        _note_slow_path(arr.shape[:-1])
         result = reformat(reference(arr), form)
         if out is None:
             return result
@@ -457,6 +495,7 @@ def run_checked(
             return result
     checked = validate(x)
     if kernel is None:
+        _note_slow_path(checked.shape[:-1])
         return reference(checked)
     result = kernel.run(np.ascontiguousarray(checked))
     assert result is not None, "validated input was refused by the kernel"

@@ -376,7 +376,16 @@ def dh_from_chain(
     dirs, points = joint_lines(chain)
     if n == 0:
         empty = np.zeros(0)
-        return DHTable(convention, empty, empty, empty, empty, (), (), tool=chain.home)
+        return DHTable(
+            convention,
+            *(empty,) * 4,
+            (),
+            (),
+            tool=chain.home,
+            frame=chain.frame,
+            robot=chain.robot,
+            notes=(f"no joints between the world and {chain.frame!r}: the tool is the whole pose",),
+        )
     base = np.asarray(lie.homogeneous(_rot_z_to(dirs[0]), points[0]), dtype=np.float64)
     a, alpha, d, theta = (np.zeros(n) for _ in range(4))
     notes: list[str] = []

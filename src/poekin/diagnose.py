@@ -50,6 +50,7 @@ _AGREE_ANGLE = 0.02
 _AGREE_DIST = 1e-4
 _FLIP_ANGLE = 0.02  # an axis within this of the reversed direction counts as flipped
 _BISECT_SAMPLES = 200
+_SAME = 1e-12  # parts of two parameter sets that differ by less are the same part
 
 
 @dataclasses.dataclass(frozen=True)
@@ -124,6 +125,61 @@ class Diagnosis:
                 labels.setdefault(f.joint, []).append(text)
         return {j: ", ".join(t) for j, t in labels.items()}
 
+    @property
+    def base_aligned(self) -> bool:
+        """Whether a base alignment other than the identity reduced the errors (else your base
+        is compared as it is)."""
+        return not np.array_equal(self.base, np.eye(4))
+
+    @property
+    def unattributed(self) -> tuple[float, float] | None:
+        """The errors (m, rad) that the bisection left above the tolerances once every part that
+        differs was replaced, or None if it reached them."""
+        if self.matches or not self.bisect:
+            return None
+        last = self.bisect[-1]
+        if last.max_pos_err_m <= self.pos_tol and last.max_ori_err_rad <= self.ori_tol:
+            return None
+        return last.max_pos_err_m, last.max_ori_err_rad
+
+    def report(self) -> list[str]:
+        """The findings as ``poekin diagnose`` prints them, one line each."""
+        errs = f"max error {_sig(self.max_pos_err_m)} m, {_sig(self.max_ori_err_rad)} rad"
+        if self.matches:
+            return [f"MATCH: {errs}, within {self.pos_tol:g} m, {self.ori_tol:g} rad"]
+        if self.base_aligned:
+            after = (
+                f"after aligning the base: {_sig(self.aligned_max_pos_err_m)} m, "
+                f"{_sig(self.aligned_max_ori_err_rad)} rad"
+            )
+        else:
+            after = "aligning the base does not reduce it, so your base is compared as it is"
+        lines = [
+            f"MISMATCH: {errs} (at q = 0: {_sig(self.home_pos_err_m)} m, "
+            f"{_sig(self.home_ori_err_rad)} rad); {after}",
+            f"differences (above {self.pos_tol:g} m, {self.ori_tol:g} rad):",
+            *(f"  - {f.message}" for f in self.findings),
+        ]
+        if self.symptoms:
+            lines += ["what the errors point to:", *(f"  - {t}" for t in self.symptoms)]
+        if self.bisect:
+            width = max(len(step.part) for step in self.bisect)
+            lines.append(
+                "bisection: replace one part at a time by the model's (largest gain first):"
+            )
+            lines += [
+                f"  {k}. {step.part:{width}}  -> max error {_sig(step.max_pos_err_m)} m, "
+                f"{_sig(step.max_ori_err_rad)} rad"
+                for k, step in enumerate(self.bisect, 1)
+            ]
+        if self.unattributed is not None:
+            p, r = self.unattributed
+            lines.append(
+                f"  what is left ({_sig(p)} m, {_sig(r)} rad) is not attributed to any one part: "
+                "the parts differ by less than 1e-12 each"
+            )
+        return lines
+
     def summary(self) -> dict[str, Any]:
         """The JSON object printed by ``poekin diagnose --json``."""
         return {
@@ -145,6 +201,8 @@ class Diagnosis:
             "findings": [dataclasses.asdict(f) for f in self.findings],
             "symptoms": list(self.symptoms),
             "bisect": [dataclasses.asdict(s) for s in self.bisect],
+            "unattributed": self.unattributed,
+            "base_aligned": self.base_aligned,
             "convention": self.convention,
         }
 
@@ -161,12 +219,28 @@ def _angle(u: FloatArray, v: FloatArray) -> float:
     return float(np.arctan2(np.linalg.norm(np.cross(u, v)), u @ v))
 
 
+def _sig(x: float) -> str:
+    return f"{x:.3g}"
+
+
 def _deg(x: float) -> str:
-    return f"{np.degrees(x):.1f} deg"
+    """An angle in degrees: one decimal, or two significant digits below 0.1 deg."""
+    deg = float(np.degrees(x))
+    return f"{deg:.2g} deg" if abs(deg) < 0.1 else f"{deg:.1f} deg"
+
+
+def _both(yours: float, model: float, digits: int) -> tuple[str, str]:
+    """``yours`` and ``model`` with ``digits`` significant digits, or as many more as it takes
+    for two different numbers to print differently (``1.5708`` vs ``1.5707963``)."""
+    for k in range(digits, 18):
+        a, b = f"{yours + 0.0:.{k}g}", f"{model + 0.0:.{k}g}"
+        if a != b or yours == model:
+            return a, b
+    return a, b
 
 
 def _vec(v: FloatArray, digits: int = 4) -> str:
-    return "[" + ", ".join(f"{x + 0.0:+.{digits}f}" for x in v) + "]"
+    return "[" + ", ".join(f"{round(float(x), digits) + 0.0:+.{digits}f}" for x in v) + "]"
 
 
 def _axis_angle(R: FloatArray) -> tuple[FloatArray, float]:
@@ -399,20 +473,23 @@ def _length_findings(
         if not near_flip and dal > tol_r and abs(dal - np.pi) > _FLIP_ANGLE:
             twists.append((al_name, t_y.alpha[i], t_m.alpha[i], i))
     for name, y, m, i in lengths:
+        ys, ms = _both(y, m, 6)
         out.append(
             Finding(
                 "link_length",
-                f"{name}: {y + 0.0:.6g} m in yours vs {m + 0.0:.6g} m in the model "
-                f"({(y - m) * 1000:+.4g} mm)",
+                f"{name}: {ys} m in yours vs {ms} m in the model ({(y - m) * 1000:+.4g} mm)",
                 joint=i,
                 value=abs(y - m),
             )
         )
     for name, y, m, i in twists:
+        ys, ms = _both(y, m, 6)
+        yd, md = _both(float(np.degrees(y)), float(np.degrees(m)), 4)
         out.append(
             Finding(
                 "link_twist",
-                f"{name}: {y:.6g} rad ({_deg(y)}) in yours vs {m:.6g} rad ({_deg(m)}) in the model",
+                f"{name}: {ys} rad ({yd} deg) in yours vs {ms} rad ({md} deg) in the model "
+                f"({y - m:+.3g} rad)",
                 joint=i,
                 value=abs(y - m),
             )
@@ -454,27 +531,31 @@ def _max_errors(T_ref: FloatArray, T: FloatArray) -> tuple[float, float]:
     return float(np.max(pos, initial=0.0)), float(np.max(ori, initial=0.0))
 
 
+# Bisection parts beside the joints (0 .. n-1): the end (M or the DH tool) and the DH base.
+_END, _BASE = -1, -2
+
+
 def _greedy(
     build: Callable[[frozenset[int]], Callable[[FloatArray], FloatArray]],
     label: Callable[[int], str],
-    n_joints: int,
+    parts: list[int],
     model: Chain,
     q: FloatArray,
     tol_p: float,
     tol_r: float,
 ) -> list[BisectStep]:
-    """Replace parts (joints ``0..n-1`` and ``-1``, the end) one at a time, always the one that
-    leaves the least error, until the errors are within tolerance.
+    """Replace ``parts`` (joints ``0..n-1``, :data:`_END`, :data:`_BASE`: only those that
+    differ) one at a time, always the one that leaves the least error, until the errors are
+    within tolerance or every part is replaced.
 
     ``build(done)`` gives the FK with the parts in ``done`` taken from the model.
     """
     T_ref = model.fk(q)
-    reach = max(float(np.linalg.norm(model.home[:3, 3])), 0.1)  # turns rad into m
+    reach = _reach(model)
 
     def errors(done: frozenset[int]) -> tuple[float, float]:
         return _max_errors(T_ref, build(done)(q))
 
-    parts = [*range(n_joints), -1]
     done: frozenset[int] = frozenset()
     err = errors(done)
     steps: list[BisectStep] = []
@@ -484,6 +565,16 @@ def _greedy(
         done |= {part}
         steps.append(BisectStep(label(part), None if part < 0 else part, err[0], err[1]))
     return steps
+
+
+def _differ(a: FloatArray | float, b: FloatArray | float) -> bool:
+    """Whether two parts differ by more than rounding (1e-12 in any entry)."""
+    return bool(np.max(np.abs(np.asarray(a) - np.asarray(b)), initial=0.0) > _SAME)
+
+
+def _reach(model: Chain) -> float:
+    """A length that turns an angle error into a comparable position error (m per rad)."""
+    return max(float(np.linalg.norm(model.home[:3, 3])), 0.1)
 
 
 def _bisect_screws(
@@ -500,13 +591,20 @@ def _bisect_screws(
                 m if p else y
                 for p, m, y in zip(pick, model.joint_types, aligned.joint_types, strict=True)
             ),
-            home=model.home if -1 in done else aligned.home,
+            home=model.home if _END in done else aligned.home,
         ).fk
 
     def label(part: int) -> str:
-        return "M" if part < 0 else f"joint {part + 1} ({model.joint_names[part]})"
+        return "M" if part == _END else f"joint {part + 1} ({model.joint_names[part]})"
 
-    return _greedy(build, label, model.n_joints, model, q, tol_p, tol_r)
+    parts = [
+        i
+        for i in range(model.n_joints)
+        if aligned.joint_types[i] != model.joint_types[i]
+        or _differ(aligned.screws[i], model.screws[i])
+    ]
+    parts += [_END] if _differ(aligned.home, model.home) else []
+    return _greedy(build, label, parts, model, q, tol_p, tol_r)
 
 
 def _bisect_rows(
@@ -517,7 +615,8 @@ def _bisect_rows(
     tol_p: float,
     tol_r: float,
 ) -> list[BisectStep]:
-    """Bisection for a DH table: replace one row (or the tool) at a time by the model's row.
+    """Bisection for a DH table: replace one row (or the tool, or the base) at a time by the
+    model's.
 
     Both tables are extracted from the chains with the same choices, so rows correspond.
     """
@@ -527,20 +626,32 @@ def _bisect_rows(
     def build(done: frozenset[int]) -> Callable[[FloatArray], FloatArray]:
         pick = np.array([i in done for i in range(model.n_joints)], dtype=bool)
         rows = {f: np.where(pick, getattr(t_m, f), getattr(t_y, f)) for f in fields}
-        return dataclasses.replace(t_y, **rows, tool=t_m.tool if -1 in done else t_y.tool).fk
+        return dataclasses.replace(
+            t_y,
+            **rows,
+            tool=t_m.tool if _END in done else t_y.tool,
+            base=t_m.base if _BASE in done else t_y.base,
+        ).fk
 
-    def label(part: int) -> str:
-        if part < 0:
-            return "tool"
+    def changed(part: int) -> list[str]:
         names = t_m.param_names()[part]
-        changed = [
+        return [
             n
             for n, f in zip(names, fields, strict=True)
-            if abs(getattr(t_y, f)[part] - getattr(t_m, f)[part]) > 1e-12
+            if _differ(getattr(t_y, f)[part], getattr(t_m, f)[part])
         ]
-        return f"row {part + 1} ({', '.join(changed) or 'unchanged'})"
 
-    return _greedy(build, label, model.n_joints, model, q, tol_p, tol_r)
+    def label(part: int) -> str:
+        if part == _END:
+            return "tool"
+        if part == _BASE:
+            return "base"
+        return f"row {part + 1} ({', '.join(changed(part))})"
+
+    parts = [i for i in range(model.n_joints) if changed(i)]
+    parts += [_END] if _differ(t_y.tool, t_m.tool) else []
+    parts += [_BASE] if _differ(t_y.base, t_m.base) else []
+    return _greedy(build, label, parts, model, q, tol_p, tol_r)
 
 
 def _symptoms(
@@ -623,6 +734,11 @@ def diagnose(
     B = align_base(chain, model)
     aligned = _moved(chain, B)
     al_p, al_r = _max_errors(T_ref, aligned.fk(q))
+    reach = _reach(model)
+    if al_p + reach * al_r >= max_p + reach * max_r:  # no help: your base is taken as it is
+        B = np.eye(4)
+        aligned = _moved(chain, B)
+        al_p, al_r = max_p, max_r
     joints, flipped = _joint_findings(aligned, model, pos_tol, ori_tol)
     findings = [
         *_base_findings(B, pos_tol, ori_tol),

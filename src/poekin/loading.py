@@ -12,7 +12,7 @@ import pathlib
 
 from poekin.chain import Chain
 from poekin.errors import InputError, UnknownFrameError, did_you_mean
-from poekin.import_mujoco import chain_from_model, tree_from_model
+from poekin.import_mujoco import tree_from_model
 from poekin.sources import LoadedModel, load_model
 from poekin.tree import Tree
 
@@ -59,18 +59,27 @@ def load_tree(source: Source, *, floating_base: bool = False) -> Tree:
 
 
 def default_frame(tree: Tree) -> str:
-    """The end frame of a URDF tree when none is named: its only leaf link.
+    """The end frame when none is named: the model's only site, or, in a model without sites
+    (a URDF), its only leaf body.
 
     Raises:
-        UnknownFrameError: the tree has several leaf links; the message lists them.
+        UnknownFrameError: several sites, or no site and several leaf bodies; the message lists
+            the candidates.
     """
+    if tree.site_names:
+        if len(tree.site_names) == 1:
+            return tree.site_names[0]
+        raise UnknownFrameError(
+            f"the model has {len(tree.site_names)} sites, so name the end frame with --frame / "
+            f"frame=: {did_you_mean('', [*tree.site_names, *tree.body_names])}"
+        )
     parents = set(tree.body_parents.tolist())
     leaves = [b for k, b in enumerate(tree.body_names) if k not in parents]
     if len(leaves) == 1:
         return leaves[0]
     raise UnknownFrameError(
-        f"the model has {len(leaves)} end links, so name the end frame with --frame / frame=: "
-        f"{did_you_mean('', leaves)}"
+        f"the model has no site and {len(leaves)} end links, so name the end frame with "
+        f"--frame / frame=: {did_you_mean('', leaves)}"
     )
 
 
@@ -81,7 +90,7 @@ def load(source: Source, frame: str | None = None) -> Chain:
         source: e.g. ``"universal_robots_ur5e"``, a path to an MJCF or ``.urdf`` file, or an
             already loaded model.
         frame: the end frame, a site or body (URDF: link) name; None means the model's only
-            site (URDF: its only leaf link).
+            site, or in a model without sites (URDF) its only leaf body.
 
     Returns:
         The chain of hinge and slide joints from the world to ``frame``.
@@ -91,8 +100,5 @@ def load(source: Source, frame: str | None = None) -> Chain:
         >>> chain.fk([0.0, -1.57, 1.57, 0.0, 0.0, 0.0]).shape
         (4, 4)
     """
-    if is_urdf(source):
-        tree = load_tree(source)
-        return tree.chain(frame if frame is not None else default_frame(tree))
-    loaded = source if isinstance(source, LoadedModel) else load_model(source)
-    return chain_from_model(loaded.model, frame, robot=loaded.robot)
+    tree = load_tree(source)
+    return tree.chain(frame if frame is not None else default_frame(tree))

@@ -26,6 +26,7 @@ from poekin.chain import Chain
 from poekin.dh import joint_lines
 from poekin.diagnose import Diagnosis
 from poekin.errors import InputError
+from poekin.fileio import figure_format
 
 __all__ = ["plot_diagnosis", "plot_errors"]
 
@@ -39,6 +40,8 @@ _DEFAULT_FLOOR = 1e-18
 _LINESTYLES = ("-", "--", ":", "-.")
 _MARKERS = ("o", "x", "+", "s", "^", "v", "D")
 _TOL_STYLE: dict[str, Any] = {"color": "0.25", "linestyle": (0, (5, 3)), "linewidth": 1.0}
+_PASS_COLOR = "#1a7f37"  # a green
+_FAIL_COLOR = "#c62828"  # a red
 
 
 def _as_errors(name: str, kind: str, values: npt.ArrayLike) -> FloatArray:
@@ -242,8 +245,9 @@ def plot_errors(
     path: str | os.PathLike[str],
     pos_tol: float | None = None,
     ori_tol: float | None = None,
+    passed: bool | None = None,
 ) -> pathlib.Path:
-    """Save the verification figure as a PNG: error histograms and a position/orientation scatter.
+    """Save the verification figure: error histograms and a position/orientation scatter.
 
     Three panels: (a) histogram of position error per method, (b) histogram of orientation
     error per method, both on a log x-axis with log-spaced bins spanning the data, their
@@ -258,20 +262,25 @@ def plot_errors(
             ...}``; values >= 0. NaN/inf are left out and counted in the panel text.
         ori_err: ``{method: (N,) orientation errors [rad]}``, same keys and lengths.
         title: the figure title.
-        path: where to write the PNG (PNG whatever the suffix); its directory must exist.
-            An existing file is overwritten.
+        path: where to write the figure, in the format its suffix names (``.png``, ``.pdf``,
+            ``.svg``, ``.jpg``...: :data:`poekin.fileio.FIGURE_FORMATS`); its directory must
+            exist. An existing file is overwritten.
         pos_tol: position tolerance [m] to draw, or ``None``.
         ori_tol: orientation tolerance [rad] to draw, or ``None``.
+        passed: the verdict, said under the title (``PASS``/``FAIL`` and the tolerances, in
+            green or red), or ``None`` for none.
 
     Returns:
         ``path`` as a :class:`pathlib.Path`.
 
     Raises:
         FileNotFoundError: the directory of ``path`` does not exist.
-        InputError: the two mappings have different keys or lengths, or an array is not 1-D.
+        InputError: the two mappings have different keys or lengths, an array is not 1-D, or
+            the suffix names no figure format.
         OSError: the file cannot be written (left to the caller).
     """
     p = pathlib.Path(path)
+    file_format = figure_format(p, "plot")
     if not p.parent.is_dir():
         raise FileNotFoundError(
             f"cannot write the plot to {p}: directory {p.parent} does not exist; "
@@ -299,9 +308,26 @@ def plot_errors(
     ax_pos.set_title("(a) position error", fontsize=10)
     ax_ori.set_title("(b) orientation error", fontsize=10)
     ax_sc.set_title("(c) per sample", fontsize=10)
-    fig.suptitle(title)
-    fig.tight_layout()
-    fig.savefig(p, format="png", dpi=_DPI)
+    if passed is None:
+        fig.suptitle(title)
+    else:
+        fig.suptitle(title, y=0.99)
+        tolerances = ", ".join(
+            f"{tol:g} {unit}" for tol, unit in ((pos_tol, "m"), (ori_tol, "rad")) if tol
+        )
+        verdict = "PASS" if passed else "FAIL"
+        within = "within" if passed else "outside"
+        fig.text(
+            0.5,
+            0.915,
+            f"{verdict}: {within} tolerances {tolerances}" if tolerances else verdict,
+            ha="center",
+            fontsize=12,
+            fontweight="bold",
+            color=_PASS_COLOR if passed else _FAIL_COLOR,
+        )
+    fig.tight_layout(rect=(0, 0, 1, 0.93 if passed is not None else 1))
+    fig.savefig(p, format=file_format, dpi=_DPI)
     return p
 
 
@@ -750,7 +776,7 @@ def _diagnosis_figure(diagnosis: Diagnosis, title: str | None = None) -> Figure:
 def plot_diagnosis(
     diagnosis: Diagnosis, path: str | os.PathLike[str], *, title: str | None = None
 ) -> None:
-    """Save a picture of a :func:`~poekin.diagnose.diagnose` result as a PNG.
+    """Save a picture of a :func:`~poekin.diagnose.diagnose` result.
 
     The arm at ``q = 0`` as a 3-D skeleton (base origin, joint points, end-frame origin) with
     each joint's screw axis as an arrow, the model's chain in blue and yours in orange, overlaid:
@@ -761,8 +787,10 @@ def plot_diagnosis(
 
     Args:
         diagnosis: what :func:`~poekin.diagnose.diagnose` returned.
-        path: where to write the PNG (PNG whatever the suffix); an existing file is overwritten.
+        path: where to write it, in the format its suffix names (``.png``, ``.pdf``, ...:
+            :data:`poekin.fileio.FIGURE_FORMATS`); an existing file is overwritten.
         title: the figure title; default ``"<yours> vs <model>: match|mismatch"``. A second line
             gives the largest errors.
     """
-    _diagnosis_figure(diagnosis, title).savefig(path, format="png", dpi=_DIAG_DPI)
+    file_format = figure_format(path, "plot")
+    _diagnosis_figure(diagnosis, title).savefig(path, format=file_format, dpi=_DIAG_DPI)

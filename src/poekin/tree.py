@@ -446,6 +446,33 @@ class Tree:
         frames = (self.n_frames,)
         return _fast.evaluate(self._kernel, qpos, out, form, self._as_qpos, self._fk_numpy, frames)
 
+    def pose(self, qpos: ArrayLike, frame: str, relative_to: str | None = None) -> FloatArray:
+        """The pose of one frame: ``T_world_frame``, or with ``relative_to`` the frame's pose in
+        that frame, ``T_relative_frame = T_world_relative^-1 T_world_frame``.
+
+        Args:
+            qpos: ``(..., nq)`` in MuJoCo's qpos layout.
+            frame, relative_to: body or site names.
+
+        Returns:
+            ``(..., 4, 4)`` poses.
+
+        Example:
+            >>> tree = poekin.load_tree("unitree_go2")
+            >>> T_base_foot = tree.pose(tree.qpos0, "FL_calf", relative_to="base")
+
+        Raises:
+            UnknownFrameError: no such frame.
+        """
+        index = self.frame_index(frame)
+        reference = None if relative_to is None else self.frame_index(relative_to)
+        T = self.fk(qpos)
+        T_frame = T[..., index, :, :]
+        if reference is None:
+            return T_frame
+        T_ref = T[..., reference, :, :]
+        return lie.inverse(T_ref) @ T_frame
+
     def _fk_numpy(self, qpos: FloatArray) -> FloatArray:
         """:meth:`fk` on the pure-NumPy reference path (the compiled kernel's specification),
         for float64 ``qpos`` of shape ``(..., nq)`` that :meth:`fk` has validated."""
@@ -554,6 +581,20 @@ class Tree:
             J[..., :3, d : d + m] += scale * np.swapaxes(turning, -1, -2)
             J[..., 3:, d : d + m] += scale * np.swapaxes(lever, -1, -2)
         return jacobian_from_world(J, T_frame, convention)
+
+    def qpos_names(self) -> tuple[str, ...]:
+        """A name for each of the ``nq`` entries of ``qpos``: a hinge or slide joint's name,
+        ``name[qw]`` ... ``name[qz]`` for a ball joint, ``name[x]`` ``name[y]`` ``name[z]`` then
+        ``name[qw]`` ... for a free joint. Mimic joints have no entry."""
+        names: list[str] = []
+        for name, kind, mimic in zip(self.joint_names, self.joint_types, self.mimics, strict=True):
+            if mimic is not None:
+                continue
+            if kind in ("revolute", "prismatic"):
+                names.append(name)
+            else:
+                names.extend(f"{name}[{part}]" for part in _QPOS_WORDS[kind].split())
+        return tuple(names)
 
     def dof_names(self) -> tuple[str, ...]:
         """A name for each of the ``nv`` Jacobian columns (MuJoCo's ``qvel``): a hinge or slide

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import os
 import sys
 from collections.abc import Iterable, Mapping, Sequence
 from typing import TYPE_CHECKING, Any
@@ -20,16 +21,15 @@ from numpy.typing import NDArray
 
 from poekin import lie
 from poekin.chain import Chain
-from poekin.errors import InputError, ModelError
+from poekin.dh import DHTable
+from poekin.errors import InputError, ModelError, UnknownRobotError
 from poekin.import_mujoco import FrameKind, find_frame, frame_pose, tree_from_model
 from poekin.loading import default_frame, is_urdf, load_tree
-from poekin.sources import LoadedModel
+from poekin.sources import LoadedModel, load_model
 from poekin.tree import Tree
 
 if TYPE_CHECKING:
     import mujoco
-
-    from poekin.dh import DHTable
 
 __all__ = [
     "DEFAULT_ORI_TOL",
@@ -38,6 +38,7 @@ __all__ = [
     "mujoco_frame_poses",
     "mujoco_poses",
     "pose_errors",
+    "random_generator",
     "sample_joint_values",
     "sample_qpos",
     "verify",
@@ -50,6 +51,18 @@ DEFAULT_ORI_TOL = 1e-4  # rad: likewise
 UNLIMITED_SLIDE_RANGE = (-1.0, 1.0)
 
 
+def _whole(value: object, name: str, minimum: int) -> int:
+    """``value`` as an int if it is a whole number >= ``minimum``, else :class:`InputError`."""
+    if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < minimum:
+        raise InputError(f"{name} must be a whole number, {minimum} or more, got {value!r}")
+    return int(value)
+
+
+def random_generator(seed: int) -> np.random.Generator:
+    """NumPy's default generator for ``seed``, a whole number >= 0 (else :class:`InputError`)."""
+    return np.random.default_rng(_whole(seed, "the seed", 0))
+
+
 def sample_joint_values(
     chain: Chain, n: int, *, seed: int = 0, within_limits: bool = False
 ) -> FloatArray:
@@ -57,11 +70,15 @@ def sample_joint_values(
 
     Revolute joints sample ``[-2 pi, 2 pi]`` rad, or their limits with ``within_limits``.
     Prismatic joints sample their limits, or ``[-1, 1]`` m if they have none.
+
+    Raises:
+        InputError: ``n`` or ``seed`` is not a whole number >= 0.
     """
     assert chain.limits is not None
+    n = _whole(n, "the number of samples", 0)
+    rng = random_generator(seed)
     revolute = np.array([t == "revolute" for t in chain.joint_types], dtype=bool)
     lo, hi = _uniform_ranges(revolute, chain.limits, within_limits)
-    rng = np.random.default_rng(seed)
     return rng.uniform(lo, hi, size=(n, chain.n_joints))
 
 
@@ -85,8 +102,12 @@ def sample_qpos(tree: Tree, n: int, *, seed: int = 0, within_limits: bool = Fals
     Hinge and slide joints as in :func:`sample_joint_values`. A ball joint gets a uniformly
     random unit quaternion; a free joint a position uniform in ``[-1, 1]^3`` m and a uniformly
     random unit quaternion.
+
+    Raises:
+        InputError: ``n`` or ``seed`` is not a whole number >= 0.
     """
-    rng = np.random.default_rng(seed)
+    n = _whole(n, "the number of samples", 0)
+    rng = random_generator(seed)
     q = np.tile(tree.qpos0, (n, 1))
     for k, kind in enumerate(tree.joint_types):
         a = int(tree.qpos_adr[k])
@@ -169,6 +190,8 @@ class VerifyReport:
     ``(N,)`` errors in m / rad (with several frames, the worst frame of each sample). The
     ``max_*`` and ``median_*`` figures are the worst over the methods. ``frame_errors`` maps
     each frame checked to its ``(max position, max orientation)`` error over all methods.
+    ``params`` names the parameter set checked (None: the model's own), ``model_file`` and
+    ``model_origin`` say which model file it was checked against and where it came from.
     """
 
     robot: str
@@ -181,6 +204,14 @@ class VerifyReport:
     pos_err: Mapping[str, FloatArray]
     ori_err: Mapping[str, FloatArray]
     frame_errors: Mapping[str, tuple[float, float]] = dataclasses.field(default_factory=dict)
+    params: str | None = None
+    model_file: str = ""
+    model_origin: str = ""
+
+    @property
+    def sample_range(self) -> str:
+        """Where the revolute joint values were drawn, in words."""
+        return "within joint limits" if self.within_limits else "in [-2 pi, 2 pi]"
 
     def _worst(self, stat: str) -> float:
         return max((m[stat] for m in self.per_method().values()), default=0.0)
@@ -217,6 +248,13 @@ class VerifyReport:
             "max_ori_err_rad": self.max_ori_err_rad,
             "median_ori_err_rad": self.median_ori_err_rad,
             "passed": self.passed,
+            "params": self.params,
+            "pos_tol": self.pos_tol,
+            "ori_tol": self.ori_tol,
+            "sample_range": self.sample_range,
+            "methods": self.per_method(),
+            "model_file": self.model_file,
+            "model_origin": self.model_origin,
             **({"frames": self.per_frame()} if len(self.frame_errors) > 1 else {}),
         }
 
@@ -250,13 +288,43 @@ def _median(x: FloatArray) -> float:
     return float(s[n // 2] if n % 2 else (s[n // 2 - 1] + s[n // 2]) / 2)
 
 
+def _model(source: str | os.PathLike[str] | LoadedModel) -> LoadedModel:
+    if isinstance(source, LoadedModel):
+        return source
+    if not isinstance(source, str | os.PathLike):
+        raise InputError(
+            f"cannot check against a {type(source).__name__}: give the model as a Menagerie robot "
+            "name, an MJCF or URDF path, or poekin.load_model(...)"
+        )
+    return load_model(source)
+
+
+def _model_of(obj: Chain | Tree | DHTable, against: object) -> LoadedModel:
+    """The model that ``obj`` is checked against: ``against``, else the Menagerie robot that
+    ``obj.robot`` names (as for ``poekin.load("universal_robots_ur5e")``)."""
+    if against is not None:
+        return _model(against)  # type: ignore[arg-type]
+    kind = type(obj).__name__
+    hint = (
+        f"to verify a {kind}, say which model to check it against: against= a Menagerie robot "
+        "name or a model file's path"
+    )
+    if not obj.robot or any(c in obj.robot for c in "./\\"):
+        raise InputError(f"{hint} ({kind}.robot is {obj.robot!r})")
+    try:
+        return load_model(obj.robot)
+    except UnknownRobotError:
+        raise InputError(f"{hint} ({kind}.robot is {obj.robot!r}, not a robot name)") from None
+
+
 def verify(
-    loaded: LoadedModel,
+    source: str | os.PathLike[str] | LoadedModel | Chain | Tree | DHTable = "universal_robots_ur5e",
     frame: str | None = None,
     *,
+    against: str | os.PathLike[str] | LoadedModel | None = None,
     all_frames: bool = False,
     chain: Chain | None = None,
-    params: Chain | DHTable | None = None,
+    params: Chain | DHTable | str | None = None,
     samples: int = 1000,
     seed: int = 0,
     within_limits: bool = False,
@@ -273,28 +341,97 @@ def verify(
     ``all_frames`` the space and body PoE of every frame that has a chain are checked too.
 
     Args:
-        loaded: the model (see :func:`poekin.sources.load_model`).
+        source: what to check: a model (a Menagerie robot name, an MJCF or URDF path, or a
+            :class:`~poekin.sources.LoadedModel`), checked against itself; or a
+            :class:`Chain`, :class:`Tree` or DH table, checked against ``against`` (default:
+            the model its ``robot`` names, as for a chain from ``poekin.load(name)``). A tree
+            is checked on all its frames.
         frame: site or body name; None means the model's only site.
+        against: the model a chain, tree or table is checked against.
         all_frames: check every body and site in one run (``frame`` must then be None).
         chain: the model's chain, which says which joints move; by default the one derived
-            from ``loaded``. A chain given here must carry ``qpos_indices``.
+            from the model. A chain given here must carry ``qpos_indices``.
         params: the parameters to check, in the model's joint order: a PoE chain (its space and
-            body forms are checked) or a DH table (the table's own FK and the space and body
-            forms of its PoE conversion). By default ``chain`` itself.
-        samples, seed: how many configurations, from which random seed.
+            body forms are checked), a DH table (the table's own FK and the space and body
+            forms of its PoE conversion), or the name or file of one
+            (:func:`poekin.load_params`). By default ``chain`` itself.
+        samples, seed: how many configurations (1 or more), from which random seed (0 or more).
         within_limits: sample within the joint limits instead of ``[-2 pi, 2 pi]``.
         pos_tol, ori_tol: pass/fail thresholds for the maxima (m, rad).
         progress: show a progress bar on a terminal.
+
+    Raises:
+        InputError: bad numbers, a chain or table with no model to check it against, or
+            parameters that do not fit the model's chain.
+        ModelError: the model cannot be found, read or compiled.
     """
+    _whole(samples, "samples", 1)
+    _whole(seed, "the seed", 0)
+    label: str | None = params if isinstance(params, str) else None
+    if isinstance(params, str):
+        from poekin.paramfile import load_params
+
+        params = load_params(params)
+    elif params is not None:
+        label = params.robot or "your parameters"
+    tree: Tree | None = None
+    if isinstance(source, Chain) and source.qpos_indices is not None and params is None:
+        loaded, chain, frame = _model_of(source, against), source, source.frame
+    elif isinstance(source, Chain | DHTable):
+        if params is not None:
+            raise InputError("give the parameters to check once: as source or as params")
+        loaded = _model_of(source, against)
+        params, label = source, source.robot or "your parameters"
+    elif isinstance(source, Tree):
+        loaded, tree, all_frames = _model_of(source, against), source, frame is None
+    else:
+        if against is not None:
+            raise InputError("against= goes with a chain, tree or DH table to check; got a model")
+        loaded = _model(source)
+    return _verify(
+        loaded,
+        frame,
+        tree=tree,
+        all_frames=all_frames,
+        chain=chain,
+        params=params,
+        label=label,
+        samples=samples,
+        seed=seed,
+        within_limits=within_limits,
+        pos_tol=pos_tol,
+        ori_tol=ori_tol,
+        progress=progress,
+    )
+
+
+def _verify(
+    loaded: LoadedModel,
+    frame: str | None,
+    *,
+    tree: Tree | None,
+    all_frames: bool,
+    chain: Chain | None,
+    params: Chain | DHTable | None,
+    label: str | None,
+    samples: int,
+    seed: int,
+    within_limits: bool,
+    pos_tol: float,
+    ori_tol: float,
+    progress: bool,
+) -> VerifyReport:
     model = loaded.model
     urdf = is_urdf(loaded)
-    tree = load_tree(loaded) if urdf else tree_from_model(model, robot=loaded.robot)
+    if tree is None:
+        tree = load_tree(loaded) if urdf else tree_from_model(model, robot=loaded.robot)
     if all_frames:
         if frame is not None or chain is not None or params is not None:
             raise InputError("all_frames checks the model's own FK: give no frame or parameters")
         names = list(tree.frame_names)
     else:
-        names = [_frame_name(model, tree, frame, urdf)]
+        names = [frame if frame is not None else default_frame(tree)]
+        tree.frame_index(names[0])
     by_chain = not all_frames and not urdf
     by_chain &= chain is not None or params is not None or not _has_ball_or_free(tree, names[0])
     if by_chain:  # one frame reached by hinges and slides: its chain's joints move, as in the lab
@@ -324,6 +461,9 @@ def verify(
             )
             for f, n in enumerate(names)
         },
+        params=label,
+        model_file=str(loaded.xml_path),
+        model_origin=loaded.origin,
     )
 
 
@@ -352,13 +492,6 @@ def _tree_errors(
                 pos[:, f], ori[:, f] = pose_errors(T_ref[:, f], fk(c, full[:, path]))
             errors[method] = (pos, ori)
     return errors
-
-
-def _frame_name(model: mujoco.MjModel, tree: Tree, frame: str | None, urdf: bool) -> str:
-    """The frame to check: ``frame``, or the model's only site (URDF: its only leaf link)."""
-    if urdf:
-        return frame if frame is not None else default_frame(tree)
-    return find_frame(model, frame)[2]
 
 
 def _mujoco_qpos(
@@ -404,7 +537,7 @@ def _chain_errors(
         )
     T_ref = mujoco_poses(loaded.model, chain, q, progress=progress)
     errors = {}
-    if not isinstance(checked, Chain):  # a DH table (poekin.dh is not imported to verify)
+    if isinstance(checked, DHTable):
         errors["DH table"] = pose_errors(T_ref, checked.fk(q))
         checked = checked.to_chain()
     errors["space PoE"] = pose_errors(T_ref, checked.fk(q))

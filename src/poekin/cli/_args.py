@@ -1,0 +1,277 @@
+"""The command line's parser, the arguments its commands share, and reading joint values.
+
+Joint values come from ``--q`` or an ``--input`` file; with ``--deg`` the revolute ones are in
+degrees (prismatic ones stay metres, quaternions and positions of ball and free joints stay as
+they are). Values that look like degrees without ``--deg``, and values outside the model's joint
+limits, get a one-line note on stderr: the result is computed all the same.
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import os
+import re
+import sys
+from collections.abc import Sequence
+from typing import TYPE_CHECKING, Any, NoReturn
+
+import numpy as np
+from numpy.typing import NDArray
+
+from poekin.cli._text import DEFAULT_PRECISION
+from poekin.errors import InputError
+
+if TYPE_CHECKING:
+    from poekin.chain import Chain
+    from poekin.dh import DHTable
+    from poekin.tree import Tree
+
+__all__ = [
+    "DEFAULT_ROBOT",
+    "EXIT_FAIL",
+    "EXIT_USAGE",
+    "JointSpace",
+    "Parser",
+    "add_floating_base",
+    "add_joint_values",
+    "add_params",
+    "add_precision",
+    "add_sampling",
+    "add_source",
+    "import_mujoco_without_gl",
+    "model_source",
+    "note",
+    "params",
+    "read_joint_values",
+]
+
+DEFAULT_ROBOT = "universal_robots_ur5e"
+EXIT_FAIL = 1
+EXIT_USAGE = 2
+PARAM_NAMES = "lynch-park-ur5, ur5-dh, ur5e-dh, ur5e-poe"
+
+# A negative number in any form float() reads: -1, -1.5, -.5, -1e-3, -1.E+2, -inf, -nan.
+# argparse's own pattern knows only -1 and -1.5, and takes the rest for option names.
+_NEGATIVE_NUMBER = re.compile(r"^-(\d+\.?\d*|\.\d+)([eE][+-]?\d+)?$|^-(inf|infinity|nan)$", re.I)
+# Revolute values beyond this (rad) are more likely degrees than turns of more than a circle.
+_DEGREES_LIKELY = 2 * np.pi + 1e-9
+
+
+class Parser(argparse.ArgumentParser):
+    """argparse that takes every negative number as a value, and reports usage errors in one
+    line pointing to ``--help``."""
+
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        super().__init__(*args, **kwargs)
+        self._negative_number_matcher = _NEGATIVE_NUMBER
+
+    def error(self, message: str) -> NoReturn:
+        self.exit(EXIT_USAGE, f"{self.prog}: error: {message} (see '{self.prog} --help')\n")
+
+
+def note(text: str) -> None:
+    """One ``poekin: note:`` line on stderr."""
+    print(f"poekin: note: {text}", file=sys.stderr)
+
+
+# --- arguments ---------------------------------------------------------------------------------
+
+
+def add_source(p: argparse.ArgumentParser, default: str | None = None) -> None:
+    p.add_argument(
+        "source",
+        metavar="SOURCE",
+        nargs="?",
+        default=None,
+        help="Menagerie robot name, or path to an MJCF or URDF file"
+        + (f" (default: {default})" if default else ""),
+    )
+    p.add_argument(
+        "--frame", metavar="F", help="end frame: site or body name (default: the only site)"
+    )
+
+
+def add_floating_base(p: argparse.ArgumentParser) -> None:
+    p.add_argument(
+        "--floating-base",
+        action="store_true",
+        help="URDF: give the root link a free joint (qpos then starts with x y z qw qx qy qz)",
+    )
+
+
+def add_params(p: argparse.ArgumentParser, what: str) -> None:
+    p.add_argument(
+        "--params",
+        metavar="FILE|NAME",
+        help=f"{what}: a DH table or PoE set as a .json/.yaml file, or a named set ({PARAM_NAMES})",
+    )
+
+
+def add_precision(p: argparse.ArgumentParser) -> None:
+    p.add_argument(
+        "--precision",
+        type=_precision,
+        default=DEFAULT_PRECISION,
+        metavar="N",
+        help=f"decimals printed ({DEFAULT_PRECISION}); --json keeps full precision",
+    )
+
+
+def _precision(text: str) -> int:
+    try:
+        n = int(text)
+    except ValueError:
+        n = -1
+    if not 0 <= n <= 17:
+        raise argparse.ArgumentTypeError(f"must be a whole number from 0 to 17, got {text!r}")
+    return n
+
+
+def add_joint_values(p: argparse.ArgumentParser, output: str, saved: str) -> None:
+    """``--q`` for one configuration, or ``--input``/``--output`` files for a batch."""
+    p.add_argument(
+        "--q", type=float, nargs="+", metavar="Q", help="joint values (rad and m; see --deg)"
+    )
+    p.add_argument("--deg", action="store_true", help="revolute joint values are in degrees")
+    p.add_argument(
+        "--input", metavar="FILE", help="(N, n) joint values: a .npy, .npz, .csv or .txt file"
+    )
+    p.add_argument(
+        "--output", metavar=output, help=f"where to save the {saved} (.npy, .npz, .csv or .txt)"
+    )
+    p.add_argument("--force", action="store_true", help="replace an existing --output file")
+    p.add_argument("--json", action="store_true", help="print one JSON object (with --q)")
+    add_precision(p)
+
+
+def add_sampling(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--samples", type=int, default=1000, help="random configurations (1000)")
+    p.add_argument("--seed", type=int, default=0, help="random seed, 0 or more (0)")
+
+
+# --- models and parameter sets -----------------------------------------------------------------
+
+
+def import_mujoco_without_gl() -> None:
+    """Import MuJoCo with its OpenGL backends off, unless the user chose one with ``MUJOCO_GL``.
+
+    The command line never renders with MuJoCo (plots use matplotlib), but MuJoCo's default
+    backend, GLFW, looks for its library when MuJoCo is imported, and starts a Python subprocess
+    to read the library's version: about 0.1 s of every command. The variable is set only for
+    that import, so nothing else in the process, or started from it, sees it.
+    """
+    if "mujoco" in sys.modules or "MUJOCO_GL" in os.environ:
+        return
+    os.environ["MUJOCO_GL"] = "disable"
+    try:
+        import mujoco  # noqa: F401
+    finally:
+        del os.environ["MUJOCO_GL"]
+
+
+def model_source(args: argparse.Namespace, default: str | None = DEFAULT_ROBOT) -> str:
+    """The model: ``--against`` or the positional SOURCE (not both), else ``default``.
+
+    A model is loaded next, so MuJoCo is imported here (:func:`import_mujoco_without_gl`).
+    """
+    against = getattr(args, "against", None)
+    if against and args.source and against != args.source:
+        raise InputError(f"two models given ({args.source!r} and --against {against!r}); give one")
+    source = against or args.source or default
+    if source is None:
+        raise InputError(
+            "give a model: a Menagerie robot name, an MJCF or URDF path (or --params FILE|NAME)"
+        )
+    import_mujoco_without_gl()
+    return str(source)
+
+
+def params(spec: str) -> Chain | DHTable:
+    from poekin.paramfile import load_params
+
+    return load_params(spec)
+
+
+# --- joint values ------------------------------------------------------------------------------
+
+
+@dataclasses.dataclass(frozen=True)
+class JointSpace:
+    """What each entry of ``q`` is: a name, whether it is an angle, its limits (or +-inf)."""
+
+    names: tuple[str, ...]
+    angles: NDArray[np.bool_]
+    limits: NDArray[np.float64]
+
+    @classmethod
+    def of_joints(
+        cls, names: Sequence[str], types: Sequence[str], limits: Any = None
+    ) -> JointSpace:
+        lim = np.tile([-np.inf, np.inf], (len(names), 1)) if limits is None else np.asarray(limits)
+        return cls(tuple(names), np.array([t == "revolute" for t in types], bool), lim)
+
+    @classmethod
+    def of(cls, model: Chain | DHTable) -> JointSpace:
+        """A chain's joints, or a DH table's rows (no limits)."""
+        from poekin.chain import Chain
+
+        if isinstance(model, Chain):
+            return cls.of_joints(model.joint_names, model.joint_types, model.limits)
+        return cls.of_joints(model.joint_names, model.joint_types)
+
+    @classmethod
+    def of_tree(cls, tree: Tree) -> JointSpace:
+        """A whole model's ``qpos``: hinge entries are angles; quaternions are not."""
+        angles = np.zeros(tree.nq, bool)
+        limits = np.tile([-np.inf, np.inf], (tree.nq, 1))
+        for k, (kind, mimic) in enumerate(zip(tree.joint_types, tree.mimics, strict=True)):
+            if mimic is None and kind in ("revolute", "prismatic"):
+                a = int(tree.qpos_adr[k])
+                angles[a], limits[a] = kind == "revolute", tree.joint_limits[k]
+        names = tree.qpos_names()
+        return cls(tuple(names), angles, limits)
+
+
+def read_joint_values(args: argparse.Namespace, space: JointSpace) -> NDArray[np.float64]:
+    """``--q`` or the ``--input`` file as float64, in radians (``--deg`` converts the angles).
+
+    A wrong last axis is left for the model to refuse, with its own message. Notes go to stderr
+    for values that look like degrees and for values outside the joint limits.
+    """
+    from poekin.fileio import read_array
+
+    q = read_array(args.input) if args.input is not None else np.asarray(args.q, dtype=np.float64)
+    n = len(space.names)
+    if q.ndim == 0 or q.shape[-1] != n or not np.all(np.isfinite(q)):
+        return q
+    if args.deg:
+        q = np.where(space.angles, np.radians(q), q)
+    elif np.any(np.abs(q[..., space.angles]) > _DEGREES_LIKELY):
+        biggest = float(np.max(np.abs(q[..., space.angles])))
+        note(
+            f"revolute joint values up to {biggest:g} are read as radians (more than a turn); "
+            "if they are degrees, pass --deg"
+        )
+    _note_limits(q, space)
+    return q
+
+
+def _note_limits(q: NDArray[np.float64], space: JointSpace) -> None:
+    lo, hi = space.limits[:, 0], space.limits[:, 1]
+    outside = (q < lo) | (q > hi)
+    if not np.any(outside):
+        return
+    rows = q.reshape(-1, q.shape[-1])
+    bad_rows = np.flatnonzero(outside.reshape(rows.shape).any(axis=-1))
+    row = int(bad_rows[0])
+    j = int(np.flatnonzero(outside.reshape(rows.shape)[row])[0])
+    unit = "rad" if space.angles[j] else "m"
+    which = f"{space.names[j]!r} = {rows[row, j]:.6g} {unit}, not in [{lo[j]:.6g}, {hi[j]:.6g}]"
+    if rows.shape[0] == 1:
+        note(f"outside the joint limits: {which} (computed all the same)")
+    else:
+        note(
+            f"{len(bad_rows)} of {rows.shape[0]} configurations are outside the joint limits, "
+            f"the first (row {row}): {which} (computed all the same)"
+        )

@@ -1,0 +1,172 @@
+"""``poekin screws`` and ``poekin dh``: a model's parameters as screws and M, or as a DH table."""
+
+from __future__ import annotations
+
+import argparse
+import json
+from typing import TYPE_CHECKING, Any, TextIO
+
+import numpy as np
+
+from poekin.cli._args import (
+    add_params,
+    add_precision,
+    add_source,
+    model_source,
+    params,
+)
+from poekin.cli._text import fixed, matrix_lines, table
+from poekin.errors import InputError
+
+if TYPE_CHECKING:
+    from poekin.chain import Chain
+    from poekin.dh import DHTable
+
+__all__ = ["finite_json", "params_or_chain", "register"]
+
+
+def finite_json(obj: Any) -> Any:
+    """Replace non-finite floats (unlimited joints) with None so the output is strict JSON."""
+    if isinstance(obj, float):
+        return obj if np.isfinite(obj) else None
+    if isinstance(obj, dict):
+        return {k: finite_json(v) for k, v in obj.items()}
+    if isinstance(obj, list):
+        return [finite_json(v) for v in obj]
+    return obj
+
+
+def params_or_chain(args: argparse.Namespace) -> Chain | DHTable:
+    """``--params`` if given, else the chain of the positional model SOURCE (not both)."""
+    from poekin.loading import load
+
+    if args.params and args.source:
+        raise InputError("give a model SOURCE or --params FILE|NAME, not both")
+    return params(args.params) if args.params else load(model_source(args, None), args.frame)
+
+
+# --- screws -----------------------------------------------------------------------------------
+
+
+def _cmd_screws(args: argparse.Namespace, out: TextIO) -> int:
+    from poekin.loading import load
+
+    chain = load(model_source(args, None), args.frame)
+    if args.json:
+        print(json.dumps(finite_json(chain.describe())), file=out)
+        return 0
+    form, screws, name = (
+        ("body", chain.body_screws, "B_i") if args.body else ("space", chain.screws, "S_i")
+    )
+    print(
+        f"{chain.robot}  frame {chain.frame!r}  {chain.n_joints} joints, {form} screws "
+        f"{name} = [w; v]",
+        file=out,
+    )
+    p = args.precision
+    header = ["joint", "type", "wx", "wy", "wz", "vx", "vy", "vz"]
+    rows = [
+        [name, kind, *(fixed(x, p) for x in S)]
+        for name, kind, S in zip(chain.joint_names, chain.joint_types, screws, strict=True)
+    ]
+    print("\n".join(table([header, *rows], left=(0, 1))), file=out)
+    print(f"M = T_world_{chain.frame}(q = 0):", file=out)
+    print("\n".join(matrix_lines(chain.home, p)), file=out)
+    return 0
+
+
+# --- dh ----------------------------------------------------------------------------------------
+
+
+def _dh_table(args: argparse.Namespace) -> DHTable:
+    from poekin.dh import DHTable, dh_from_chain
+
+    if args.parallel_tol <= 0:
+        raise InputError(f"--parallel-tol must be positive, got {args.parallel_tol}")
+    obj = params_or_chain(args)
+    if isinstance(obj, DHTable):
+        if obj.convention == args.convention:
+            return obj
+        obj = obj.to_chain()
+    return dh_from_chain(obj, args.convention, parallel_tol=args.parallel_tol)
+
+
+def _cmd_dh(args: argparse.Namespace, out: TextIO) -> int:
+    table_ = _dh_table(args)
+    if args.json:
+        print(json.dumps(table_.describe()), file=out)
+        return 0
+    std = table_.convention == "standard"
+    form = (
+        "standard (Denavit-Hartenberg): Rz(theta) Tz(d) Tx(a) Rx(alpha)"
+        if std
+        else "modified (Craig): Rx(alpha_{i-1}) Tx(a_{i-1}) Rz(theta) Tz(d)"
+    )
+    source = table_.robot or args.params or args.source
+    print(f"{source}  frame {table_.frame!r}  {form}", file=out)
+    a, al = ("a", "alpha") if std else ("a(i-1)", "alpha(i-1)")
+    header = ["joint", "type", f"{a} [m]", f"{al} [rad]", "d [m]", "theta_off [rad]"]
+    p = args.precision
+    rows = [
+        [
+            row["joint"],
+            row["joint_type"],
+            *(fixed(row[k], p) for k in ("a", "alpha", "d", "theta_offset")),
+        ]
+        for row in table_.rows()
+    ]
+    print("\n".join(table([header, *rows], left=(0, 1))), file=out)
+    print("base = T_world_frame0:", file=out)
+    print("\n".join(matrix_lines(table_.base, p)), file=out)
+    print(f"tool = T_frame{table_.n_joints}_{table_.frame}:", file=out)
+    print("\n".join(matrix_lines(table_.tool, p)), file=out)
+    for text in table_.notes:
+        print(f"note: {text}", file=out)
+    return 0
+
+
+def register(sub: Any, fmt: type[argparse.HelpFormatter]) -> None:
+    s = sub.add_parser(
+        "screws",
+        help="print the screw axes and home pose M",
+        description="Print the screw axes S_i = [w; v] (space frame, or body frame with --body) "
+        "and the home pose M, all derived from the model.",
+        epilog="examples:\n  poekin screws universal_robots_ur5e\n"
+        "  poekin screws franka_emika_panda --frame hand --body --json",
+        formatter_class=fmt,
+    )
+    add_source(s)
+    s.add_argument("--body", action="store_true", help="body-frame screws B_i = Ad(M^-1) S_i")
+    s.add_argument("--json", action="store_true", help="print one JSON object")
+    add_precision(s)
+    s.set_defaults(run=_cmd_screws)
+
+    d = sub.add_parser(
+        "dh",
+        help="print a Denavit-Hartenberg table of a model or parameter set",
+        description="Extract a DH table (standard or modified convention) from a model's chain, "
+        "or convert a parameter set. Its FK equals the chain's to float precision; the free "
+        "choices (parallel axes, prismatic joints) are printed as notes.",
+        epilog="examples:\n  poekin dh universal_robots_ur5e\n"
+        "  poekin dh franka_fr3 --convention modified --json > fr3_dh.json\n"
+        "  poekin dh --params lynch-park-ur5",
+        formatter_class=fmt,
+    )
+    add_source(d)
+    add_params(d, "convert these parameters instead of a model")
+    d.add_argument(
+        "--convention",
+        choices=["standard", "modified"],
+        default="standard",
+        help="standard (Denavit-Hartenberg) or modified (Craig); default standard",
+    )
+    d.add_argument(
+        "--parallel-tol",
+        type=float,
+        default=1e-8,
+        metavar="SIN",
+        help="treat axes within this sine of parallel as parallel (1e-8: float rounding only)",
+    )
+    d.add_argument("--json", action="store_true", help="print one JSON object")
+    add_precision(d)
+    d.set_defaults(run=_cmd_dh)
