@@ -777,3 +777,81 @@ def test_diagnose_a_table_typed_with_four_decimals(
     assert last <= 1e-6  # the bisection reaches the tolerance
     errors = [float(s.split("max error ")[1].split(" m")[0]) for s in steps]
     assert errors == sorted(errors, reverse=True) and len(set(errors)) == len(errors)
+
+
+def test_degrees_with_deg_and_a_note_without(capsys: pytest.CaptureFixture[str]) -> None:
+    chain = load("universal_robots_ur5e")
+    degrees = ["0", "-90", "90", "0", "45", "0"]
+    code, out, err = run(capsys, "fk", "universal_robots_ur5e", "--deg", "--json", "--q", *degrees)
+    assert code == 0 and err == "" and json.loads(out)["deg"] is True
+    expected = chain.fk(np.radians([float(x) for x in degrees]))
+    assert_close("T --deg", json.loads(out)["T"], expected, 0.0)
+    code, out, err = run(capsys, "fk", "universal_robots_ur5e", "--json", "--q", *degrees)
+    assert code == 0
+    assert err == (
+        "poekin: note: revolute joint values up to 90 are read as radians (more than a turn); "
+        "if they are degrees, pass --deg\n"
+    )
+    assert_close("T", json.loads(out)["T"], chain.fk([float(x) for x in degrees]), 0.0)
+
+
+def test_deg_turns_only_the_hinges_of_a_whole_qpos(capsys: pytest.CaptureFixture[str]) -> None:
+    tree = poekin.load_tree(load_quiet("unitree_go2"))
+    stand_deg = ["0", "0", "0.3", "1", "0", "0", "0"] + ["0", "51.5", "-103"] * 4
+    argv = ["fk", "unitree_go2", "--all-frames", "--deg", "--json", "--q", *stand_deg]
+    code, out, _ = run(capsys, *argv)
+    qpos = np.array([float(x) for x in stand_deg])
+    qpos[7:] = np.radians(qpos[7:])
+    assert code == 0
+    assert_close("poses", list(json.loads(out)["frames"].values()), tree.fk(qpos), 0.0)
+
+
+def test_values_outside_the_joint_limits_get_a_note(
+    capsys: pytest.CaptureFixture[str], tmp_path: pathlib.Path
+) -> None:
+    code, _, err = run(capsys, "fk", "franka_fr3", "--q", *"0000000")
+    assert code == 0
+    assert "poekin: note: outside the joint limits: 'fr3_joint4' = 0 rad, not in [-3.0421" in err
+    limits = load(load_quiet("franka_fr3")).limits
+    q = np.tile(limits.mean(axis=1), (5, 1))  # within the limits
+    q[2:4, 0] = 3.0  # fr3_joint1 is limited to +-2.9007
+    np.save(tmp_path / "q.npy", q)
+    code, _, err = run(
+        capsys, "fk", "franka_fr3", "--input", str(tmp_path / "q.npy"),
+        "--output", str(tmp_path / "T.npy"),
+    )  # fmt: skip
+    assert code == 0
+    assert (
+        "2 of 5 configurations are outside the joint limits, the first (row 2): 'fr3_joint1'" in err
+    )
+
+
+def test_printed_tables_have_no_rounding_noise_and_a_precision(
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    code, out, _ = run(capsys, "screws", "universal_robots_ur5e")
+    assert code == 0
+    lines = out.splitlines()
+    assert lines[1].split() == ["joint", "type", "wx", "wy", "wz", "vx", "vy", "vz"]
+    assert "0.817000" in out and "-0.000000" not in out and "0.816999" not in out
+    code, out, _ = run(capsys, "screws", "universal_robots_ur5e", "--precision", "2")
+    assert "0.82" in out and "0.817" not in out
+    code, out, _ = run(capsys, "fk", "universal_robots_ur5e", "--precision", "12", "--q", *"000000")
+    assert "-0.817000000000" in out
+    with pytest.raises(SystemExit) as exc:
+        main(["dh", "universal_robots_ur5e", "--precision", "18"])
+    assert exc.value.code == 2
+    assert "must be a whole number from 0 to 17, got '18'" in capsys.readouterr().err
+
+
+def test_version_and_python_dash_m() -> None:
+    from poekin.cli import version
+
+    text = version()
+    assert text.startswith(f"poekin {poekin.__version__} (") and "NumPy" in text
+    assert ("AVX" in text or "SSE2" in text) if poekin.compiled_kernel() else "NumPy path" in text
+    for module in ("poekin", "poekin.cli"):
+        proc = subprocess.run(
+            [sys.executable, "-m", module, "--version"], capture_output=True, text=True, check=False
+        )
+        assert proc.returncode == 0 and proc.stdout == text + "\n", proc.stderr

@@ -182,3 +182,17 @@ def test_summary_is_json_ready(ur5e):
     again = json.loads(json.dumps(summary))
     assert again["matches"] is False
     assert again["findings"][0]["kind"] == "axis_flipped"
+
+
+def test_diagnose_takes_names_and_paths() -> None:
+    """issue #15: poekin.diagnose("ur5e-dh", "universal_robots_ur5e") as load takes them."""
+    import poekin
+
+    by_name = poekin.diagnose("ur5e-dh", "universal_robots_ur5e", samples=100)
+    by_object = poekin.diagnose(
+        poekin.named_params("ur5e-dh"), poekin.load("universal_robots_ur5e"), samples=100
+    )
+    assert by_name.max_pos_err_m == by_object.max_pos_err_m > 1e-3
+    assert [f.message for f in by_name.findings] == [f.message for f in by_object.findings]
+    by_tree = poekin.diagnose("ur5e-poe", poekin.load_tree("universal_robots_ur5e"), samples=50)
+    assert by_tree.matches and by_tree.report()[0].startswith("MATCH")

@@ -9,6 +9,7 @@ import inspect
 import os
 import pickle
 import re
+import warnings
 
 import mujoco
 import numpy as np
@@ -350,6 +351,26 @@ def test_without_the_kernel_the_numpy_path_gives_the_same_poses(
         J = tree.jacobian(qpos, "finger", c)
         assert_close(f"tree jacobian {c}", J, features.jacobian(qpos, "finger", c), REF_TOL)
     assert tree._jacobian_kernels and all(k is None for k in tree._jacobian_kernels.values())
+
+
+def test_without_the_kernel_a_big_batch_says_so_once(
+    ur5e: Chain, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """issue #15: the NumPy path is ~136x slower in batches; say it when it matters, once."""
+    monkeypatch.setattr(_fast, "_kernel", None)
+    monkeypatch.setattr(_fast, "_slow_noted", False)
+    chain = Chain(ur5e.joint_names, ur5e.joint_types, ur5e.screws, ur5e.home)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        chain.fk(np.zeros((100, 6)))  # small: no note
+        assert caught == []
+        chain.fk(np.zeros((10_000, 6)))
+        chain.jacobian_space(np.zeros((20_000, 6)))
+    (note,) = caught
+    assert note.category is _fast.SlowPathWarning
+    assert str(note.message) == _fast.kernel_description()
+    assert f"about {_fast.NUMPY_PATH_SLOWDOWN}x slower" in str(note.message)
+    assert "reinstall poekin with a C compiler" in str(note.message)
 
 
 # --- the methods that run the kernel before any Python (_fast.fast_method) -----------------

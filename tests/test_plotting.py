@@ -96,6 +96,40 @@ def test_writes_png_realistic(tmp_path: pathlib.Path, monkeypatch: pytest.Monkey
         assert f"{name}  max {float(a.max()):.2g}  med {float(np.median(a)):.2g}" in text
 
 
+VERDICTS = [(True, "PASS: within", "#1a7f37"), (False, "FAIL: outside", "#c62828")]
+
+
+@pytest.mark.parametrize(("passed", "verdict", "color"), VERDICTS)
+def test_the_verdict_is_in_the_title(
+    passed: bool, verdict: str, color: str, tmp_path: pathlib.Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """issue #15: a failing run must not look as calm as a passing one."""
+    figs = _capture_figure(monkeypatch)
+    pos, ori = _realistic()
+    plot_errors(
+        pos, ori, title="t", path=tmp_path / "fk.png", pos_tol=1e-5, ori_tol=1e-4, passed=passed
+    )
+    (fig,) = figs
+    (text,) = [t for t in fig.texts if t.get_text().startswith(verdict)]
+    assert text.get_text() == f"{verdict} tolerances 1e-05 m, 0.0001 rad"
+    assert matplotlib.colors.to_hex(text.get_color()) == color
+
+
+MAGIC = [(".pdf", b"%PDF"), (".svg", b"<?xml"), (".jpeg", b"\xff\xd8")]
+
+
+@pytest.mark.parametrize(("suffix", "magic"), MAGIC)
+def test_the_suffix_names_the_format(suffix: str, magic: bytes, tmp_path: pathlib.Path) -> None:
+    pos, ori = _realistic(20)
+    assert (
+        plot_errors(pos, ori, title="t", path=tmp_path / f"fk{suffix}")
+        .read_bytes()
+        .startswith(magic)
+    )
+    with pytest.raises(InputError, match="names no format poekin knows"):
+        plot_errors(pos, ori, title="t", path=tmp_path / "fk.xyz")
+
+
 def test_exact_zeros_are_drawn_at_a_floor(
     tmp_path: pathlib.Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:

@@ -351,3 +351,33 @@ def test_invalid_trees_are_refused(change: dict[str, object], message: str) -> N
     fields.update(change)
     with pytest.raises(InputError, match=message):
         Tree(**fields)  # type: ignore[arg-type]
+
+
+def test_pose_of_one_frame_relative_to_another() -> None:
+    """issue #15: T_a_b(qpos) between any two frames (a go2 calf in its trunk's frame)."""
+    tree = poekin.load_tree(load_quiet("unitree_go2"))
+    qpos = poekin.sample_qpos(tree, 7, seed=2).reshape(7, 1, 19)
+    T = tree.fk(qpos)
+    base, calf = tree.frame_index("base"), tree.frame_index("FL_calf")
+    assert np.array_equal(tree.pose(qpos, "FL_calf"), T[..., calf, :, :])
+    T_base_calf = tree.pose(qpos, "FL_calf", relative_to="base")
+    assert T_base_calf.shape == (7, 1, 4, 4)
+    # independent: the composition T_world_base T_base_calf gives T_world_calf back
+    assert_close("T_world_calf", T[..., base, :, :] @ T_base_calf, T[..., calf, :, :], 1e-15)
+    # the calf's pose in the base frame does not depend on where the base is (the free joint)
+    moved = qpos.copy()
+    moved[..., :7] = [0.3, -2.0, 1.0, 0.5, 0.5, -0.5, 0.5]
+    assert_close("base-free", tree.pose(moved, "FL_calf", "base"), T_base_calf, 1e-14)
+    with pytest.raises(poekin.UnknownFrameError, match="did you mean 'FL_calf'"):
+        tree.pose(qpos, "FL_clf")
+
+
+def test_qpos_names() -> None:
+    tree = poekin.load_tree(load_quiet("unitree_go2"))
+    names = tree.qpos_names()
+    assert len(names) == tree.nq == 19
+    assert names[:8] == (
+        "joint0[x]", "joint0[y]", "joint0[z]",
+        "joint0[qw]", "joint0[qx]", "joint0[qy]", "joint0[qz]",
+        "FL_hip_joint",
+    )  # fmt: skip

@@ -100,3 +100,66 @@ def test_report_medians_are_numpys(ur5e_report, n: int) -> None:
         assert per[m]["median_pos_err_m"] == float(np.median(errors)) or (
             np.isnan(per[m]["median_pos_err_m"]) and np.isnan(np.median(errors))
         )
+
+
+# --- issue #15: the API takes what load takes -------------------------------------------------
+
+
+@pytest.mark.filterwarnings("ignore::poekin.AssetsStrippedWarning")
+def test_verify_takes_a_name_a_path_a_chain_a_tree_and_a_table() -> None:
+    import poekin
+
+    by_name = verify("universal_robots_ur5e", samples=50)
+    assert by_name.passed and by_name.frame == "attachment_site" and by_name.params is None
+    chain = load("universal_robots_ur5e")
+    by_chain = verify(chain, samples=50)
+    assert by_chain.passed and by_chain.max_pos_err_m == by_name.max_pos_err_m
+    by_path = verify(load_quiet("unitree_go2").xml_path, samples=20)
+    assert by_path.passed and by_path.frame == "imu"
+    tree = poekin.load_tree(load_quiet("unitree_go2"))
+    by_tree = verify(tree, samples=20)
+    assert by_tree.passed and by_tree.frame == "all frames" and len(by_tree.frame_errors) == 14
+    table = poekin.named_params("ur5e-dh")
+    by_table = verify(table, against="universal_robots_ur5e", samples=50)
+    assert not by_table.passed and by_table.params == "ur5e-dh"
+    assert list(by_table.pos_err) == ["DH table", "space PoE", "body PoE"]
+    by_param_name = verify(params="ur5e-dh", samples=50)
+    assert by_param_name.max_pos_err_m == by_table.max_pos_err_m
+
+
+@pytest.mark.parametrize(
+    ("call", "message"),
+    [
+        (lambda p: verify(p.named_params("ur5e-dh")), "say which model to check it against"),
+        (lambda p: verify(p.lynch_park_ur5_chain()), "say which model to check it against"),
+        (lambda p: verify(42), "cannot check against a int"),
+        (lambda p: verify("universal_robots_ur5e", against="x"), "against= goes with a chain"),
+        (lambda p: verify(samples=0), "samples must be a whole number, 1 or more"),
+        (lambda p: verify(seed=-1), "the seed must be a whole number, 0 or more, got -1"),
+        (lambda p: p.diagnose(42), "must be a Chain, a DHTable"),
+        (lambda p: p.diagnose("ur5e-dh", 3.5), "the model must be a Chain, a Tree"),
+        (lambda p: p.diagnose("ur5e-dh", samples=0), "samples must be a whole number"),
+    ],
+)
+def test_wrong_things_to_check_are_typed_errors(call, message: str) -> None:
+    import poekin
+
+    with pytest.raises(poekin.InputError, match=message):
+        call(poekin)
+
+
+def test_sample_counts_and_seeds_are_checked() -> None:
+    import poekin
+
+    tree = poekin.load_tree(load_quiet("unitree_go2"))
+    chain = load("universal_robots_ur5e")
+    for call in (
+        lambda: poekin.sample_qpos(tree, -1),
+        lambda: poekin.sample_qpos(tree, 3, seed=-1),
+        lambda: sample_joint_values(chain, 2.5),  # type: ignore[arg-type]
+        lambda: sample_joint_values(chain, 3, seed=True),  # type: ignore[arg-type]
+    ):
+        with pytest.raises(poekin.InputError, match="must be a whole number"):
+            call()
+    assert poekin.sample_qpos(tree, 0).shape == (0, 19)
+    assert sample_joint_values(chain, 2, seed=np.int64(3)).shape == (2, 6)

@@ -26,8 +26,9 @@ from __future__ import annotations
 
 import dataclasses
 import itertools
+import os
 from collections.abc import Callable
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -36,7 +37,11 @@ from poekin import lie
 from poekin.chain import Chain
 from poekin.dh import Convention, DHTable, dh_from_chain, joint_lines
 from poekin.errors import InputError
-from poekin.verify import pose_errors, sample_joint_values
+from poekin.verify import pose_errors, sample_joint_values, whole_number
+
+if TYPE_CHECKING:
+    from poekin.sources import LoadedModel
+    from poekin.tree import Tree
 
 __all__ = ["BisectStep", "Diagnosis", "Finding", "diagnose"]
 
@@ -205,6 +210,36 @@ class Diagnosis:
             "base_aligned": self.base_aligned,
             "convention": self.convention,
         }
+
+
+def _yours(yours: object) -> Chain | DHTable:
+    if isinstance(yours, Chain | DHTable):
+        return yours
+    if isinstance(yours, str | os.PathLike):
+        from poekin.paramfile import load_params
+
+        return load_params(yours)
+    raise InputError(
+        f"your parameters must be a Chain, a DHTable, or the name or file of a parameter set, "
+        f"not a {type(yours).__name__}"
+    )
+
+
+def _model_chain(model: object, frame: str | None) -> Chain:
+    if isinstance(model, Chain):
+        return model
+    from poekin.loading import default_frame, load
+    from poekin.sources import LoadedModel
+    from poekin.tree import Tree
+
+    if isinstance(model, Tree):
+        return model.chain(frame if frame is not None else default_frame(model))
+    if isinstance(model, str | os.PathLike | LoadedModel):
+        return load(model, frame)
+    raise InputError(
+        f"the model must be a Chain, a Tree, a Menagerie robot name or a model path, not a "
+        f"{type(model).__name__}"
+    )
 
 
 # --- geometry helpers ---------------------------------------------------------------------------
@@ -699,9 +734,10 @@ def _symptoms(
 
 
 def diagnose(
-    yours: Chain | DHTable,
-    model: Chain,
+    yours: Chain | DHTable | str | os.PathLike[str],
+    model: Chain | Tree | LoadedModel | str | os.PathLike[str] = "universal_robots_ur5e",
     *,
+    frame: str | None = None,
     samples: int = 1000,
     seed: int = 0,
     pos_tol: float = DEFAULT_TOL,
@@ -710,12 +746,21 @@ def diagnose(
     """Compare your parameters with the model's and say what differs, joint by joint.
 
     Args:
-        yours: your PoE chain or DH table, for the same joints in the same order.
-        model: the chain derived from the model (e.g. :func:`poekin.load`).
+        yours: your PoE chain or DH table, for the same joints in the same order, or the name
+            or file of one (:func:`poekin.load_params`).
+        model: the model's chain (e.g. :func:`poekin.load`), or what :func:`poekin.load` takes
+            (a Menagerie robot name, an MJCF or URDF path), or a tree.
+        frame: the end frame when ``model`` is not a chain (default: the model's only site).
         samples, seed: random configurations for the error figures (revolute joints in
             ``[-2 pi, 2 pi]``, prismatic ones within their limits).
         pos_tol, ori_tol: differences below these (m, rad) are not reported.
+
+    Example:
+        >>> d = poekin.diagnose("ur5e-dh", "universal_robots_ur5e")
+        >>> print("\n".join(d.report()))
     """
+    yours = _yours(yours)
+    model = _model_chain(model, frame)
     table = yours if isinstance(yours, DHTable) else None
     chain = yours.to_chain() if isinstance(yours, DHTable) else yours
     if chain.n_joints != model.n_joints:
@@ -724,8 +769,7 @@ def diagnose(
             f"{model.frame!r} has {model.n_joints} ({', '.join(model.joint_names)}); "
             "give one row or screw per joint, base to tip"
         )
-    if samples < 1:
-        raise InputError(f"samples must be at least 1, got {samples}")
+    whole_number(samples, "samples", 1)
     convention: Convention = table.convention if table is not None else "standard"
     q = sample_joint_values(model, samples, seed=seed)
     T_ref = model.fk(q)
@@ -735,7 +779,8 @@ def diagnose(
     aligned = _moved(chain, B)
     al_p, al_r = _max_errors(T_ref, aligned.fk(q))
     reach = _reach(model)
-    if al_p + reach * al_r >= max_p + reach * max_r:  # no help: your base is taken as it is
+    gain = (max_p + reach * max_r) - (al_p + reach * al_r)
+    if gain <= pos_tol + reach * ori_tol:  # no help beyond the tolerances: your base as it is
         B = np.eye(4)
         aligned = _moved(chain, B)
         al_p, al_r = max_p, max_r

@@ -42,6 +42,7 @@ __all__ = [
     "sample_joint_values",
     "sample_qpos",
     "verify",
+    "whole_number",
 ]
 
 FloatArray = NDArray[np.float64]
@@ -51,7 +52,7 @@ DEFAULT_ORI_TOL = 1e-4  # rad: likewise
 UNLIMITED_SLIDE_RANGE = (-1.0, 1.0)
 
 
-def _whole(value: object, name: str, minimum: int) -> int:
+def whole_number(value: object, name: str, minimum: int) -> int:
     """``value`` as an int if it is a whole number >= ``minimum``, else :class:`InputError`."""
     if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < minimum:
         raise InputError(f"{name} must be a whole number, {minimum} or more, got {value!r}")
@@ -60,7 +61,7 @@ def _whole(value: object, name: str, minimum: int) -> int:
 
 def random_generator(seed: int) -> np.random.Generator:
     """NumPy's default generator for ``seed``, a whole number >= 0 (else :class:`InputError`)."""
-    return np.random.default_rng(_whole(seed, "the seed", 0))
+    return np.random.default_rng(whole_number(seed, "the seed", 0))
 
 
 def sample_joint_values(
@@ -75,7 +76,7 @@ def sample_joint_values(
         InputError: ``n`` or ``seed`` is not a whole number >= 0.
     """
     assert chain.limits is not None
-    n = _whole(n, "the number of samples", 0)
+    n = whole_number(n, "the number of samples", 0)
     rng = random_generator(seed)
     revolute = np.array([t == "revolute" for t in chain.joint_types], dtype=bool)
     lo, hi = _uniform_ranges(revolute, chain.limits, within_limits)
@@ -106,7 +107,7 @@ def sample_qpos(tree: Tree, n: int, *, seed: int = 0, within_limits: bool = Fals
     Raises:
         InputError: ``n`` or ``seed`` is not a whole number >= 0.
     """
-    n = _whole(n, "the number of samples", 0)
+    n = whole_number(n, "the number of samples", 0)
     rng = random_generator(seed)
     q = np.tile(tree.qpos0, (n, 1))
     for k, kind in enumerate(tree.joint_types):
@@ -365,8 +366,8 @@ def verify(
             parameters that do not fit the model's chain.
         ModelError: the model cannot be found, read or compiled.
     """
-    _whole(samples, "samples", 1)
-    _whole(seed, "the seed", 0)
+    whole_number(samples, "samples", 1)
+    whole_number(seed, "the seed", 0)
     label: str | None = params if isinstance(params, str) else None
     if isinstance(params, str):
         from poekin.paramfile import load_params

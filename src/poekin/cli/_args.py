@@ -253,6 +253,7 @@ def read_joint_values(args: argparse.Namespace, space: JointSpace) -> NDArray[np
             f"revolute joint values up to {biggest:g} are read as radians (more than a turn); "
             "if they are degrees, pass --deg"
         )
+        return q  # out of their limits too, most likely: one note says why
     _note_limits(q, space)
     return q
 

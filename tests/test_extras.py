@@ -1,0 +1,67 @@
+"""Optional features: the install hint is true for how poekin was installed."""
+
+from __future__ import annotations
+
+import json
+import sys
+from importlib import metadata
+
+import pytest
+
+from poekin import _extras
+from poekin.errors import MissingExtraError, PoekinError
+
+
+class _Dist:
+    def __init__(self, direct_url: dict[str, object] | None) -> None:
+        self.text = None if direct_url is None else json.dumps(direct_url)
+
+    def read_text(self, name: str) -> str | None:
+        assert name == "direct_url.json"
+        return self.text
+
+
+@pytest.mark.parametrize(
+    ("direct_url", "expected"),
+    [
+        ({"url": "file:///home/me/poe%20kin", "dir_info": {"editable": True}},
+         'pip install -e "/home/me/poe kin[urdf]"'),
+        ({"url": "file:///home/me/poekin", "dir_info": {}}, 'pip install "poekin[urdf]"'),
+        ({"url": "https://example.org/poekin.whl", "archive_info": {}},
+         'pip install "poekin[urdf]"'),
+        (None, 'pip install "poekin[urdf]"'),
+    ],
+)  # fmt: skip
+def test_install_command(
+    direct_url: dict[str, object] | None, expected: str, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.setattr(metadata, "distribution", lambda name: _Dist(direct_url))
+    _extras._source_checkout.cache_clear()
+    try:
+        assert _extras.install_command("urdf") == expected
+    finally:
+        _extras._source_checkout.cache_clear()
+
+
+def test_not_installed_at_all(monkeypatch: pytest.MonkeyPatch) -> None:
+    def missing(name: str) -> None:
+        raise metadata.PackageNotFoundError(name)
+
+    monkeypatch.setattr(metadata, "distribution", missing)
+    _extras._source_checkout.cache_clear()
+    try:
+        assert _extras.install_command("view") == 'pip install "poekin[view]"'
+    finally:
+        _extras._source_checkout.cache_clear()
+
+
+def test_require(monkeypatch: pytest.MonkeyPatch) -> None:
+    assert _extras.require("json", "none", "parsing") is json
+    monkeypatch.setitem(sys.modules, "yourdfpy", None)  # makes the import fail
+    with pytest.raises(MissingExtraError) as info:
+        _extras.require("yourdfpy", "urdf", "reading arm.urdf", instead="or use MJCF")
+    assert isinstance(info.value, PoekinError) and isinstance(info.value, ImportError)
+    assert str(info.value) == (
+        "reading arm.urdf needs yourdfpy, which is not installed: "
+        f"{_extras.install_command('urdf')} (or use MJCF)"
+    )
