@@ -855,3 +855,23 @@ def test_version_and_python_dash_m() -> None:
             [sys.executable, "-m", module, "--version"], capture_output=True, text=True, check=False
         )
         assert proc.returncode == 0 and proc.stdout == text + "\n", proc.stderr
+
+
+def test_a_dh_file_in_degrees_without_saying_so_gets_a_note(
+    capsys: pytest.CaptureFixture[str], tmp_path: pathlib.Path
+) -> None:
+    table = poekin.named_params("ur5e-dh").describe()
+    for row in table["rows"]:
+        row["alpha"] = float(np.degrees(row["alpha"]))
+    path = _write(tmp_path, "mine.json", json.dumps(table))
+    code, _, err = run(capsys, "fk", "--params", path, "--q", *"000000")
+    assert code == 0
+    assert err == (
+        f"poekin: note: {path}: rows[0].alpha = 90 is read as radians (more than a turn); if the "
+        "table's angles are degrees, add angle_unit: deg\n"
+    )
+    table["angle_unit"] = "deg"
+    path = _write(tmp_path, "mine_deg.json", json.dumps(table))
+    code, out, err = run(capsys, "fk", "--params", path, "--json", "--q", *"000000")
+    assert code == 0 and err == ""
+    assert_close("T", json.loads(out)["T"], poekin.named_params("ur5e-dh").fk(np.zeros(6)), 1e-15)

@@ -16,7 +16,7 @@ from test_params import BOOK_BODY_SCREWS, BOOK_HOME
 from poekin import Chain, InputError, exp_se3
 from poekin._extras import install_command
 from poekin.dh import DHTable
-from poekin.errors import MissingExtraError, UnknownParamsError
+from poekin.errors import MissingExtraError, UnitWarning, UnknownParamsError
 from poekin.paramfile import load_params, params_from_dict
 from poekin.params import PARAM_SETS, UR5E_DH, lynch_park_ur5_chain, ur5e_chain
 
@@ -302,3 +302,47 @@ def test_unknown_name_near_miss() -> None:
         load_params("ur5e_dh")
     message = str(info.value)
     assert "'lynch-park-ur5'" in message and ".json" in message and "\n" not in message
+
+
+# --- issue #15: degrees typed by mistake, or on purpose -------------------------------------------
+
+
+def _ur5e_table_in(unit: str) -> dict[str, Any]:
+    table = UR5E_DH.describe()
+    if unit == "deg":
+        for row in table["rows"]:
+            row["alpha"] = float(np.degrees(row["alpha"]))
+            row["theta_offset"] = float(np.degrees(row["theta_offset"]))
+        table["angle_unit"] = "deg"
+    return table
+
+
+def test_angle_unit_deg_reads_alpha_and_theta_in_degrees() -> None:
+    in_degrees = params_from_dict(_ur5e_table_in("deg"), "deg.json")
+    assert isinstance(in_degrees, DHTable)
+    assert in_degrees.alpha[0] == pytest.approx(np.pi / 2, abs=1e-15)
+    q = np.random.default_rng(3).uniform(-6, 6, (50, 6))
+    assert_close("fk", in_degrees.fk(q), UR5E_DH.fk(q), 1e-15)
+    assert np.array_equal(in_degrees.d, UR5E_DH.d)  # lengths stay metres
+
+
+def test_degree_looking_angles_get_a_note_once() -> None:
+    table = _ur5e_table_in("deg")
+    del table["angle_unit"]
+    with pytest.warns(UnitWarning) as caught:
+        params_from_dict(table, "mine.json")
+    assert len(caught) == 1
+    assert str(caught[0].message) == (
+        "mine.json: rows[0].alpha = 90 is read as radians (more than a turn); if the table's "
+        "angles are degrees, add angle_unit: deg"
+    )
+
+
+def test_angle_unit_mistakes() -> None:
+    table = _ur5e_table_in("rad")
+    with pytest.raises(InputError, match=r"'angle_unit' is 'degrees'; use 'rad' .* or 'deg'"):
+        params_from_dict({**table, "angle_unit": "degrees"}, "t.json")
+    poe = ur5e_chain().describe()
+    with pytest.raises(InputError, match="angle_unit applies to a DH table's alpha"):
+        params_from_dict({**poe, "angle_unit": "deg"}, "p.json")
+    assert isinstance(params_from_dict({**poe, "angle_unit": "rad"}, "p.json"), Chain)

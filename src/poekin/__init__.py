@@ -9,7 +9,7 @@ exactly what MuJoCo stores in ``qpos``.
 >>> T_world_ee = chain.fk([0.0, -1.57, 1.57, 0.0, 0.0, 0.0])
 """
 
-from poekin._fast import Form, compiled_kernel, get_threads, set_threads
+from poekin._fast import Form, SlowPathWarning, compiled_kernel, get_threads, set_threads
 from poekin.chain import Chain, JointType
 from poekin.dh import DHTable, dh_from_chain
 from poekin.diagnose import Diagnosis, diagnose
@@ -17,8 +17,10 @@ from poekin.errors import (
     InputError,
     MenagerieUnavailableError,
     MetricsFileError,
+    MissingExtraError,
     ModelError,
     PoekinError,
+    UnitWarning,
     UnknownFrameError,
     UnknownParamsError,
     UnknownRobotError,
@@ -82,10 +84,13 @@ __all__ = [
     "MenagerieUnavailableError",
     "MetricsFileError",
     "Mimic",
+    "MissingExtraError",
     "ModelError",
     "PoekinError",
+    "SlowPathWarning",
     "Tree",
     "TreeJointType",
+    "UnitWarning",
     "UnknownFrameError",
     "UnknownParamsError",
     "UnknownRobotError",

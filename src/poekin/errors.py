@@ -16,6 +16,7 @@ __all__ = [
     "MissingExtraError",
     "ModelError",
     "PoekinError",
+    "UnitWarning",
     "UnknownFrameError",
     "UnknownParamsError",
     "UnknownRobotError",
@@ -78,3 +79,7 @@ def did_you_mean(name: str, valid: Iterable[str], *, listed: int = 12) -> str:
 
 class MissingExtraError(PoekinError, ImportError):
     """An optional feature's library is not installed; the message names the pip command."""
+
+
+class UnitWarning(UserWarning):
+    """Values that look like another unit than the one they are read in (degrees as radians)."""

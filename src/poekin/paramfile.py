@@ -16,6 +16,10 @@ Accepted shapes (JSON shown; YAML holds the same structure)::
     {"robot": "", "frame": "ee", "joints": [{"name": "j1", "type": "revolute",
      "screw": [0, 0, 1, 0, 0, 0]}, ...], "home": [[1, 0, 0, 0.8], ...]}
 
+A DH table may say ``"angle_unit": "deg"``: its ``alpha`` and ``theta_offset`` are then
+degrees (lengths stay metres). Without it, angles are radians, and a table whose angles look
+like degrees (beyond a full turn, e.g. ``alpha: 90``) gets a :class:`~poekin.errors.UnitWarning`.
+
 Optional keys: ``theta_offset`` (0), ``joint_type`` (``"revolute"``), ``joint`` (``jointN``),
 ``base``/``tool`` (identity), ``joint_names`` (``jointN``), ``joint_types`` (revolute),
 ``frame`` (``"ee"``), ``robot`` (``""``). Units are metres and radians.
@@ -28,6 +32,7 @@ what to do.
 from __future__ import annotations
 
 import os
+import warnings
 from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import Any, TypeVar, cast
@@ -38,7 +43,7 @@ from numpy.typing import NDArray
 from poekin import lie
 from poekin.chain import Chain, JointType
 from poekin.dh import Convention, DHTable
-from poekin.errors import InputError, UnknownParamsError, did_you_mean, nearest
+from poekin.errors import InputError, UnitWarning, UnknownParamsError, did_you_mean, nearest
 from poekin.params import PARAM_SETS, named_params
 
 __all__ = ["FILE_SUFFIXES", "load_params", "params_from_dict"]
@@ -50,6 +55,8 @@ FloatArray = NDArray[np.float64]
 _T = TypeVar("_T")
 
 _ROW_KEYS = ("a", "alpha", "d", "theta_offset", "joint_type", "joint")
+# DH angles beyond this (rad) are more likely degrees than more than a turn.
+_DEGREES_LIKELY = 2 * np.pi + 1e-9
 _ROW_HINT = "each row needs a, alpha, d (theta_offset and joint_type are optional)"
 _SCREW_HINT = "each screw is [w1, w2, w3, v1, v2, v3] (angular part first)"
 _NEITHER = (
@@ -172,6 +179,7 @@ def _dh_table(obj: Mapping[str, Any], source: str) -> DHTable:
             '"modified" (Craig)'
         )
     convention = _string(obj["convention"], f"{source}: 'convention'")
+    unit = _angle_unit(obj, source)
     rows = _list(obj["rows"], f"{source}: 'rows'", "rows {a, alpha, d, ...}")
     a, alpha, d, theta = [], [], [], []
     types: list[str] = []
@@ -196,6 +204,10 @@ def _dh_table(obj: Mapping[str, Any], source: str) -> DHTable:
         types.append(_string(row.get("joint_type", "revolute"), f"{at}.joint_type"))
         names.append(_string(row.get("joint", f"joint{i + 1}"), f"{at}.joint"))
     _unique_names(names, f"{source}: rows")
+    if unit == "deg":
+        alpha, theta = list(np.radians(alpha)), list(np.radians(theta))
+    elif "angle_unit" not in obj:
+        _note_degrees(source, alpha, theta)
     base = _matrix4(obj["base"], f"{source}: 'base'") if "base" in obj else np.eye(4)
     tool = _matrix4(obj["tool"], f"{source}: 'tool'") if "tool" in obj else np.eye(4)
     frame = _string(obj.get("frame", "ee"), f"{source}: 'frame'")
@@ -216,6 +228,30 @@ def _dh_table(obj: Mapping[str, Any], source: str) -> DHTable:
             robot=robot,
         ),
     )
+
+
+def _angle_unit(obj: Mapping[str, Any], source: str) -> str:
+    """``angle_unit``: ``"rad"`` (the default) or ``"deg"`` for a DH table's alpha and
+    theta_offset."""
+    unit = _string(obj.get("angle_unit", "rad"), f"{source}: 'angle_unit'")
+    if unit not in ("rad", "deg"):
+        raise InputError(f"{source}: 'angle_unit' is {unit!r}; use 'rad' (the default) or 'deg'")
+    return unit
+
+
+def _note_degrees(source: str, alpha: Sequence[float], theta: Sequence[float]) -> None:
+    """Warn when a DH table's angles, read as radians, look like degrees (more than a turn)."""
+    for name, values in (("alpha", alpha), ("theta_offset", theta)):
+        big = [(i, v) for i, v in enumerate(values) if abs(v) > _DEGREES_LIKELY]
+        if big:
+            i, v = big[0]
+            warnings.warn(
+                f"{source}: rows[{i}].{name} = {v:g} is read as radians (more than a turn); if "
+                "the table's angles are degrees, add angle_unit: deg",
+                UnitWarning,
+                stacklevel=5,
+            )
+            return
 
 
 def _joints_form(obj: Mapping[str, Any], source: str) -> tuple[list[Any], list[Any], list[Any]]:
@@ -249,6 +285,11 @@ def _per_joint(
 
 
 def _poe_chain(obj: Mapping[str, Any], source: str) -> Chain:
+    if _angle_unit(obj, source) == "deg":
+        raise InputError(
+            f"{source}: angle_unit applies to a DH table's alpha and theta_offset; a PoE set's "
+            "screws and home pose hold no angles"
+        )
     if "screws" in obj and "body_screws" in obj:
         raise InputError(
             f"{source}: has both 'screws' and 'body_screws'; keep one (space or body frame)"
