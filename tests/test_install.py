@@ -1,0 +1,95 @@
+"""The package as installed: its data files, its entry points, and the main job with no setup.
+
+CI runs this module a second time against the wheel installed in a fresh virtual environment,
+with ``POEKIN_EXPECT_INSTALLED=1``: then poekin must not come from this checkout's ``src``.
+"""
+
+from __future__ import annotations
+
+import os
+import pathlib
+import subprocess
+import sys
+from importlib import metadata, resources
+
+import pytest
+
+import poekin
+
+REPO = pathlib.Path(__file__).resolve().parents[1]
+
+
+def _offline_env(tmp_path: pathlib.Path) -> dict[str, str]:
+    """No MENAGERIE_ROOT, an empty download cache, and an address nothing answers at: a
+    download attempt would fail with exit 2."""
+    env = {k: v for k, v in os.environ.items() if k != "MENAGERIE_ROOT"}
+    env["MENAGERIE_CACHE_DIR"] = str(tmp_path / "cache")
+    env["MENAGERIE_BASE_URL"] = (tmp_path / "nothing-here").as_uri()
+    return env
+
+
+def test_where_poekin_comes_from() -> None:
+    installed = not pathlib.Path(poekin.__file__).is_relative_to(REPO / "src")
+    if os.environ.get("POEKIN_EXPECT_INSTALLED") == "1":
+        assert installed, f"poekin was imported from {poekin.__file__}, not the installed wheel"
+    assert metadata.version("poekin") == poekin.__version__
+
+
+def test_the_builtin_robot_and_the_licenses_are_installed() -> None:
+    data = resources.files("poekin") / "data" / "universal_robots_ur5e"
+    assert (data / "ur5e.xml").read_text().startswith('<mujoco model="ur5e">')
+    assert "ROS Industrial Consortium" in (data / "LICENSE").read_text()
+    assert (resources.files("poekin") / "py.typed").is_file()
+    licenses = [str(f) for f in metadata.files("poekin") or [] if "LICENSE" in str(f)]
+    assert any(f.endswith("licenses/LICENSE") for f in licenses), licenses
+
+
+def test_verify_runs_offline_on_the_builtin_ur5e(tmp_path: pathlib.Path) -> None:
+    proc = subprocess.run(
+        [sys.executable, "-m", "poekin", "verify", "--samples", "200"],
+        capture_output=True,
+        text=True,
+        check=False,
+        cwd=tmp_path,
+        env=_offline_env(tmp_path),
+    )
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stderr == ""  # no note: the built-in copy has no meshes by design
+    lines = proc.stdout.splitlines()
+    assert lines[1] == (
+        "model: poekin's built-in copy of Menagerie's universal_robots_ur5e (XML only; set "
+        "MENAGERIE_ROOT to use your own clone)"
+    )
+    assert lines[-1] == "PASS: tolerances 1e-05 m, 0.0001 rad"
+    assert not (tmp_path / "cache").exists()  # nothing was fetched
+
+
+def test_a_users_menagerie_root_wins(tmp_path: pathlib.Path) -> None:
+    clone = tmp_path / "clone" / "universal_robots_ur5e"
+    clone.mkdir(parents=True)
+    builtin = resources.files("poekin") / "data" / "universal_robots_ur5e" / "ur5e.xml"
+    (clone / "ur5e.xml").write_text(builtin.read_text())
+    env = {**_offline_env(tmp_path), "MENAGERIE_ROOT": str(tmp_path / "clone")}
+    proc = subprocess.run(
+        [sys.executable, "-m", "poekin", "verify", "--samples", "20", "--json"],
+        capture_output=True,
+        text=True,
+        check=False,
+        env=env,
+    )
+    assert proc.returncode == 0, proc.stderr
+    assert f'"model_file": "{clone / "ur5e.xml"}"' in proc.stdout
+    assert f"Menagerie clone at MENAGERIE_ROOT={tmp_path / 'clone'}" in proc.stdout
+
+
+@pytest.mark.parametrize("argv", [["poekin"], [sys.executable, "-m", "poekin"]])
+def test_entry_points(argv: list[str]) -> None:
+    if argv == ["poekin"]:
+        script = pathlib.Path(sys.executable).parent / "poekin"
+        if not script.exists():
+            pytest.skip("no console script beside this interpreter")
+        argv = [str(script)]
+    proc = subprocess.run([*argv, "--version"], capture_output=True, text=True, check=False)
+    assert proc.returncode == 0 and proc.stdout.startswith(f"poekin {poekin.__version__} (")
+    proc = subprocess.run([*argv, "fk", "--q", "1"], capture_output=True, text=True, check=False)
+    assert proc.returncode == 2 and "Traceback" not in proc.stderr
