@@ -203,7 +203,7 @@ def _resolve_menagerie(name: str) -> Resolved:
         raise MenagerieUnavailableError(
             f"Menagerie robot {name!r}: {xml} is missing; {_MENAGERIE_FIX}"
         )
-    origin = f"Menagerie clone at MENAGERIE_ROOT={root}" if root else "Menagerie download cache"
+    origin = "the Menagerie clone at MENAGERIE_ROOT" if root else "the Menagerie download cache"
     return Resolved(xml, name, origin)
 
 

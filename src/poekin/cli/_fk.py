@@ -169,6 +169,7 @@ def _check_q_args(args: argparse.Namespace, result: str) -> None:
 def _save(
     args: argparse.Namespace,
     result: FloatArray,
+    what: str,
     name: str,
     columns: list[str],
     extras: dict[str, Any],
@@ -177,7 +178,7 @@ def _save(
     from poekin.fileio import write_array
 
     write_array(args.output, result, name=name, columns=columns, extras=extras)
-    print(f"{name} of shape {result.shape} written to {args.output}", file=out)
+    print(f"{what} {name} of shape {result.shape} written to {args.output}", file=out)
 
 
 # --- fk ---------------------------------------------------------------------------------------
@@ -193,7 +194,7 @@ def _cmd_fk(args: argparse.Namespace, out: TextIO) -> int:
     if args.input is not None:
         cells = [f"T{r}{c}" for r in range(4) for c in range(4)]
         columns = [f"{f}.{c}" for f in frames for c in cells] if target.many else cells
-        _save(args, T, "T", columns, {"frames": frames}, out)
+        _save(args, T, "poses", "T", columns, {"frames": frames}, out)
         if target.many:
             print(f"frames (axis -3): {', '.join(frames)}", file=out)
         return 0
@@ -221,7 +222,7 @@ def _cmd_jacobian(args: argparse.Namespace, out: TextIO) -> int:
     frame, columns = target.frames[0], target.columns
     if args.input is not None:
         cells = [f"{r}:{c}" for r in _ROWS for c in columns]
-        _save(args, J, "J", cells, {"columns": columns}, out)
+        _save(args, J, "Jacobians", "J", cells, {"columns": columns}, out)
         return 0
     if args.json:
         body = {"frame": frame, "convention": args.convention, "q": list(args.q), "deg": args.deg}

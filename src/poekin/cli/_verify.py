@@ -128,7 +128,9 @@ def _print_report(report: Any, args: argparse.Namespace, out: TextIO) -> None:
         f"seed {report.seed}, vs mj_forward",
         file=out,
     )
-    print(f"model: {report.model_origin or report.model_file}", file=out)
+    builtin = report.model_origin.startswith("poekin's built-in")
+    where = f" ({report.model_origin})" if report.model_origin else ""
+    print(f"model: {report.model_origin if builtin else report.model_file + where}", file=out)
     header = ["", "max pos [m]", "median pos [m]", "max ori [rad]", "median ori [rad]"]
     keys = ("max_pos_err_m", "median_pos_err_m", "max_ori_err_rad", "median_ori_err_rad")
     rows = [[m, *(sig(s[k]) for k in keys)] for m, s in report.per_method().items()]
