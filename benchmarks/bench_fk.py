@@ -228,6 +228,7 @@ class Case:
     make: Callable[[tuple[int, ...]], Call]  # batch shape -> the function to time
     single: bool = True  # also timed as single calls
     setting: Callable[[], contextlib.AbstractContextManager[None]] = contextlib.nullcontext
+    first_batch_only: bool = False  # a slow case: the smallest batch is enough
 
 
 def _optional(name: str) -> Any:
@@ -251,8 +252,13 @@ def _same(fn: Callable[..., object], **kwargs: Any) -> Callable[[tuple[int, ...]
     return lambda shape: partial(fn, **kwargs) if kwargs else fn
 
 
-def poekin_cases(fk: Callable[..., FloatArray], frames: tuple[int, ...]) -> list[Case]:
-    """The plain call, plus ``out=``, ``form=`` and one-thread rows where this poekin has them.
+def poekin_cases(
+    fk: Callable[..., FloatArray],
+    frames: tuple[int, ...],
+    reference: Callable[[FloatArray], FloatArray] | None = None,
+) -> list[Case]:
+    """The plain call, plus ``out=``, ``form=`` and one-thread rows where this poekin has them,
+    and the pure-NumPy ``reference`` path (what an install without a C compiler runs).
 
     ``frames`` is the result's shape between the batch and the pose: ``()`` for a chain,
     ``(n_frames,)`` for a tree. A new variant is one more ``Case`` here.
@@ -266,6 +272,8 @@ def poekin_cases(fk: Callable[..., FloatArray], frames: tuple[int, ...]) -> list
     if _optional("set_threads") and _optional("get_threads"):
         threads = partial(_poekin_threads, 1)
         cases.append(Case("1 thread", _same(fk), single=False, setting=threads))
+    if reference is not None:
+        cases.append(Case("NumPy path (no compiler)", _same(reference), first_batch_only=True))
     return cases
 
 
@@ -282,7 +290,7 @@ def time_cases(
                 if case.single
                 else None
             )
-            for k, n in enumerate(batches):
+            for k, n in enumerate(batches[:1] if case.first_batch_only else batches):
                 batch = time_batch(case.make((n,)), q[:n], n, sizes.repeats)
                 rows.append(Row(label, single if k == 0 else None, batch, "vectorised"))
     return rows
@@ -568,7 +576,7 @@ def tree_rows(robot: str, sizes: Sizes, seed: int) -> list[Row]:
     tree = poekin.load_tree(loaded)
     n = max(*sizes.tree_batches, sizes.loop, sizes.single, sizes.check)
     qpos = poekin.sample_qpos(tree, n, seed=seed)
-    cases = poekin_cases(tree.fk, (tree.n_frames,))
+    cases = poekin_cases(tree.fk, (tree.n_frames,), getattr(tree, "_fk_numpy", None))
     rows = time_cases("poekin tree.fk", cases, qpos, sizes.tree_batches, sizes)
     rows.append(mujoco_tree_row(loaded, tree, qpos, sizes))
     add_ratios(rows, "poekin tree.fk")
@@ -857,7 +865,10 @@ def run_chain(sizes: Sizes, seed: int, skip: Sequence[str]) -> list[Row]:
     loaded = _quiet(lambda: poekin.load_model(ROBOT))
     model = Model(loaded, poekin.load(loaded, SITE))
     q = np.random.default_rng(seed).uniform(-2 * np.pi, 2 * np.pi, size=(sizes.n, 6))
-    rows = time_cases("poekin chain.fk", poekin_cases(model.chain.fk, ()), q, sizes.batches, sizes)
+    # the reference path as fk runs it without the kernel (fk validates q, then this)
+    numpy_path = getattr(model.chain, "_fk_numpy", None)
+    cases = poekin_cases(model.chain.fk, (), numpy_path)
+    rows = time_cases("poekin chain.fk", cases, q, sizes.batches, sizes)
     rows.append(time_library(mujoco_library(model), model, q, sizes))
     for name, build in COMPETITORS.items():
         if name not in skip:

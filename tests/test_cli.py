@@ -875,3 +875,22 @@ def test_a_dh_file_in_degrees_without_saying_so_gets_a_note(
     code, out, err = run(capsys, "fk", "--params", path, "--json", "--q", *"000000")
     assert code == 0 and err == ""
     assert_close("T", json.loads(out)["T"], poekin.named_params("ur5e-dh").fk(np.zeros(6)), 1e-15)
+
+
+def test_floating_base_from_the_command_line(capsys: pytest.CaptureFixture[str]) -> None:
+    urdf = str(pathlib.Path(__file__).parent / "data" / "urdf" / "serial_arm.urdf")
+    tree = poekin.load_tree(urdf, floating_base=True)
+    qpos = poekin.sample_qpos(tree, 1, seed=4)[0]
+    q = [repr(float(x)) for x in qpos]
+    argv = ["fk", urdf, "--floating-base", "--tree", "--frame", "tool0", "--json", "--q", *q]
+    code, out, err = run(capsys, *argv)
+    assert code == 0, err
+    assert_close("T", json.loads(out)["T"], tree.fk(qpos)[tree.frame_index("tool0")], 0.0)
+    code, out, err = run(capsys, "verify", urdf, "--floating-base", "--samples", "30")
+    assert code == 0 and "tree FK" in out and "every body and site" in out, err
+    code, _, err = run(capsys, "fk", urdf, "--floating-base", "--q", *q)
+    assert code == 2
+    assert_one_error_line(err, "--floating-base gives a whole model's qpos: pass --tree too")
+    code, _, err = run(capsys, "verify", "--floating-base")
+    assert code == 2
+    assert_one_error_line(err, "floating_base applies to URDF")

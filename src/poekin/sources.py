@@ -552,11 +552,13 @@ def _includes(xml_path: pathlib.Path) -> dict[str, bytes]:
     return found
 
 
-def _read_spec(xml_path: pathlib.Path) -> mujoco.MjSpec:
-    """Parse the model (no asset file is read yet).
+def _read_spec(xml_path: pathlib.Path, free_root: str | None = None) -> mujoco.MjSpec:
+    """Parse the model (no asset file is read yet); with ``free_root``, give a URDF's root body
+    a free joint of that name.
 
     Raises:
-        ModelError: the XML cannot be parsed.
+        ModelError: the XML cannot be parsed, or ``free_root`` is given for a model that is not
+            a URDF with one root link.
     """
     import mujoco
 
@@ -573,6 +575,13 @@ def _read_spec(xml_path: pathlib.Path) -> mujoco.MjSpec:
     if xml_path.suffix.lower() == ".urdf":
         spec.compiler.fusestatic = False  # keep fixed-joint links as bodies: they are frames
         _floor_inertia(spec)  # URDF links often have no <inertial>
+    if free_root is not None:
+        roots = spec.worldbody.bodies
+        if xml_path.suffix.lower() != ".urdf" or len(roots) != 1:
+            raise ModelError(
+                f"{xml_path.name}: a floating base goes on the one root link of a URDF model"
+            )
+        roots[0].add_freejoint(name=free_root)
     return spec
 
 
@@ -583,7 +592,7 @@ def _compile(spec: mujoco.MjSpec, xml_path: pathlib.Path) -> mujoco.MjModel:
         raise ModelError(f"MuJoCo rejected {xml_path}: {_reason(e)}") from e
 
 
-def load_model(source: str | os.PathLike[str]) -> LoadedModel:
+def load_model(source: str | os.PathLike[str], *, free_root: str | None = None) -> LoadedModel:
     """Resolve ``source`` and compile it with MuJoCo for kinematics.
 
     Mesh, height field, skin and texture files are not read, except the meshes and height
@@ -596,6 +605,9 @@ def load_model(source: str | os.PathLike[str]) -> LoadedModel:
             URDF file. A URDF is compiled with ``fusestatic`` off, so that every link stays a
             body (poekin reads URDF itself with :func:`poekin.import_urdf.tree_from_urdf`;
             this compile is the reference it is verified against).
+        free_root: URDF only: give the root link a free joint of this name before compiling,
+            as :func:`poekin.load_tree` does with ``floating_base=True``, so that the two can be
+            compared.
 
     Warns:
         AssetsStrippedWarning: asset files were missing; the one-line message says what was
@@ -608,14 +620,14 @@ def load_model(source: str | os.PathLike[str]) -> LoadedModel:
     resolved = resolve_source(source)
     xml_path = resolved.path
     xml = _model_xml(xml_path)
-    spec = _read_spec(xml_path)
+    spec = _read_spec(xml_path, free_root)
     found, missing, present = _scan_assets(spec, xml)
     files = tuple(sorted({p.resolve() for p in [*xml.files, *found]}))
     stripped, stubs = _strip_for_kinematics(spec, missing, present)
     model = _compile(spec, xml_path)
     needed = _check_alignment(spec, model, stubs, xml_path)
     if needed:  # read those files after all: compile again, with them
-        spec = _read_spec(xml_path)
+        spec = _read_spec(xml_path, free_root)
         _, missing, present = _scan_assets(spec, xml)
         _strip_for_kinematics(spec, missing, [a for a in present if _asset_key(a) not in needed])
         model = _compile(spec, xml_path)

@@ -61,7 +61,9 @@ def _cmd_verify(args: argparse.Namespace, out: TextIO) -> int:
         check_metrics_file(args.metrics)
     if args.against and not args.params:
         raise InputError("--against SOURCE goes with --params FILE|NAME (what to check)")
-    loaded = load_model(model_source(args))
+    source = model_source(args)
+    tree = load_tree(source, floating_base=True) if args.floating_base else None
+    loaded = load_model(source, free_root=tree.joint_names[0] if tree else None)
     common = {
         "samples": args.samples,
         "seed": args.seed,
@@ -70,10 +72,9 @@ def _cmd_verify(args: argparse.Namespace, out: TextIO) -> int:
         "ori_tol": args.ori_tol,
         "progress": True,
     }
-    if args.floating_base:
+    if tree is not None:
         if args.params:
             raise InputError("--floating-base checks a URDF model's own tree, not --params")
-        tree = load_tree(loaded, floating_base=True)
         report = verify(tree, args.frame, against=loaded, **common)  # type: ignore[arg-type]
     else:
         report = verify(
