@@ -220,12 +220,48 @@ BAD_INPUTS = [
     (["jacobian", "aloha", "--tree", "--q", "0"], "name the end frame with --frame"),
     (["jacobian", "--tree", "--params", "ur5e-dh", "--q", "0"], "not --params"),
     (["jacobian", "universal_robots_ur5e", "--output", "{tmp}/J.npy", "--q", "0"], "goes with"),
+    # issue #15: what a new user hit
+    (["verify", "--seed", "-1"], "--seed must be a whole number, 0 or more, got -1"),
+    (["diagnose", "--params", "ur5e-dh", "--seed", "-1"], "--seed must be a whole number"),
+    (["fk", "universal_robots_ur5e", "--q", "-inf", *"00000"], "NaN or inf"),
+    (["verify", "--pos-tol", "-1e-3"], "--pos-tol must be a positive number, got -0.001"),
+    (["verify", "--plot", "{tmp}/fig.pdf.bak"], "names no format poekin knows: .png, .pdf"),
+    (["verify", "--plot", "{tmp}/fig"], "it has no suffix"),
+    (["fk", "universal_robots_ur5e", "--input", "{q_npy}", "--output", "{tmp}/T.dat"], ".dat"),
+    (
+        ["fk", "universal_robots_ur5e", "--input", "{text_npy}", "--output", "{tmp}/T.npy"],
+        "is not a NumPy .npy file",
+    ),
+    (
+        ["fk", "universal_robots_ur5e", "--input", "{complex_npy}", "--output", "{tmp}/T.npy"],
+        "holds complex numbers",
+    ),
+    (
+        ["fk", "universal_robots_ur5e", "--input", "{q_npy}", "--output", "{tmp}/T.npy", "--json"],
+        "--json prints the result of one --q",
+    ),
+    (["verify", "ur5e"], "did you mean 'universal_robots_ur5e'"),
+    (["verify", "{readme}"], "is not a model format poekin reads"),
+    (["verify", "{mismatched_xml}"], "XML_ERROR_MISMATCHED_ELEMENT"),
+    (["jacobian", "unitree_go2", "--frame", "FL_calf", "--q", "0"], "sits behind the free joint"),
+    (["fk", "universal_robots_ur5e", "--floating-base", "--q", *"000000"], "pass --tree too"),
+    (["fk", "unitree_go2", "--relative-to", "bse", "--q", "0"], "did you mean 'base'"),
+    (["fk", "--params", "ur5e-dh", "--tree", "--q", "0"], "not --params"),
+    (["dh", "--params", "{deg_unit_typo}"], "'angle_unit' is 'degree'"),
     pytest.param(
         ["verify", "--metrics", "/dev/full"],
         "No space left on device",
         marks=pytest.mark.skipif(not os.path.exists("/dev/full"), reason="no /dev/full"),
     ),
 ]
+
+
+UR5E_DH_DICT = poekin.named_params("ur5e-dh").describe()
+
+
+def _npy(path: pathlib.Path, array: np.ndarray) -> str:
+    np.save(path, array)
+    return str(path)
 
 
 def _param_file(tmp_path: pathlib.Path, name: str, joint: int, screw: list[float]) -> str:
@@ -268,6 +304,14 @@ def test_bad_input_gives_one_line_and_exit_2(
         "skewed_home": _param_file(tmp_path, "skewed.json", 0, []),
         "other_csv": other,
         "other_png": other_png,
+        "q_npy": _npy(tmp_path / "q.npy", np.zeros((2, 6))),
+        "complex_npy": _npy(tmp_path / "complex.npy", np.zeros((2, 6)) + 1j),
+        "text_npy": _write(tmp_path, "text.npy", "0,0,0,0,0,0\n"),
+        "readme": _write(tmp_path, "README.md", "# not a robot\n"),
+        "mismatched_xml": _write(tmp_path, "m.xml", "<mujoco>\n<worldbody>\n<oops>\n</mujoco>\n"),
+        "deg_unit_typo": _write(
+            tmp_path, "t.json", json.dumps({**UR5E_DH_DICT, "angle_unit": "degree"})
+        ),
     }
     before = pathlib.Path(other).read_bytes()
     code, _, err = run(capsys, *[a.format(**fills) for a in argv])

@@ -645,8 +645,9 @@ class Tree:
                 raise ModelError(
                     f"joint {self.joint_names[k]!r} on the path to {frame!r} is a "
                     f"{self.joint_types[k]} joint; a PoE chain holds hinge and slide joints only: "
-                    "pose it with the whole tree, poekin.load_tree(...).fk(qpos) or "
-                    "'poekin fk SOURCE --all-frames', or choose a frame whose path has none"
+                    "use the whole tree (tree.pose(qpos, frame), tree.jacobian(qpos, frame); "
+                    "'poekin fk/jacobian --tree' on the command line), or choose a frame whose "
+                    "path has none"
                 )
         x = self._expand(self.qpos0)
         x[self._full_adr[list(joints)]] = 0.0  # every chain joint at position 0
