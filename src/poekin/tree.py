@@ -53,6 +53,7 @@ IntArray = NDArray[np.intp]
 _QPOS_SIZE: dict[str, int] = {"revolute": 1, "prismatic": 1, "ball": 4, "free": 7}
 _DOF: dict[str, int] = {"revolute": 1, "prismatic": 1, "ball": 3, "free": 6}
 _QPOS_WORDS = {"ball": "qw qx qy qz", "free": "x y z qw qx qy qz"}
+_ANGULAR = ("rx", "ry", "rz")
 _IDENTITY_QUAT = (1.0, 0.0, 0.0, 0.0)
 # Axes and fixed rotations from a model file are unit / orthonormal to ~1e-16; hand-made ones
 # (URDF rpy, typed axes) to ~1e-12. Beyond this the model is wrong, not rounded.
@@ -586,20 +587,17 @@ class Tree:
         """A name for each of the ``nq`` entries of ``qpos``: a hinge or slide joint's name,
         ``name[qw]`` ... ``name[qz]`` for a ball joint, ``name[x]`` ``name[y]`` ``name[z]`` then
         ``name[qw]`` ... for a free joint. Mimic joints have no entry."""
-        names: list[str] = []
-        for name, kind, mimic in zip(self.joint_names, self.joint_types, self.mimics, strict=True):
-            if mimic is not None:
-                continue
-            if kind in ("revolute", "prismatic"):
-                names.append(name)
-            else:
-                names.extend(f"{name}[{part}]" for part in _QPOS_WORDS[kind].split())
-        return tuple(names)
+        return self._entry_names({k: tuple(words.split()) for k, words in _QPOS_WORDS.items()})
 
     def dof_names(self) -> tuple[str, ...]:
         """A name for each of the ``nv`` Jacobian columns (MuJoCo's ``qvel``): a hinge or slide
         joint's name, ``name[rx]``... for a ball joint, ``name[x]``... then ``name[rx]``... for a
         free joint (linear along world x y z, then angular about the body's axes)."""
+        return self._entry_names({"ball": _ANGULAR, "free": ("x", "y", "z", *_ANGULAR)})
+
+    def _entry_names(self, parts: dict[str, tuple[str, ...]]) -> tuple[str, ...]:
+        """Each independent joint's name, or ``name[part]`` for each of a ball or free joint's
+        ``parts``."""
         names: list[str] = []
         for name, kind, mimic in zip(self.joint_names, self.joint_types, self.mimics, strict=True):
             if mimic is not None:
@@ -607,8 +605,7 @@ class Tree:
             if kind in ("revolute", "prismatic"):
                 names.append(name)
             else:
-                axes = ("x", "y", "z", "rx", "ry", "rz") if kind == "free" else ("rx", "ry", "rz")
-                names.extend(f"{name}[{a}]" for a in axes)
+                names.extend(f"{name}[{part}]" for part in parts[kind])
         return tuple(names)
 
     # --- serial chains --------------------------------------------------------------------
