@@ -329,6 +329,27 @@ def test_mimic_follower_is_multiplier_times_leader_plus_offset() -> None:
     assert_close("chain", chain.fk(np.stack([q1, q2], -1)), expected[:, 2], 1e-15)
 
 
+def test_a_follower_may_come_before_its_leader() -> None:
+    """The follower j1 is the parent joint of its leader j2: qpos holds j2 alone, and the
+    Jacobian column of j2 holds both joints' motion, as the derivative of fk says."""
+    mimic = _two_link((Mimic("j2", multiplier=-2.0, offset=0.25), None))
+    free = _two_link((None, None))
+    assert (mimic.nq, mimic.nv, tuple(mimic.qpos_adr)) == (1, 1, (0, 0))
+    assert mimic.qpos_layout() == "qpos = [j2]"
+    q2 = np.linspace(-3, 3, 13)
+    full = np.stack([-2.0 * q2 + 0.25, q2], axis=-1)
+    assert_close("full_qpos", mimic.full_qpos(q2[:, None]), full, 0.0)
+    assert_close("fk", mimic.fk(q2[:, None]), free.fk(full), 0.0)
+    assert_close("numpy fk", mimic._fk_numpy(q2[:, None]), free._fk_numpy(full), 0.0)
+    J = free.jacobian(full, "tip")
+    tip = mimic.frame_index("tip")
+    for J_mimic in (
+        mimic.jacobian(q2[:, None], "tip"),
+        mimic._jacobian_numpy(q2[:, None], tip, "world"),
+    ):
+        assert_close("jacobian", J_mimic[..., 0], -2.0 * J[..., 0] + J[..., 1], 1e-15)
+
+
 @pytest.mark.parametrize(
     ("change", "message"),
     [
@@ -336,7 +357,11 @@ def test_mimic_follower_is_multiplier_times_leader_plus_offset() -> None:
         ({"joint_types": ("revolute", "screw")}, "unknown type 'screw'"),
         ({"joint_axes": [[0.0, 0.0, 2.0], [0.0, 0.0, 1.0]]}, "'j1' must be a unit vector"),
         ({"mimics": (None, Mimic("j0"))}, "mimics 'j0'.*Valid names: 'j1'"),
-        ({"mimics": (Mimic("j2"), None)}, "must be an earlier joint"),
+        (
+            {"mimics": (Mimic("j2"), Mimic("j1"))},
+            "'j1' mimics 'j2', which must be a joint that mim",
+        ),
+        ({"mimics": (Mimic("j1"), None)}, "'j1' mimics 'j1', which must be a joint that mimics"),
         ({"body_rot": [np.eye(3), 2 * np.eye(3)]}, "body_rot of 'b' is not a rotation"),
         ({"joint_types": ("revolute", "free")}, "free joint 'j2' must be the only joint"),
         ({"joint_limits": [[1.0, -1.0]] * 2}, "lower <= upper"),

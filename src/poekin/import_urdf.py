@@ -78,8 +78,9 @@ def tree_from_urdf(
                 in body order, mimic followers left out]
 
     :attr:`Tree.joint_names` lists every joint, followers included, and :attr:`Tree.qpos_adr`
-    where each one's value is (a follower: its leader's). A follower of a follower is tied to
-    the independent joint at the end of the chain (multipliers and offsets composed).
+    where each one's value is (a follower: its leader's, whether the leader comes before or
+    after it). A follower of a follower is tied to the independent joint at the end of the
+    chain (multipliers and offsets composed).
 
     Args:
         path: the ``.urdf`` file.
@@ -91,7 +92,7 @@ def tree_from_urdf(
         ModelError: yourdfpy is not installed; the file is missing, not XML, not a URDF, or
             an unexpanded xacro; its links do not form one tree; a planar joint, a floating
             joint below the root, a zero axis, ``lower > upper``, or a mimic of an unknown,
-            fixed, later or cyclic joint.
+            fixed or cyclic joint.
     """
     where = os.fspath(path)
     urdf_robot = _parse(where)
@@ -327,7 +328,6 @@ def _mimics(
 ) -> tuple[Mimic | None, ...]:
     """One entry per tree joint (``urdf_joints``; None: the floating base): for a follower,
     its independent leader with the multipliers and offsets along the way composed."""
-    names = [j.name for j in urdf_joints if j is not None]
     hinges = {j.name: j for j in urdf_joints if j is not None and j.type != "floating"}
     out: list[Mimic | None] = []
     for joint in urdf_joints:
@@ -349,12 +349,6 @@ def _mimics(
                     "one of them must move on its own"
                 )
             seen.append(leader.name)
-        if names.index(leader.name) > names.index(joint.name):
-            raise ModelError(
-                f"{where}: joint {joint.name!r} mimics {leader.name!r}, which comes after it in "
-                "the body order (depth first, children in <joint> file order); the tree needs "
-                "leaders first: move the <joint> elements of the leader's branch earlier"
-            )
         out.append(Mimic(leader.name, multiplier, offset))
     return tuple(out)
 
