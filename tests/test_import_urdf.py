@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 from helpers import MJ_TOL, assert_close
 
-from poekin import ModelError, PoekinError
+from poekin import ModelError, PoekinError, URDFError
 from poekin.import_urdf import FLOATING_BASE, tree_from_urdf
 from poekin.tree import Mimic, Tree
 
@@ -268,6 +268,29 @@ def test_world_root_link_is_the_world() -> None:
     assert_close("qpos0 of the floating joint = its origin", tree.qpos0[:7], expected, 2e-16)
 
 
+@pytest.mark.parametrize(
+    "before", [b"\n", b"\n  \n\t", b"\r\n\r\n", b"\xef\xbb\xbf\n", b"\xef\xbb\xbf"]
+)
+def test_blank_lines_before_the_xml_declaration(tmp_path: pathlib.Path, before: bytes) -> None:
+    """Accepted as MuJoCo and Pinocchio accept them (their XML reader, tinyxml2, skips them),
+    with or without a UTF-8 byte order mark, and MuJoCo reads the same robot."""
+    path = tmp_path / "blank_first.urdf"
+    path.write_bytes(before + (DATA / "serial_arm.urdf").read_bytes())
+    tree, expected = tree_from_urdf(path), tree_from_urdf(DATA / "serial_arm.urdf")
+    assert tree.joint_names == expected.joint_names
+    q = random_qpos(tree, 50, seed=5)
+    assert_close("same poses", tree.fk(q), expected.fk(q), 0.0)
+    model = compile_with_mujoco(path, floating_base=False)
+    assert_close("MuJoCo", tree.fk(q), mujoco_body_poses(model, tree, q), MJ_TOL)
+
+
+def test_parse_errors_after_blank_lines_name_the_right_line(tmp_path: pathlib.Path) -> None:
+    path = tmp_path / "broken.urdf"
+    path.write_text('\n\n<?xml version="1.0"?>\n<robot name="r">\n<link name="a">\n</robot>\n')
+    with pytest.raises(ModelError, match="mismatched tag: line 6, column 2"):
+        tree_from_urdf(path)
+
+
 # --- against MuJoCo -------------------------------------------------------------------------
 
 
@@ -416,7 +439,7 @@ ERROR_CASES = {
 def test_errors_are_one_line(tmp_path: pathlib.Path, text: str, phrase: str) -> None:
     path = tmp_path / "robot.urdf"
     path.write_text(text)
-    with pytest.raises(ModelError) as info:
+    with pytest.raises(URDFError) as info:
         tree_from_urdf(path)
     message = str(info.value)
     assert phrase in message

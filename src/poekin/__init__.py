@@ -22,6 +22,7 @@ from poekin.errors import (
     UnknownFrameError,
     UnknownParamsError,
     UnknownRobotError,
+    URDFError,
 )
 from poekin.import_mujoco import chain_from_model, tree_from_model
 from poekin.import_urdf import tree_from_urdf
@@ -86,6 +87,7 @@ __all__ = [
     "PoekinError",
     "Tree",
     "TreeJointType",
+    "URDFError",
     "UnknownFrameError",
     "UnknownParamsError",
     "UnknownRobotError",

@@ -15,6 +15,7 @@ __all__ = [
     "MetricsFileError",
     "ModelError",
     "PoekinError",
+    "URDFError",
     "UnknownFrameError",
     "UnknownParamsError",
     "UnknownRobotError",
@@ -33,6 +34,10 @@ class InputError(PoekinError, ValueError):
 
 class ModelError(PoekinError):
     """A model file is missing, unreadable, malformed, or MuJoCo rejects it."""
+
+
+class URDFError(ModelError):
+    """A URDF file that poekin cannot read as a robot: malformed, or outside what it supports."""
 
 
 class UnknownRobotError(ModelError, LookupError):

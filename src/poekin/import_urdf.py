@@ -30,15 +30,18 @@ joint names; MuJoCo's ``qpos`` holds mimic followers too, tied by equality const
 
 from __future__ import annotations
 
+import io
 import math
 import os
+import pathlib
+import re
 from collections.abc import Sequence
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import NDArray
 
-from poekin.errors import InputError, ModelError, did_you_mean
+from poekin.errors import InputError, ModelError, URDFError, did_you_mean
 from poekin.tree import Mimic, Tree, TreeJointType
 
 if TYPE_CHECKING:
@@ -102,7 +105,7 @@ def tree_from_urdf(
     order = _body_order(root, urdf_robot.joints, link_names, where)
     if root == WORLD_LINK:
         if floating_base:
-            raise ModelError(
+            raise URDFError(
                 f"{where}: the root link is 'world', which fixes the robot to the world; "
                 "drop floating_base, or remove the 'world' link to let the robot float"
             )
@@ -110,7 +113,7 @@ def tree_from_urdf(
     parents, poses, joints = _bodies(order, parent_joint, floating_base, where)
     names = [name for name, _, _, _ in joints]
     if floating_base and names.count(FLOATING_BASE) > 1:
-        raise ModelError(
+        raise URDFError(
             f"{where}: a joint is already named {FLOATING_BASE!r}; rename it to use floating_base"
         )
     urdf_joints = [joint for _, _, _, joint in joints]
@@ -131,7 +134,7 @@ def tree_from_urdf(
             robot=robot or urdf_robot.name,
         )
     except InputError as exc:  # e.g. a NaN in an <origin>
-        raise ModelError(f"{where}: {exc}") from exc
+        raise URDFError(f"{where}: {exc}") from exc
 
 
 def _bodies(
@@ -165,32 +168,50 @@ def _parse(path: str) -> Any:
     except ImportError as exc:
         raise ModelError("reading URDF needs yourdfpy: pip install 'poekin[urdf]'") from exc
     if not os.path.isfile(path):
-        raise ModelError(f"{path}: no such URDF file; check the path")
+        raise URDFError(f"{path}: no such URDF file; check the path")
+    try:
+        text = _xml_text(pathlib.Path(path).read_bytes())
+    except OSError as exc:
+        raise URDFError(f"{path}: cannot read the URDF file ({exc.strerror})") from exc
     import xml.etree.ElementTree as ET
 
     try:
-        root = ET.parse(path).getroot()
+        root = ET.fromstring(text)
     except ET.ParseError as exc:
-        raise ModelError(f"{path}: not well-formed XML ({exc}); fix the file") from exc
-    except OSError as exc:
-        raise ModelError(f"{path}: cannot read the URDF file ({exc.strerror})") from exc
+        raise URDFError(f"{path}: not well-formed XML ({exc}); fix the file") from exc
     _check_structure(root, path)
     try:
         urdf = yourdfpy.URDF.load(
-            path, build_scene_graph=False, load_meshes=False, load_collision_meshes=False
+            io.BytesIO(text),
+            build_scene_graph=False,
+            load_meshes=False,
+            load_collision_meshes=False,
         )
     except (ValueError, TypeError, KeyError, AttributeError, IndexError) as exc:
-        raise ModelError(f"{path}: malformed URDF ({type(exc).__name__}: {exc})") from exc
+        raise URDFError(f"{path}: malformed URDF ({type(exc).__name__}: {exc})") from exc
     return urdf.robot
+
+
+def _xml_text(data: bytes) -> bytes:
+    """The file's bytes, with blank space before its ``<?xml ...?>`` declaration moved after it,
+    where XML allows it (and a UTF-8 byte order mark before the space dropped): MuJoCo's and
+    Pinocchio's XML reader (tinyxml2) accept such files, Python's (expat) does not. Every line
+    keeps its number, so parse errors point at the right one."""
+    body = data.removeprefix(b"\xef\xbb\xbf")
+    start = len(body) - len(body.lstrip())
+    if start == 0 or not re.match(rb"<\?xml\s", body[start:]):
+        return data
+    end = body.find(b"?>", start) + 2
+    return body[start:end] + body[:start] + body[end:] if end > 1 else data
 
 
 def _check_structure(root: ET.Element, path: str) -> None:
     """The required elements and attributes yourdfpy would fail on with a bare KeyError."""
     if root.tag != "robot":
         hint = "; load an MJCF file with poekin.load_tree" if root.tag == "mujoco" else ""
-        raise ModelError(f"{path}: not a URDF: the root element is <{root.tag}>, not <robot>{hint}")
+        raise URDFError(f"{path}: not a URDF: the root element is <{root.tag}>, not <robot>{hint}")
     if any(elem.tag.startswith("{") and "xacro" in elem.tag for elem in root.iter()):
-        raise ModelError(f"{path}: an unexpanded xacro file; run 'xacro {path} > robot.urdf' first")
+        raise URDFError(f"{path}: an unexpanded xacro file; run 'xacro {path} > robot.urdf' first")
     required = [(root, "name")]
     required += [(link, "name") for link in root.findall("link")]
     for joint in root.findall("joint"):
@@ -199,32 +220,32 @@ def _check_structure(root: ET.Element, path: str) -> None:
             elem = joint.find(tag)
             if elem is None:
                 name = joint.get("name", "?")
-                raise ModelError(f"{path}: joint {name!r} has no <{tag} link=...>; add it")
+                raise URDFError(f"{path}: joint {name!r} has no <{tag} link=...>; add it")
             required.append((elem, "link"))
     for elem, attribute in required:
         if not elem.get(attribute):
-            raise ModelError(f"{path}: a <{elem.tag}> has no {attribute!r} attribute; add it")
+            raise URDFError(f"{path}: a <{elem.tag}> has no {attribute!r} attribute; add it")
 
 
 def _parent_joints(joints: Sequence[Any], links: list[str], where: str) -> dict[str, Any]:
     """Each child link's joint; every joint joins known links, no link has two parents."""
     if len(set(links)) < len(links):
         twice = sorted({name for name in links if links.count(name) > 1})
-        raise ModelError(f"{where}: links named more than once: {twice}; rename them")
+        raise URDFError(f"{where}: links named more than once: {twice}; rename them")
     names = [joint.name for joint in joints]
     if len(set(names)) < len(names):
         twice = sorted({name for name in names if names.count(name) > 1})
-        raise ModelError(f"{where}: joints named more than once: {twice}; rename them")
+        raise URDFError(f"{where}: joints named more than once: {twice}; rename them")
     parent_joint: dict[str, Any] = {}
     for joint in joints:
         for link in (joint.parent, joint.child):
             if link not in links:
-                raise ModelError(
+                raise URDFError(
                     f"{where}: joint {joint.name!r} names link {link!r}, which is not defined: "
                     f"{did_you_mean(link, links)}"
                 )
         if joint.child in parent_joint:
-            raise ModelError(
+            raise URDFError(
                 f"{where}: link {joint.child!r} is the child of both joints "
                 f"{parent_joint[joint.child].name!r} and {joint.name!r}; a URDF is a tree"
             )
@@ -238,11 +259,11 @@ def _root_link(links: list[str], parent_joint: dict[str, Any], where: str) -> st
     if len(roots) == 1:
         return roots[0]
     if roots:
-        raise ModelError(
+        raise URDFError(
             f"{where}: {len(roots)} root links (no joint's child): {roots}; a URDF has one, "
             "so join the others to it with joints"
         )
-    raise ModelError(f"{where}: no root link: the joints form a cycle through every link")
+    raise URDFError(f"{where}: no root link: the joints form a cycle through every link")
 
 
 def _body_order(root: str, joints: Sequence[Any], links: list[str], where: str) -> list[str]:
@@ -258,7 +279,7 @@ def _body_order(root: str, joints: Sequence[Any], links: list[str], where: str) 
         stack.extend(reversed(children[link]))
     if len(order) < len(links):
         cut = [name for name in links if name not in set(order)]
-        raise ModelError(
+        raise URDFError(
             f"{where}: links {cut} are not reachable from the root link {root!r}: their joints "
             "form a cycle; a URDF is a tree"
         )
@@ -268,19 +289,19 @@ def _body_order(root: str, joints: Sequence[Any], links: list[str], where: str) 
 def _tree_joint_type(joint: Any, where: str) -> TreeJointType | None:
     """The tree joint a URDF joint becomes (None: fixed); refuses planar and deep floating."""
     if joint.type not in _URDF_TYPES:
-        raise ModelError(
+        raise URDFError(
             f"{where}: joint {joint.name!r} has type {joint.type!r}; a URDF joint is one of "
             f"{list(_URDF_TYPES)}"
         )
     if joint.type == "planar":
-        raise ModelError(
+        raise URDFError(
             f"{where}: joint {joint.name!r} is planar (3 degrees of freedom in a plane), which "
             "the tree's hinge/slide/ball/free joints cannot hold as one joint (MuJoCo splits it "
             "into _TX, _TY slides and an _RZ hinge); model it as two prismatic joints and a "
             "revolute joint through intermediate links"
         )
     if joint.type == "floating" and joint.parent != WORLD_LINK:
-        raise ModelError(
+        raise URDFError(
             f"{where}: floating joint {joint.name!r} hangs below link {joint.parent!r}; a free "
             "joint must join a link to the world: make its parent the root link 'world', or "
             "remove it and pass floating_base=True"
@@ -294,11 +315,11 @@ def _axis(joint: Any | None, where: str) -> tuple[float, float, float]:
         return (1.0, 0.0, 0.0)
     axis = np.asarray(joint.axis, dtype=np.float64).reshape(-1)
     if axis.shape != (3,) or not np.all(np.isfinite(axis)):
-        raise ModelError(f"{where}: joint {joint.name!r}: <axis xyz> must be 3 finite numbers")
+        raise URDFError(f"{where}: joint {joint.name!r}: <axis xyz> must be 3 finite numbers")
     x, y, z = (float(v) for v in axis)
     norm = math.sqrt(x * x + y * y + z * z)
     if norm < _MIN_AXIS_NORM:
-        raise ModelError(
+        raise URDFError(
             f"{where}: joint {joint.name!r} has a zero <axis xyz>; give the direction it moves in"
         )
     return (x / norm, y / norm, z / norm)
@@ -316,7 +337,7 @@ def _limits(joint: Any | None, where: str) -> tuple[float, float]:
     ):
         return (-math.inf, math.inf)
     if limit.lower > limit.upper:
-        raise ModelError(
+        raise URDFError(
             f"{where}: joint {joint.name!r} has <limit lower={limit.lower:g} "
             f"upper={limit.upper:g}>; lower must not exceed upper"
         )
@@ -339,12 +360,12 @@ def _mimics(
         while leader.mimic is not None:
             m = leader.mimic
             if leader.name not in hinges or m.joint not in hinges:
-                raise ModelError(f"{where}: {_bad_mimic(leader.name, m.joint, all_joints)}")
+                raise URDFError(f"{where}: {_bad_mimic(leader.name, m.joint, all_joints)}")
             offset += multiplier * (0.0 if m.offset is None else float(m.offset))
             multiplier *= 1.0 if m.multiplier is None else float(m.multiplier)
             leader = hinges[m.joint]
             if leader.name in seen:
-                raise ModelError(
+                raise URDFError(
                     f"{where}: mimic joints form a cycle: {' -> '.join([*seen, leader.name])}; "
                     "one of them must move on its own"
                 )
