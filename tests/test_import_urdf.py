@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import logging
 import pathlib
+import re
 import sys
 
 import mujoco
@@ -13,9 +14,12 @@ import pytest
 from helpers import MJ_TOL, assert_close
 
 from poekin import ModelError, PoekinError, URDFError
-from poekin.import_urdf import FLOATING_BASE, tree_from_urdf
+from poekin.import_urdf import FLOATING_BASE, URDFLimitsWarning, tree_from_urdf
 from poekin.tree import Mimic, Tree
+from poekin.verify import sample_qpos
 
+# limits.urdf's note is checked once, in test_unusable_limits_are_unlimited_as_in_mujoco
+pytestmark = pytest.mark.filterwarnings("ignore::poekin.import_urdf.URDFLimitsWarning")
 DATA = pathlib.Path(__file__).parent / "data" / "urdf"
 N_SAMPLES = 1000
 HAND_TOL = 1e-14  # closed form vs tree.fk: a few roundings of numbers of order 1
@@ -29,6 +33,7 @@ MUJOCO_CASES = [
     ("package_meshes.urdf", False),
     ("world_floating.urdf", False),
     ("gripper_mimic_later.urdf", False),
+    ("limits.urdf", False),
 ]
 
 
@@ -94,7 +99,8 @@ def random_qpos(tree: Tree, n: int, seed: int) -> np.ndarray:
             q[:, a] = rng.uniform(-2 * np.pi, 2 * np.pi, size=n)
         else:
             lo, hi = tree.joint_limits[k]
-            q[:, a] = rng.uniform(lo, hi, size=n) if np.isfinite(lo + hi) else rng.uniform(-1, 1, n)
+            limited = np.isfinite(lo) and np.isfinite(hi)
+            q[:, a] = rng.uniform(lo, hi, size=n) if limited else rng.uniform(-1, 1, n)
     return q
 
 
@@ -323,6 +329,61 @@ def test_every_body_matches_mujoco(fixture: str, floating_base: bool) -> None:
         assert_close(f"{fixture}: {name}", T[:, b], expected[:, b], MJ_TOL)
 
 
+@pytest.mark.parametrize(("fixture", "floating_base"), MUJOCO_CASES)
+def test_limits_are_mujocos(fixture: str, floating_base: bool) -> None:
+    """MuJoCo's range where MuJoCo limits the joint, else unlimited: ``sample_qpos`` and
+    ``--within-limits`` then sample what a model verified against MuJoCo allows."""
+    tree = tree_from_urdf(DATA / fixture, floating_base=floating_base)
+    model = compile_with_mujoco(DATA / fixture, floating_base)
+    hinges = [k for k, t in enumerate(tree.joint_types) if t != "free"]
+    expected = np.where(model.jnt_limited[hinges, None], model.jnt_range[hinges], [-np.inf, np.inf])
+    np.testing.assert_array_equal(tree.joint_limits[hinges], expected)
+
+
+def test_unusable_limits_are_unlimited_as_in_mujoco() -> None:
+    """One note names the joints whose <limit> gives no range (limits.urdf has one of each
+    kind), and says why."""
+    with pytest.warns(URDFLimitsWarning) as notes:
+        tree = tree_from_urdf(DATA / "limits.urdf")
+    assert len(notes) == 1
+    note = str(notes[0].message)
+    assert note.startswith(f"{DATA / 'limits.urdf'}: 7 joints are unlimited, as in MuJoCo (")
+    assert "\n" not in note
+    assert """'bullet_no_limit': <limit lower="1" upper="-1">, Bullet's "no limit";""" in note
+    assert note.endswith("; and 4 more)")
+    limits = dict(zip(tree.joint_names, tree.joint_limits.tolist(), strict=True))
+    assert limits.pop("normal") == [-1.0, 2.0]
+    assert limits.pop("slide") == [-0.2, 0.3]
+    assert all(lower_upper == [-np.inf, np.inf] for lower_upper in limits.values())
+    q = sample_qpos(tree, 200, seed=0, within_limits=True)
+    assert np.ptp(q[:, tree.joint_names.index("equal")]) > 6, "samples [-2 pi, 2 pi]"
+
+
+@pytest.mark.parametrize(
+    ("joint", "why"),
+    [
+        ('<limit lower="0" upper="0" effort="1" velocity="1"/>', '<limit lower="0" upper="0">'),
+        ('<limit effort="1" velocity="1"/>', "<limit> without lower and upper, which the URDF"),
+        ('<limit upper="1" effort="1" velocity="1"/>', "<limit> with upper only"),
+        ("", "no <limit>"),
+    ],
+)
+def test_each_unusable_limit_is_named(tmp_path: pathlib.Path, joint: str, why: str) -> None:
+    path = tmp_path / "robot.urdf"
+    path.write_text(_urdf(_joint("jl", "prismatic", "base", "a", joint), "base a"))
+    with pytest.warns(
+        URDFLimitsWarning, match=f"1 joint is unlimited, as in MuJoCo \\('jl': {re.escape(why)}"
+    ):
+        tree = tree_from_urdf(path)
+    np.testing.assert_array_equal(tree.joint_limits, [[-np.inf, np.inf]])
+
+
+def test_usable_limits_give_no_note(recwarn: pytest.WarningsRecorder) -> None:
+    for fixture in ("serial_arm.urdf", "two_arms.urdf", "gripper_mimic_later.urdf"):
+        tree_from_urdf(DATA / fixture)
+    assert not recwarn.list
+
+
 @pytest.mark.parametrize(
     ("fixture", "frame"),
     [
@@ -407,12 +468,6 @@ ERROR_CASES = {
     "deep floating": (
         _urdf(CHAIN + _joint("jf", "floating", "a", "b")),
         "floating joint 'jf' hangs below link 'a'",
-    ),
-    "inverted limits": (
-        _urdf(
-            CHAIN + _joint("jb", "revolute", "a", "b", '<limit lower="1" upper="-1"/>'),
-        ),
-        "joint 'jb' has <limit lower=1 upper=-1>",
     ),
     "mimic unknown joint": (
         _urdf(CHAIN + _joint("jb", "continuous", "a", "b", '<mimic joint="jaa"/>')),

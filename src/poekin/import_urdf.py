@@ -35,6 +35,7 @@ import math
 import os
 import pathlib
 import re
+import warnings
 from collections.abc import Sequence
 from typing import TYPE_CHECKING, Any
 
@@ -47,10 +48,17 @@ from poekin.tree import Mimic, Tree, TreeJointType
 if TYPE_CHECKING:
     import xml.etree.ElementTree as ET
 
-__all__ = ["FLOATING_BASE", "tree_from_urdf"]
+__all__ = ["FLOATING_BASE", "URDFLimitsWarning", "tree_from_urdf"]
 
 FLOATING_BASE = "floating_base"
 """Name of the free joint that ``floating_base=True`` puts on the root link."""
+
+
+class URDFLimitsWarning(UserWarning):
+    """Revolute or prismatic joints whose ``<limit>`` gives no range are unlimited, as MuJoCo
+    compiles them: no ``<limit>``, no ``lower`` or no ``upper``, or ``lower >= upper``
+    (``lower > upper`` is Bullet's way to say "no limit")."""
+
 
 WORLD_LINK = "world"
 """A root link of this name is the world frame itself (as in ROS and MuJoCo), not a body."""
@@ -117,6 +125,10 @@ def tree_from_urdf(
             f"{where}: a joint is already named {FLOATING_BASE!r}; rename it to use floating_base"
         )
     urdf_joints = [joint for _, _, _, joint in joints]
+    limits = [_limits(joint) for joint in urdf_joints]
+    unused = [(name, why) for name, (_, why) in zip(names, limits, strict=True) if why]
+    if unused:
+        warnings.warn(_limits_note(where, unused), URDFLimitsWarning, stacklevel=2)
     try:
         return Tree(
             body_names=tuple(order),
@@ -129,7 +141,7 @@ def tree_from_urdf(
             joint_axes=np.array([_axis(joint, where) for joint in urdf_joints]).reshape(-1, 3),
             joint_anchors=np.zeros((len(joints), 3)),
             joint_refs=np.zeros(len(joints)),
-            joint_limits=np.array([_limits(j, where) for j in urdf_joints]).reshape(-1, 2),
+            joint_limits=np.array([lower_upper for lower_upper, _ in limits]).reshape(-1, 2),
             mimics=_mimics(urdf_joints, urdf_robot.joints, where),
             robot=robot or urdf_robot.name,
         )
@@ -325,23 +337,39 @@ def _axis(joint: Any | None, where: str) -> tuple[float, float, float]:
     return (x / norm, y / norm, z / norm)
 
 
-def _limits(joint: Any | None, where: str) -> tuple[float, float]:
-    """``(lower, upper)`` of a revolute or prismatic joint with both given, else unlimited."""
-    limit = None if joint is None else joint.limit
-    if (
-        joint is None
-        or joint.type not in ("revolute", "prismatic")
-        or limit is None
-        or limit.lower is None
-        or limit.upper is None
-    ):
-        return (-math.inf, math.inf)
-    if limit.lower > limit.upper:
-        raise URDFError(
-            f"{where}: joint {joint.name!r} has <limit lower={limit.lower:g} "
-            f"upper={limit.upper:g}>; lower must not exceed upper"
-        )
-    return (float(limit.lower), float(limit.upper))
+def _limits(joint: Any | None) -> tuple[tuple[float, float], str]:
+    """``(lower, upper)`` of a joint as MuJoCo compiles its ``<limit>``, and why a revolute or
+    prismatic joint's limit is not used (empty if it is, and for other joints).
+
+    MuJoCo limits a hinge or slide to ``[lower, upper]`` when both are given and
+    ``lower < upper``; otherwise it leaves the joint unlimited.
+    """
+    unlimited = (-math.inf, math.inf)
+    if joint is None or joint.type not in ("revolute", "prismatic"):
+        return unlimited, ""
+    limit = joint.limit
+    if limit is None:
+        return unlimited, "no <limit>"
+    lower, upper = limit.lower, limit.upper
+    if lower is None and upper is None:
+        return unlimited, "<limit> without lower and upper, which the URDF spec reads as 0 0"
+    if lower is None or upper is None:
+        return unlimited, f"<limit> with {'upper' if lower is None else 'lower'} only"
+    given = f'<limit lower="{lower:g}" upper="{upper:g}">'
+    if lower > upper:
+        return unlimited, f'{given}, Bullet\'s "no limit"'
+    if lower == upper:
+        return unlimited, given
+    return (float(lower), float(upper)), ""
+
+
+def _limits_note(where: str, unused: list[tuple[str, str]]) -> str:
+    """The note that the limits of the ``(joint, why)`` in ``unused`` are not used."""
+    listed = 3
+    shown = "; ".join(f"{name!r}: {why}" for name, why in unused[:listed])
+    more = f"; and {len(unused) - listed} more" if len(unused) > listed else ""
+    joints = "1 joint is" if len(unused) == 1 else f"{len(unused)} joints are"
+    return f"{where}: {joints} unlimited, as in MuJoCo ({shown}{more})"
 
 
 def _mimics(
