@@ -15,6 +15,7 @@ from helpers import MJ_TOL, assert_close
 
 from poekin import ModelError, PoekinError, URDFError
 from poekin.import_urdf import FLOATING_BASE, URDFLimitsWarning, tree_from_urdf
+from poekin.sources import _mujoco_warnings
 from poekin.tree import Mimic, Tree
 from poekin.verify import sample_qpos
 
@@ -69,7 +70,8 @@ def compile_with_mujoco(path: pathlib.Path, floating_base: bool) -> mujoco.MjMod
     URIs as files when it compiles; boundmass/boundinertia give massless moving links (their
     mass lived in a deleted mesh or was never given) the mass MuJoCo insists on.
     """
-    spec = mujoco.MjSpec.from_file(str(path))
+    with _mujoco_warnings():  # e.g. limits.urdf's lower = upper: no MUJOCO_LOG.TXT here
+        spec = mujoco.MjSpec.from_file(str(path))
     spec.compiler.fusestatic = False
     spec.compiler.boundmass = 1e-6
     spec.compiler.boundinertia = 1e-9

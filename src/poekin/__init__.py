@@ -60,7 +60,7 @@ from poekin.params import (
     named_params,
     ur5e_chain,
 )
-from poekin.sources import AssetsStrippedWarning, LoadedModel, load_model
+from poekin.sources import AssetsStrippedWarning, LoadedModel, MuJoCoWarning, load_model
 from poekin.tree import Mimic, Tree, TreeJointType
 from poekin.verify import VerifyReport, pose_errors, sample_joint_values, sample_qpos, verify
 
@@ -84,6 +84,7 @@ __all__ = [
     "MetricsFileError",
     "Mimic",
     "ModelError",
+    "MuJoCoWarning",
     "PoekinError",
     "Tree",
     "TreeJointType",
