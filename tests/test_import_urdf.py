@@ -448,11 +448,63 @@ ERROR_CASES = {
     ),
     "bad number": (
         _urdf(_joint("jn", "continuous", "base", "a", '<origin xyz="0 x 0"/>'), "base a"),
-        "malformed URDF",
+        """joint 'jn': <origin xyz="0 x 0">: 'x' is not a finite number; give 3 numbers""",
     ),
     "NaN origin": (
         _urdf(_joint("jn", "continuous", "base", "a", '<origin rpy="nan 0 0"/>'), "base a"),
-        "body_rot contains NaN or inf",
+        "'nan' is not a finite number; give 3 numbers (roll pitch yaw)",
+    ),
+    "rpy of 4": (
+        _urdf(_joint("jr", "fixed", "base", "a", '<origin rpy="0.1 0.2 0.3 0.4"/>'), "base a"),
+        """joint 'jr': <origin rpy="0.1 0.2 0.3 0.4"> has 4 numbers; give 3 numbers (roll pitch""",
+    ),
+    "xyz of 4": (
+        _urdf(_joint("jx", "revolute", "base", "a", '<origin xyz="0 0 1 0"/>'), "base a"),
+        """joint 'jx': <origin xyz="0 0 1 0"> has 4 numbers; give 3 numbers (x y z)""",
+    ),
+    "xyz of 2": (
+        _urdf(_joint("jx", "revolute", "base", "a", '<origin xyz="0 1"/>'), "base a"),
+        """<origin xyz="0 1"> has 2 numbers; give 3""",
+    ),
+    "axis with commas": (
+        _urdf(_joint("jc", "continuous", "base", "a", '<axis xyz="0,0,1"/>'), "base a"),
+        """joint 'jc': <axis xyz="0,0,1">: '0,0,1' is not a finite number; give 3 numbers""",
+    ),
+    "axis without xyz": (
+        _urdf(_joint("ja", "prismatic", "base", "a", "<axis/>"), "base a"),
+        """joint 'ja': <axis> has no xyz; give <axis xyz="x y z">, or remove <axis> for the""",
+    ),
+    **{
+        f"two <{tag}>": (
+            _urdf(
+                _joint("j2", "revolute", "base", "a", repeat) + _joint("jb", "revolute", "a", "b"),
+            ),
+            f"joint 'j2' has 2 <{tag}> elements; keep one",
+        )
+        for tag, repeat in [  # _joint gives one <parent> and one <child>
+            ("parent", '<parent link="base"/>'),
+            ("child", '<child link="a"/>'),
+            ("origin", '<origin xyz="0 0 1"/>' * 2),
+            ("axis", '<axis xyz="0 0 1"/>' * 2),
+            ("limit", '<limit lower="-1" upper="1"/>' * 2),
+            ("mimic", '<mimic joint="jb"/>' * 2),
+        ]
+    },
+    "mimic without joint": (
+        _urdf(CHAIN + _joint("jb", "continuous", "a", "b", '<mimic multiplier="2"/>')),
+        "joint 'jb': <mimic> has no joint; name the joint it follows",
+    ),
+    "mimic multiplier of 2": (
+        _urdf(CHAIN + _joint("jb", "continuous", "a", "b", '<mimic joint="ja" multiplier="2 3"/>')),
+        """joint 'jb': <mimic multiplier="2 3"> has 2 numbers; give one number""",
+    ),
+    "limit not a number": (
+        _urdf(CHAIN + _joint("jb", "revolute", "a", "b", '<limit lower="-pi" upper="1"/>')),
+        """joint 'jb': <limit lower="-pi">: '-pi' is not a finite number; give one number""",
+    ),
+    "mimic of itself": (
+        _urdf(CHAIN + _joint("jb", "continuous", "a", "b", '<mimic joint="jb"/>')),
+        "mimic joints form a cycle: jb -> jb",
     ),
     "unknown type": (_urdf(_joint("ju", "hinge", "base", "a"), "base a"), "a URDF joint is one of"),
     "unknown link": (_urdf(_joint("ja", "fixed", "base", "c")), "link 'c', which is not defined"),

@@ -72,6 +72,22 @@ _MOVING: dict[str, TreeJointType] = {
     "floating": "free",
 }
 _URDF_TYPES = (*_MOVING, "fixed", "planar")
+# the joints whose <axis> poekin reads
+_AXIS_TYPES = ("revolute", "continuous", "prismatic")
+# a joint's elements that poekin reads, which URDF allows once (MuJoCo refuses a repeat)
+_AT_MOST_ONCE = ("parent", "child", "origin", "axis", "limit", "mimic")
+# the numbers poekin reads: (element, attribute) -> what they are
+_NUMBERS = {
+    ("origin", "xyz"): "x y z",
+    ("origin", "rpy"): "roll pitch yaw",
+    ("axis", "xyz"): "x y z",
+    ("limit", "lower"): "lower",
+    ("limit", "upper"): "upper",
+    ("mimic", "multiplier"): "multiplier",
+    ("mimic", "offset"): "offset",
+}
+# a finite decimal number, as MuJoCo and urdfdom (Pinocchio) read them
+_NUMBER = re.compile(r"[+-]?(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?")
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.intp]
 
@@ -218,25 +234,84 @@ def _xml_text(data: bytes) -> bytes:
 
 
 def _check_structure(root: ET.Element, path: str) -> None:
-    """The required elements and attributes yourdfpy would fail on with a bare KeyError."""
+    """What poekin reads of the file, checked before yourdfpy reads it (which would fail with a
+    bare KeyError, or take the first of several elements or numbers): required names and
+    attributes; in each joint, one ``<parent>`` and one ``<child>``, at most one ``<origin>``,
+    ``<axis>``, ``<limit>`` and ``<mimic>``, and their numbers. Links' contents (inertia,
+    geometry) are not read, so not checked."""
     if root.tag != "robot":
         hint = "; load an MJCF file with poekin.load_tree" if root.tag == "mujoco" else ""
         raise URDFError(f"{path}: not a URDF: the root element is <{root.tag}>, not <robot>{hint}")
     if any(elem.tag.startswith("{") and "xacro" in elem.tag for elem in root.iter()):
         raise URDFError(f"{path}: an unexpanded xacro file; run 'xacro {path} > robot.urdf' first")
-    required = [(root, "name")]
-    required += [(link, "name") for link in root.findall("link")]
+    for elem in [root, *root.findall("link")]:
+        if not elem.get("name"):
+            raise URDFError(f"{path}: a <{elem.tag}> has no 'name' attribute; add it")
     for joint in root.findall("joint"):
-        required += [(joint, "name"), (joint, "type")]
-        for tag in ("parent", "child"):
-            elem = joint.find(tag)
-            if elem is None:
-                name = joint.get("name", "?")
-                raise URDFError(f"{path}: joint {name!r} has no <{tag} link=...>; add it")
-            required.append((elem, "link"))
-    for elem, attribute in required:
-        if not elem.get(attribute):
-            raise URDFError(f"{path}: a <{elem.tag}> has no {attribute!r} attribute; add it")
+        _check_joint(joint, path)
+
+
+def _check_joint(joint: ET.Element, path: str) -> None:
+    """One ``<joint>`` element: see :func:`_check_structure`."""
+    name = joint.get("name")
+    if not name:
+        raise URDFError(f"{path}: a <joint> has no 'name' attribute; add it")
+    kind = joint.get("type")
+    if not kind:
+        raise URDFError(f"{path}: joint {name!r} has no 'type' attribute; add it")
+    for tag in _AT_MOST_ONCE:
+        found = joint.findall(tag)
+        if len(found) > 1:
+            raise URDFError(
+                f"{path}: joint {name!r} has {len(found)} <{tag}> elements; keep one (MuJoCo "
+                "refuses such a file, other readers take the first)"
+            )
+    for tag in ("parent", "child"):
+        elem = joint.find(tag)
+        if elem is None or not elem.get("link"):
+            raise URDFError(f"{path}: joint {name!r} has no <{tag} link=...>; add it")
+    origin = joint.find("origin")
+    if origin is not None:
+        _check_numbers(origin, "xyz", name, path)
+        _check_numbers(origin, "rpy", name, path)
+    axis = joint.find("axis")
+    if axis is not None and kind in _AXIS_TYPES:
+        if axis.get("xyz") is None:
+            raise URDFError(
+                f'{path}: joint {name!r}: <axis> has no xyz; give <axis xyz="x y z">, or remove '
+                "<axis> for the default 1 0 0"
+            )
+        _check_numbers(axis, "xyz", name, path)
+    limit = joint.find("limit")
+    if limit is not None:
+        _check_numbers(limit, "lower", name, path)
+        _check_numbers(limit, "upper", name, path)
+    mimic = joint.find("mimic")
+    if mimic is not None:
+        if not mimic.get("joint"):
+            raise URDFError(
+                f"{path}: joint {name!r}: <mimic> has no joint; name the joint it follows: "
+                '<mimic joint="...">'
+            )
+        _check_numbers(mimic, "multiplier", name, path)
+        _check_numbers(mimic, "offset", name, path)
+
+
+def _check_numbers(elem: ET.Element, attribute: str, joint: str, path: str) -> None:
+    """``elem``'s ``attribute``, if given, is as many finite numbers as URDF says."""
+    text = elem.get(attribute)
+    if text is None:
+        return
+    meaning = _NUMBERS[elem.tag, attribute]
+    count = len(meaning.split())
+    words = text.split()
+    given = f'{path}: joint {joint!r}: <{elem.tag} {attribute}="{text}">'
+    fix = f"give {count} numbers ({meaning})" if count > 1 else "give one number"
+    bad = next((word for word in words if not _NUMBER.fullmatch(word)), None)
+    if bad is not None:
+        raise URDFError(f"{given}: {bad!r} is not a finite number; {fix}")
+    if len(words) != count:
+        raise URDFError(f"{given} has {len(words)} numbers; {fix}")
 
 
 def _parent_joints(joints: Sequence[Any], links: list[str], where: str) -> dict[str, Any]:
