@@ -62,13 +62,14 @@ def _quat_matrix(q: np.ndarray) -> np.ndarray:
     )
 
 
-def compile_with_mujoco(path: pathlib.Path, floating_base: bool) -> mujoco.MjModel:
+def compile_with_mujoco(path: pathlib.Path, floating_base: bool | str) -> mujoco.MjModel:
     """MuJoCo's model of the same URDF, one body per link: the recipe ``poekin verify`` needs.
 
     fusestatic=False keeps fixed-joint links as bodies (MuJoCo's URDF default fuses them, and
     the root link too, into their parents); the meshes go, since MuJoCo opens ``package://``
     URIs as files when it compiles; boundmass/boundinertia give massless moving links (their
     mass lived in a deleted mesh or was never given) the mass MuJoCo insists on.
+    ``floating_base``: add a free joint named so (True: FLOATING_BASE) to the root link.
     """
     with _mujoco_warnings():  # e.g. limits.urdf's lower = upper: no MUJOCO_LOG.TXT here
         spec = mujoco.MjSpec.from_file(str(path))
@@ -81,7 +82,8 @@ def compile_with_mujoco(path: pathlib.Path, floating_base: bool) -> mujoco.MjMod
     for mesh in list(spec.meshes):
         spec.delete(mesh)
     if floating_base:
-        spec.worldbody.first_body().add_freejoint(name=FLOATING_BASE)
+        name = floating_base if isinstance(floating_base, str) else FLOATING_BASE
+        spec.worldbody.first_body().add_freejoint(name=name)
     return spec.compile()
 
 
@@ -565,12 +567,22 @@ def test_floating_base_on_world_root_refused() -> None:
         tree_from_urdf(DATA / "world_floating.urdf", floating_base=True)
 
 
-def test_floating_base_name_taken(tmp_path: pathlib.Path) -> None:
+@pytest.mark.parametrize("kind", ["continuous", "fixed"])
+def test_floating_base_name_taken(tmp_path: pathlib.Path, kind: str) -> None:
+    """A URDF joint named floating_base (moving or fixed): the free joint takes the first free
+    name of floating_base_1, floating_base_2, ..."""
     path = tmp_path / "robot.urdf"
-    path.write_text(_urdf(_joint(FLOATING_BASE, "continuous", "base", "a"), "base a"))
-    with pytest.raises(ModelError, match="already named 'floating_base'"):
-        tree_from_urdf(path, floating_base=True)
-    assert tree_from_urdf(path).joint_names == (FLOATING_BASE,)
+    joints = _joint(FLOATING_BASE, kind, "base", "a") + _joint("floating_base_1", kind, "a", "b")
+    path.write_text(_urdf(joints))
+    tree = tree_from_urdf(path, floating_base=True)
+    moving = (FLOATING_BASE, "floating_base_1") if kind == "continuous" else ()
+    assert tree.joint_names == ("floating_base_2", *moving)
+    assert tree.joint_types[0] == "free"
+    assert tree_from_urdf(path).joint_names == moving
+    model = compile_with_mujoco(path, "floating_base_2")
+    assert tree.joint_names == tuple(model.joint(j).name for j in range(model.njnt))
+    q = random_qpos(tree, 100, seed=6)
+    assert_close("MuJoCo", tree.fk(q), mujoco_body_poses(model, tree, q), MJ_TOL)
 
 
 def test_without_yourdfpy(monkeypatch: pytest.MonkeyPatch) -> None:

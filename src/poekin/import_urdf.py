@@ -51,7 +51,8 @@ if TYPE_CHECKING:
 __all__ = ["FLOATING_BASE", "URDFLimitsWarning", "tree_from_urdf"]
 
 FLOATING_BASE = "floating_base"
-"""Name of the free joint that ``floating_base=True`` puts on the root link."""
+"""Name of the free joint that ``floating_base=True`` puts on the root link (or, if a URDF joint
+has that name, the first free one of ``floating_base_1``, ``floating_base_2``, ...)."""
 
 
 class URDFLimitsWarning(UserWarning):
@@ -111,8 +112,10 @@ def tree_from_urdf(
 
     Args:
         path: the ``.urdf`` file.
-        floating_base: put a free joint named ``"floating_base"`` on the root link, so ``qpos``
-            starts with its world position and orientation.
+        floating_base: put a free joint on the root link, so ``qpos`` starts with its world
+            position and orientation. It is named ``"floating_base"``, or, if a URDF joint
+            (of any type) has that name, the first free one of ``"floating_base_1"``,
+            ``"floating_base_2"``, ...: ``tree.joint_names[0]``.
         robot: a label stored in the tree; default: the URDF's ``<robot name>``.
 
     Raises:
@@ -134,12 +137,9 @@ def tree_from_urdf(
                 "drop floating_base, or remove the 'world' link to let the robot float"
             )
         order = order[1:]
-    parents, poses, joints = _bodies(order, parent_joint, floating_base, where)
+    base = _free_name(FLOATING_BASE, [j.name for j in urdf_robot.joints]) if floating_base else ""
+    parents, poses, joints = _bodies(order, parent_joint, base, where)
     names = [name for name, _, _, _ in joints]
-    if floating_base and names.count(FLOATING_BASE) > 1:
-        raise URDFError(
-            f"{where}: a joint is already named {FLOATING_BASE!r}; rename it to use floating_base"
-        )
     urdf_joints = [joint for _, _, _, joint in joints]
     limits = [_limits(joint) for joint in urdf_joints]
     unused = [(name, why) for name, (_, why) in zip(names, limits, strict=True) if why]
@@ -165,11 +165,21 @@ def tree_from_urdf(
         raise URDFError(f"{where}: {exc}") from exc
 
 
+def _free_name(name: str, taken: list[str]) -> str:
+    """``name``, or the first of ``name_1``, ``name_2``, ... that is not ``taken``."""
+    free, n = name, 0
+    while free in taken:
+        n += 1
+        free = f"{name}_{n}"
+    return free
+
+
 def _bodies(
-    order: list[str], parent_joint: dict[str, Any], floating_base: bool, where: str
+    order: list[str], parent_joint: dict[str, Any], floating_base: str, where: str
 ) -> tuple[IntArray, FloatArray, list[tuple[str, TreeJointType, int, Any]]]:
     """Parent indices ``(nb,)`` (-1: the world), poses in the parent ``(nb, 4, 4)``, and the
-    tree joints as ``(name, type, body, URDF joint or None for the floating base)``."""
+    tree joints as ``(name, type, body, URDF joint or None for the floating base)``, with a
+    free joint named ``floating_base`` on the root link unless that is empty."""
     body_index = {name: b for b, name in enumerate(order)}
     poses = np.tile(np.eye(4), (len(order), 1, 1))
     parents = np.full(len(order), -1, dtype=np.intp)
@@ -178,7 +188,7 @@ def _bodies(
         joint = parent_joint.get(link)
         if joint is None:
             if floating_base:
-                joints.append((FLOATING_BASE, "free", b, None))
+                joints.append((floating_base, "free", b, None))
             continue
         parents[b] = body_index.get(joint.parent, -1)  # the 'world' link is no body
         if joint.origin is not None:
