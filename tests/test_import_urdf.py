@@ -436,7 +436,33 @@ ERROR_CASES = {
     "xacro": (
         '<robot name="r" xmlns:xacro="http://www.ros.org/wiki/xacro"><xacro:macro name="m"/>'
         "</robot>",
-        "unexpanded xacro",
+        "robot.urdf: a xacro file, not URDF yet (it has <xacro:macro>); expand it first with "
+        "ROS's xacro: xacro ",
+    ),
+    "xacro undeclared": (
+        '<robot name="r"><xacro:include filename="arm.xacro"/></robot>',
+        "a xacro file, not URDF yet (it has <xacro:...> elements)",
+    ),
+    "xacro attribute": (
+        '<robot name="r" xmlns:x="http://ros.org/wiki/xacro"><link name="a" x:if="1"/></robot>',
+        "(it has the attribute xacro:if of <link>)",
+    ),
+    "xacro find": (
+        '<robot name="r"><link name="base"><visual><geometry>'
+        '<mesh filename="$(find my_robot)/base.stl"/></geometry></visual></link></robot>',
+        "(it has $(find my_robot) in <mesh filename>)",
+    ),
+    "xacro arg": (
+        _urdf(_joint("ja", "fixed", "base", "a", '<origin xyz="$(arg x) 0 0"/>'), "base a"),
+        "(it has $(arg x) in <origin xyz>)",
+    ),
+    "xacro property": (
+        _urdf(_joint("ja", "fixed", "base", "a", '<origin rpy="0 0 ${pi/2}"/>'), "base a"),
+        "(it has ${pi/2} in <origin rpy>)",
+    ),
+    "xacro optenv": (
+        _urdf("<gazebo><plugin>$(optenv ROBOT_NS robot)</plugin></gazebo>", "base"),
+        "(it has $(optenv ROBOT_NS robot) in <plugin>)",
     ),
     "no child": (
         _urdf('<joint name="j" type="fixed"><parent link="base"/></joint>'),
@@ -555,6 +581,28 @@ def test_errors_are_one_line(tmp_path: pathlib.Path, text: str, phrase: str) -> 
     message = str(info.value)
     assert phrase in message
     assert message.startswith(str(path)) and "\n" not in message
+
+
+@pytest.mark.parametrize(
+    ("name", "expanded"),
+    [("robot.urdf", "robot_expanded.urdf"), ("robot.urdf.xacro", "robot.urdf")],
+)
+def test_xacro_is_expanded_to_a_new_file(tmp_path: pathlib.Path, name: str, expanded: str) -> None:
+    """The command given writes a file other than the one read (a shell truncates the output
+    file before xacro reads the input)."""
+    path = tmp_path / name
+    path.write_text('<robot name="r" xmlns:xacro="http://ros.org/wiki/xacro"><xacro:arg/></robot>')
+    with pytest.raises(URDFError) as info:
+        tree_from_urdf(path)
+    assert str(info.value).endswith(f"xacro {path} > {expanded}")
+
+
+def test_xacro_namespace_left_in_an_expanded_file(tmp_path: pathlib.Path) -> None:
+    """xacro's output keeps the namespace declaration on <robot>: that alone is URDF."""
+    path = tmp_path / "expanded.urdf"
+    text = (DATA / "serial_arm.urdf").read_text()
+    path.write_text(text.replace("<robot ", '<robot xmlns:xacro="http://ros.org/wiki/xacro" '))
+    assert tree_from_urdf(path).joint_names == tree_from_urdf(DATA / "serial_arm.urdf").joint_names
 
 
 def test_missing_file(tmp_path: pathlib.Path) -> None:

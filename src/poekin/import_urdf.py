@@ -87,6 +87,10 @@ _NUMBERS = {
     ("mimic", "multiplier"): "multiplier",
     ("mimic", "offset"): "offset",
 }
+# xacro's substitutions, which xacro's output no longer has
+_XACRO_SUBSTITUTION = re.compile(
+    r"\$\((?:find|optenv|env|arg|eval|dirname|anon)\b[^)]*\)?|\$\{[^}]*\}?"
+)
 # a finite decimal number, as MuJoCo and urdfdom (Pinocchio) read them
 _NUMBER = re.compile(r"[+-]?(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?")
 FloatArray = NDArray[np.float64]
@@ -216,6 +220,8 @@ def _parse(path: str) -> Any:
     try:
         root = ET.fromstring(text)
     except ET.ParseError as exc:
+        if b"<xacro:" in text:  # the xacro namespace is not even declared
+            raise URDFError(_xacro_message(path, "<xacro:...> elements")) from exc
         raise URDFError(f"{path}: not well-formed XML ({exc}); fix the file") from exc
     _check_structure(root, path)
     try:
@@ -252,13 +258,48 @@ def _check_structure(root: ET.Element, path: str) -> None:
     if root.tag != "robot":
         hint = "; load an MJCF file with poekin.load_tree" if root.tag == "mujoco" else ""
         raise URDFError(f"{path}: not a URDF: the root element is <{root.tag}>, not <robot>{hint}")
-    if any(elem.tag.startswith("{") and "xacro" in elem.tag for elem in root.iter()):
-        raise URDFError(f"{path}: an unexpanded xacro file; run 'xacro {path} > robot.urdf' first")
+    found = _xacro_trace(root)
+    if found:
+        raise URDFError(_xacro_message(path, found))
     for elem in [root, *root.findall("link")]:
         if not elem.get("name"):
             raise URDFError(f"{path}: a <{elem.tag}> has no 'name' attribute; add it")
     for joint in root.findall("joint"):
         _check_joint(joint, path)
+
+
+def _xacro_trace(root: ET.Element) -> str:
+    """The first sign that ``root`` is xacro, not URDF, in words (empty if none): an element or
+    attribute in the xacro namespace, or a substitution (``$(find ...)``, ``${...}``) in an
+    attribute or text. The namespace declared on ``<robot>`` is no sign: xacro's output keeps
+    it."""
+    for elem in root.iter():
+        namespace, _, tag = elem.tag.rpartition("}")
+        if "xacro" in namespace:
+            return f"<xacro:{tag}>"
+        for key, value in elem.attrib.items():
+            namespace, _, attribute = key.rpartition("}")
+            if "xacro" in namespace:
+                return f"the attribute xacro:{attribute} of <{tag}>"
+            match = _XACRO_SUBSTITUTION.search(value)
+            if match:
+                return f"{match.group()} in <{tag} {attribute}>"
+        match = _XACRO_SUBSTITUTION.search(elem.text or "")
+        if match:
+            return f"{match.group()} in <{tag}>"
+    return ""
+
+
+def _xacro_message(path: str, found: str) -> str:
+    """The error for a xacro file at ``path`` in which ``found`` was found."""
+    stem = os.path.basename(path)
+    for suffix in (".xacro", ".urdf"):
+        stem = stem.removesuffix(suffix)
+    expanded = f"{stem}.urdf" if path.endswith(".xacro") else f"{stem}_expanded.urdf"
+    return (
+        f"{path}: a xacro file, not URDF yet (it has {found}); expand it first with ROS's "
+        f"xacro: xacro {path} > {expanded}"
+    )
 
 
 def _check_joint(joint: ET.Element, path: str) -> None:
