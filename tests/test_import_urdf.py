@@ -472,7 +472,11 @@ ERROR_CASES = {
     "planar": (_urdf(_joint("jp", "planar", "base", "a"), "base a"), "joint 'jp' is planar"),
     "zero axis": (
         _urdf(_joint("jz", "continuous", "base", "a", '<axis xyz="0 0 0"/>'), "base a"),
-        "joint 'jz' has a zero <axis",
+        "joint 'jz' has a zero <axis xyz> (length 0, under MuJoCo's 1e-7); give the direction",
+    ),
+    "tiny axis": (  # 5.9e-8^2 + 8e-8^2 < 1e-14: "axis too small" in MuJoCo
+        _urdf(_joint("jz", "prismatic", "base", "a", '<axis xyz="5.9e-8 8e-8 0"/>'), "base a"),
+        "joint 'jz' has a zero <axis xyz> (length 9.94e-08, under MuJoCo's 1e-7)",
     ),
     "bad number": (
         _urdf(_joint("jn", "continuous", "base", "a", '<origin xyz="0 x 0"/>'), "base a"),
@@ -603,6 +607,15 @@ def test_xacro_namespace_left_in_an_expanded_file(tmp_path: pathlib.Path) -> Non
     text = (DATA / "serial_arm.urdf").read_text()
     path.write_text(text.replace("<robot ", '<robot xmlns:xacro="http://ros.org/wiki/xacro" '))
     assert tree_from_urdf(path).joint_names == tree_from_urdf(DATA / "serial_arm.urdf").joint_names
+
+
+@pytest.mark.parametrize("xyz", ["6e-8 8e-8 0", "0 0 2", "0.3 -4 1e3"])
+def test_axes_are_normalised_as_in_mujoco(tmp_path: pathlib.Path, xyz: str) -> None:
+    """Down to the shortest axis MuJoCo takes (squared length 1e-14)."""
+    path = tmp_path / "robot.urdf"
+    path.write_text(_urdf(_joint("js", "prismatic", "base", "a", f'<axis xyz="{xyz}"/>'), "base a"))
+    model = compile_with_mujoco(path, floating_base=False)
+    assert_close("axis", tree_from_urdf(path).joint_axes, model.jnt_axis, 2e-16)
 
 
 def test_missing_file(tmp_path: pathlib.Path) -> None:

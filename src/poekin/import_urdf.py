@@ -64,8 +64,8 @@ class URDFLimitsWarning(UserWarning):
 WORLD_LINK = "world"
 """A root link of this name is the world frame itself (as in ROS and MuJoCo), not a body."""
 
-# MuJoCo refuses shorter joint axes ("axis too small"); so do we.
-_MIN_AXIS_NORM = 1e-14
+# MuJoCo refuses a joint axis whose squared length is below this ("axis too small"); so do we.
+_MIN_AXIS_SQUARED = 1e-14
 _MOVING: dict[str, TreeJointType] = {
     "revolute": "revolute",
     "continuous": "revolute",
@@ -451,15 +451,14 @@ def _axis(joint: Any | None, where: str) -> tuple[float, float, float]:
     """Unit joint axis in the child link frame: ``<axis xyz>`` (default ``1 0 0``) over its norm."""
     if joint is None or joint.type == "floating":
         return (1.0, 0.0, 0.0)
-    axis = np.asarray(joint.axis, dtype=np.float64).reshape(-1)
-    if axis.shape != (3,) or not np.all(np.isfinite(axis)):
-        raise URDFError(f"{where}: joint {joint.name!r}: <axis xyz> must be 3 finite numbers")
-    x, y, z = (float(v) for v in axis)
-    norm = math.sqrt(x * x + y * y + z * z)
-    if norm < _MIN_AXIS_NORM:
+    x, y, z = (float(v) for v in joint.axis)  # 3 finite numbers: _check_joint
+    squared = x * x + y * y + z * z
+    if squared < _MIN_AXIS_SQUARED:
         raise URDFError(
-            f"{where}: joint {joint.name!r} has a zero <axis xyz>; give the direction it moves in"
+            f"{where}: joint {joint.name!r} has a zero <axis xyz> (length "
+            f"{math.sqrt(squared):.3g}, under MuJoCo's 1e-7); give the direction it moves in"
         )
+    norm = math.sqrt(squared)
     return (x / norm, y / norm, z / norm)
 
 
