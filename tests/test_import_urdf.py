@@ -1,5 +1,7 @@
 """Trees from URDF files: poses checked by hand, every body against MuJoCo compiling the same
-URDF, fixed links, mimic joints, meshes that do not exist, floating bases, and the errors."""
+URDF and against Pinocchio reading it, fixed links, mimic joints (leaders before and after),
+limits as MuJoCo reads them, meshes that do not exist, floating bases, files as ROS packages
+ship them, and the errors: one line for each malformed file."""
 
 from __future__ import annotations
 
@@ -7,6 +9,7 @@ import logging
 import pathlib
 import re
 import sys
+from typing import Any
 
 import mujoco
 import numpy as np
@@ -35,7 +38,10 @@ MUJOCO_CASES = [
     ("world_floating.urdf", False),
     ("gripper_mimic_later.urdf", False),
     ("limits.urdf", False),
+    ("ros_package.urdf", False),
 ]
+# Pinocchio (urdfdom) refuses a revolute or prismatic joint without <limit>, as limits.urdf has
+PINOCCHIO_CASES = [case for case in MUJOCO_CASES if case[0] != "limits.urdf"]
 
 
 def Rx(a: float) -> np.ndarray:
@@ -294,6 +300,25 @@ def test_blank_lines_before_the_xml_declaration(tmp_path: pathlib.Path, before: 
     assert_close("MuJoCo", tree.fk(q), mujoco_body_poses(model, tree, q), MJ_TOL)
 
 
+@pytest.mark.parametrize("variant", ["CRLF", "BOM CRLF", "CR", "tabs and newlines in numbers"])
+def test_line_endings_and_spaces(tmp_path: pathlib.Path, variant: str) -> None:
+    """Windows (and old Mac) line endings, a byte order mark, and numbers split by tabs and
+    newlines (XML reads them as spaces; so does MuJoCo, not Pinocchio): the same robot as MuJoCo
+    reads it."""
+    text = (DATA / "ros_package.urdf").read_text()
+    if variant == "tabs and newlines in numbers":
+        text = text.replace('xyz="-0.425 0 0"', 'xyz="-0.425\t0\n\t0"')
+    else:
+        text = text.replace("\n", "\r" if variant == "CR" else "\r\n")
+    path = tmp_path / "variant.urdf"
+    path.write_bytes(b"\xef\xbb\xbf" * ("BOM" in variant) + text.encode())
+    tree, expected = tree_from_urdf(path), tree_from_urdf(DATA / "ros_package.urdf")
+    q = random_qpos(tree, 50, seed=8)
+    assert_close("same poses", tree.fk(q), expected.fk(q), 0.0)
+    model = compile_with_mujoco(path, floating_base=False)
+    assert_close("MuJoCo", tree.fk(q), mujoco_body_poses(model, tree, q), MJ_TOL)
+
+
 def test_parse_errors_after_blank_lines_name_the_right_line(tmp_path: pathlib.Path) -> None:
     path = tmp_path / "broken.urdf"
     path.write_text('\n\n<?xml version="1.0"?>\n<robot name="r">\n<link name="a">\n</robot>\n')
@@ -399,6 +424,7 @@ def test_usable_limits_give_no_note(recwarn: pytest.WarningsRecorder) -> None:
         ("package_meshes.urdf", "hand"),
         ("gripper_mimic_later.urdf", "tool"),  # a follower before its leader on the path
         ("gripper_mimic_later.urdf", "right_finger"),
+        ("ros_package.urdf", "tool0"),
     ],
 )
 def test_chain_matches_tree_and_mujoco(fixture: str, frame: str) -> None:
@@ -410,6 +436,61 @@ def test_chain_matches_tree_and_mujoco(fixture: str, frame: str) -> None:
     assert_close(f"{frame}: chain vs tree", T_chain, tree.fk(q)[:, b], MJ_TOL)
     expected = mujoco_body_poses(compile_with_mujoco(DATA / fixture, False), tree, q)
     assert_close(f"{frame}: chain vs MuJoCo", T_chain, expected[:, b], MJ_TOL)
+
+
+# --- against Pinocchio ----------------------------------------------------------------------
+
+
+def pinocchio_q(model: Any, tree: Tree, qpos: np.ndarray) -> np.ndarray:
+    """``(n, model.nq)``: Pinocchio's configuration for the tree's ``qpos``, joint by joint
+    (by name; ``root_joint`` is the floating base). Mimic followers are joints of their own
+    (Pinocchio's default), set from their leaders. A continuous joint is ``cos, sin``; a free
+    joint ``x y z qx qy qz qw`` relative to its ``<origin>`` (which poekin and MuJoCo fold into
+    qpos: their qpos is the world pose)."""
+    from poekin import lie
+
+    full = tree.full_qpos(qpos)
+    q = np.zeros((len(qpos), model.nq))
+    for j in range(1, model.njoints):
+        name, joint = model.names[j], model.joints[j]
+        k = 0 if name == "root_joint" else tree.joint_names.index(name)
+        a, i = tree.full_qpos_adr[k], joint.idx_q
+        if joint.nq == 7:
+            T = np.tile(np.eye(4), (len(qpos), 1, 1))
+            T[:, :3, 3] = full[:, a : a + 3]
+            T[:, :3, :3] = lie.quat_to_rotation(lie.quat_normalize(full[:, a + 3 : a + 7]))
+            local = np.linalg.inv(model.jointPlacements[j].homogeneous) @ T
+            wxyz = lie.rotation_to_quat(local[:, :3, :3])
+            q[:, i : i + 3], q[:, i + 3 : i + 6], q[:, i + 6] = (
+                local[:, :3, 3],
+                wxyz[:, 1:],
+                wxyz[:, 0],
+            )
+        elif joint.nq == 2:
+            q[:, i], q[:, i + 1] = np.cos(full[:, a]), np.sin(full[:, a])
+        else:
+            q[:, i] = full[:, a]
+    return q
+
+
+@pytest.mark.parametrize(("fixture", "floating_base"), PINOCCHIO_CASES)
+def test_every_link_matches_pinocchio(fixture: str, floating_base: bool) -> None:
+    """Pinocchio reads the URDF with its own parser (urdfdom), orders the joints its own way
+    (children by joint name), and gives each link a frame: every link's pose on random qpos."""
+    import pinocchio as pin
+
+    path = str(DATA / fixture)
+    tree = tree_from_urdf(path, floating_base=floating_base)
+    model = pin.buildModelFromUrdf(path, *([pin.JointModelFreeFlyer()] if floating_base else []))
+    assert model.njoints - 1 == len(tree.joint_names)
+    data = model.createData()
+    qpos = random_qpos(tree, 300, seed=7)
+    frames = [model.getFrameId(name, pin.FrameType.BODY) for name in tree.body_names]
+    expected = np.empty((len(qpos), len(frames), 4, 4))
+    for n, q in enumerate(pinocchio_q(model, tree, qpos)):
+        pin.framesForwardKinematics(model, data, q)
+        expected[n] = [data.oMf[f].homogeneous for f in frames]
+    assert_close(fixture, tree.fk(qpos), expected, MJ_TOL)
 
 
 # --- errors ---------------------------------------------------------------------------------

@@ -41,8 +41,18 @@ def test_load_urdf_chain_defaults_to_the_only_leaf() -> None:
         poekin.load(URDF / "two_arms.urdf")
 
 
+@pytest.mark.filterwarnings("ignore::poekin.URDFLimitsWarning", "ignore::poekin.MuJoCoWarning")
 @pytest.mark.parametrize(
-    "name", ["serial_arm", "two_arms", "world_floating", "package_meshes", "gripper_mimic_later"]
+    "name",
+    [
+        "serial_arm",
+        "two_arms",
+        "world_floating",
+        "package_meshes",
+        "gripper_mimic_later",
+        "limits",
+        "ros_package",
+    ],
 )
 def test_verify_urdf_against_mujocos_compile(name: str) -> None:
     with warnings.catch_warnings():

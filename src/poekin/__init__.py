@@ -25,7 +25,7 @@ from poekin.errors import (
     URDFError,
 )
 from poekin.import_mujoco import chain_from_model, tree_from_model
-from poekin.import_urdf import tree_from_urdf
+from poekin.import_urdf import URDFLimitsWarning, tree_from_urdf
 from poekin.lie import (
     adjoint,
     exp_se3,
@@ -89,6 +89,7 @@ __all__ = [
     "Tree",
     "TreeJointType",
     "URDFError",
+    "URDFLimitsWarning",
     "UnknownFrameError",
     "UnknownParamsError",
     "UnknownRobotError",
