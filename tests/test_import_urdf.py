@@ -550,6 +550,8 @@ ERROR_CASES = {
         "joint 'j' has no <child",
     ),
     "unnamed link": ('<robot name="r"><link/></robot>', "a <link> has no 'name'"),
+    "no link": ('<robot name="r"/>', "no link to pose (a link named 'world' is the world"),
+    "world alone": ('<robot name="r"><link name="world"/></robot>', "no link to pose"),
     "planar": (_urdf(_joint("jp", "planar", "base", "a"), "base a"), "joint 'jp' is planar"),
     "zero axis": (
         _urdf(_joint("jz", "continuous", "base", "a", '<axis xyz="0 0 0"/>'), "base a"),

@@ -270,6 +270,18 @@ def test_unknown_frame_suggests_the_near_miss(features: mujoco.MjModel) -> None:
         tree_from_model(features).frame_index("fingr")
 
 
+def test_a_model_with_nothing_to_pose_is_refused(tmp_path: pathlib.Path) -> None:
+    """An empty worldbody: one line (it crashed in the kernel's builder). A world site alone
+    is a frame, and is posed."""
+    path = tmp_path / "empty.xml"
+    path.write_text("<mujoco><worldbody/></mujoco>")
+    with pytest.raises(InputError, match="the model has no body and no site: no frame to pose"):
+        poekin.load_tree(path)
+    path.write_text('<mujoco><worldbody><site name="s" pos="1 2 3"/></worldbody></mujoco>')
+    tree = poekin.load_tree(path)
+    assert_close("world site", tree.fk(np.zeros(0))[0, :3, 3], [1.0, 2.0, 3.0], 0.0)
+
+
 def test_load_tree_from_a_path(tmp_path: pathlib.Path) -> None:
     path = tmp_path / "features.xml"
     path.write_text(FEATURES_XML)

@@ -393,6 +393,11 @@ def _parent_joints(joints: Sequence[Any], links: list[str], where: str) -> dict[
 
 def _root_link(links: list[str], parent_joint: dict[str, Any], where: str) -> str:
     """The only link that is no joint's child."""
+    if not [name for name in links if name != WORLD_LINK]:
+        raise URDFError(
+            f"{where}: no link to pose (a link named 'world' is the world itself); add the "
+            "robot's <link> and <joint> elements"
+        )
     roots = [name for name in links if name not in parent_joint]
     if len(roots) == 1:
         return roots[0]

@@ -209,6 +209,8 @@ class Tree:
         set_(self, "_jacobian_kernels", {})
 
     def _check_topology(self) -> None:
+        if not self.body_names and not self.site_names:
+            raise InputError("the model has no body and no site: no frame to pose")
         for b, parent in enumerate(self.body_parents):
             if not -1 <= parent < b:
                 raise InputError(
