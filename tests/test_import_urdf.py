@@ -39,9 +39,11 @@ MUJOCO_CASES = [
     ("gripper_mimic_later.urdf", False),
     ("limits.urdf", False),
     ("ros_package.urdf", False),
+    ("bullet_spherical.urdf", False),
 ]
-# Pinocchio (urdfdom) refuses a revolute or prismatic joint without <limit>, as limits.urdf has
-PINOCCHIO_CASES = [case for case in MUJOCO_CASES if case[0] != "limits.urdf"]
+# Pinocchio (urdfdom) refuses a revolute or prismatic joint without <limit>, as limits.urdf has,
+# and the spherical joint type
+PINOCCHIO_CASES = [c for c in MUJOCO_CASES if c[0] not in ("limits.urdf", "bullet_spherical.urdf")]
 
 
 def Rx(a: float) -> np.ndarray:
@@ -94,17 +96,19 @@ def compile_with_mujoco(path: pathlib.Path, floating_base: bool | str) -> mujoco
 
 
 def random_qpos(tree: Tree, n: int, seed: int) -> np.ndarray:
-    """``(n, nq)``: hinges in [-2 pi, 2 pi], slides within limits (else +-1 m), free joints at a
-    random position with a random, unnormalised quaternion."""
+    """``(n, nq)``: hinges in [-2 pi, 2 pi], slides within limits (else +-1 m), ball joints a
+    random, unnormalised quaternion, free joints one at a random position."""
     rng = np.random.default_rng(seed)
     q = np.empty((n, tree.nq))
     for k, kind in enumerate(tree.joint_types):
         if tree.mimics[k] is not None:
             continue
         a = int(tree.qpos_adr[k])
-        if kind == "free":
-            q[:, a : a + 3] = rng.uniform(-2.0, 2.0, size=(n, 3))
-            q[:, a + 3 : a + 7] = rng.normal(size=(n, 4)) * rng.uniform(0.1, 10.0, size=(n, 1))
+        if kind in ("free", "ball"):
+            if kind == "free":
+                q[:, a : a + 3] = rng.uniform(-2.0, 2.0, size=(n, 3))
+                a += 3
+            q[:, a : a + 4] = rng.normal(size=(n, 4)) * rng.uniform(0.1, 10.0, size=(n, 1))
         elif kind == "revolute":
             q[:, a] = rng.uniform(-2 * np.pi, 2 * np.pi, size=n)
         else:
@@ -130,14 +134,14 @@ def mujoco_body_poses(model: mujoco.MjModel, tree: Tree, qpos: np.ndarray) -> np
     data = mujoco.MjData(model)
     ids = [mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, b) for b in tree.body_names]
     adr = [model.jnt_qposadr[model.joint(name).id] for name in tree.joint_names]
-    hinges = [k for k, t in enumerate(tree.joint_types) if t != "free"]
-    frees = [k for k, t in enumerate(tree.joint_types) if t == "free"]
+    hinges = [k for k, t in enumerate(tree.joint_types) if t in ("revolute", "prismatic")]
+    quats = {k: 7 if t == "free" else 4 for k, t in enumerate(tree.joint_types) if k not in hinges}
     positions = joint_positions(tree, qpos, tuple(hinges))
     out = np.zeros((qpos.shape[0], len(ids), 4, 4))
     out[..., 3, 3] = 1.0
     for i in range(qpos.shape[0]):
-        for k in frees:
-            data.qpos[adr[k] : adr[k] + 7] = qpos[i, tree.qpos_adr[k] : tree.qpos_adr[k] + 7]
+        for k, size in quats.items():
+            data.qpos[adr[k] : adr[k] + size] = qpos[i, tree.qpos_adr[k] : tree.qpos_adr[k] + size]
         data.qpos[[adr[k] for k in hinges]] = positions[i]
         mujoco.mj_kinematics(model, data)
         out[i, :, :3, :3] = data.xmat[ids].reshape(-1, 3, 3)
@@ -248,6 +252,15 @@ def test_followers_before_their_leader() -> None:
     assert drive > tree.joint_names.index("knuckle_joint")
     assert all(tree.qpos_adr[k] == 2 for k, m in enumerate(tree.mimics) if m is not None)
     assert tree.dof_names() == ("arm_joint", "wrist_joint", "drive")
+
+
+def test_spherical_joint_is_a_ball_joint() -> None:
+    """Bullet's spherical joint, as MuJoCo reads it: a ball joint, qpos a quaternion wxyz."""
+    tree = tree_from_urdf(DATA / "bullet_spherical.urdf")
+    assert tree.joint_types == ("revolute", "ball")
+    assert tree.qpos_layout() == "qpos = [waist_joint, hip (ball: qw qx qy qz)]"
+    model = compile_with_mujoco(DATA / "bullet_spherical.urdf", floating_base=False)
+    np.testing.assert_array_equal(tree.qpos0, model.qpos0)
 
 
 def test_package_meshes_are_never_opened(caplog: pytest.LogCaptureFixture) -> None:
@@ -641,6 +654,13 @@ ERROR_CASES = {
     "mimic unknown joint": (
         _urdf(CHAIN + _joint("jb", "continuous", "a", "b", '<mimic joint="jaa"/>')),
         "joint 'jb' mimics 'jaa', which is not a joint: did you mean 'ja'?",
+    ),
+    "mimic spherical joint": (
+        _urdf(
+            _joint("ja", "spherical", "base", "a")
+            + _joint("jb", "continuous", "a", "b", '<mimic joint="ja"/>')
+        ),
+        "joint 'jb' mimics 'ja', but 'ja' is a spherical joint; mimic joints must be revolute,",
     ),
     "mimic fixed joint": (
         _urdf(

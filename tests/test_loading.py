@@ -52,6 +52,7 @@ def test_load_urdf_chain_defaults_to_the_only_leaf() -> None:
         "gripper_mimic_later",
         "limits",
         "ros_package",
+        "bullet_spherical",
     ],
 )
 def test_verify_urdf_against_mujocos_compile(name: str) -> None:

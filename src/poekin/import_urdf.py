@@ -16,6 +16,7 @@ continuous                ``"revolute"``, no limits
 prismatic                 ``"prismatic"``, limits from ``<limit lower upper>``
 fixed                     none: the child link stays a body (a frame)
 floating                  ``"free"``, on a child of a root link named ``world`` only
+spherical                 ``"ball"`` (Bullet's extension of URDF, which MuJoCo reads too)
 planar                    refused (:class:`~poekin.errors.ModelError`)
 ========================  ===========================================================
 
@@ -71,6 +72,7 @@ _MOVING: dict[str, TreeJointType] = {
     "continuous": "revolute",
     "prismatic": "prismatic",
     "floating": "free",
+    "spherical": "ball",
 }
 _URDF_TYPES = (*_MOVING, "fixed", "planar")
 # the joints whose <axis> poekin reads
@@ -106,8 +108,8 @@ def tree_from_urdf(
     ``<joint>`` elements in the file: the order MuJoCo gives the same URDF. ``qpos`` is::
 
         qpos = [floating_base (x y z qw qx qy qz, with floating_base=True),
-                the revolute, continuous, prismatic (1 each) and floating (7) joints
-                in body order, mimic followers left out]
+                the revolute, continuous, prismatic (1 each), spherical (qw qx qy qz)
+                and floating (7) joints in body order, mimic followers left out]
 
     :attr:`Tree.joint_names` lists every joint, followers included, and :attr:`Tree.qpos_adr`
     where each one's value is (a follower: its leader's, whether the leader comes before or
@@ -454,7 +456,7 @@ def _tree_joint_type(joint: Any, where: str) -> TreeJointType | None:
 
 def _axis(joint: Any | None, where: str) -> tuple[float, float, float]:
     """Unit joint axis in the child link frame: ``<axis xyz>`` (default ``1 0 0``) over its norm."""
-    if joint is None or joint.type == "floating":
+    if joint is None or joint.type not in _AXIS_TYPES:  # floating, spherical: no axis
         return (1.0, 0.0, 0.0)
     x, y, z = (float(v) for v in joint.axis)  # 3 finite numbers: _check_joint
     squared = x * x + y * y + z * z
@@ -507,7 +509,7 @@ def _mimics(
 ) -> tuple[Mimic | None, ...]:
     """One entry per tree joint (``urdf_joints``; None: the floating base): for a follower,
     its independent leader with the multipliers and offsets along the way composed."""
-    hinges = {j.name: j for j in urdf_joints if j is not None and j.type != "floating"}
+    hinges = {j.name: j for j in urdf_joints if j is not None and j.type in _AXIS_TYPES}
     out: list[Mimic | None] = []
     for joint in urdf_joints:
         if joint is None or joint.mimic is None:
@@ -539,7 +541,7 @@ def _bad_mimic(follower: str, leader: str, all_joints: Sequence[Any]) -> str:
         return f"joint {follower!r} mimics {leader!r}, which is not a joint: " + did_you_mean(
             leader, list(types)
         )
-    odd = follower if types[follower] == "floating" else leader
+    odd = follower if types[follower] not in _AXIS_TYPES else leader
     return (
         f"joint {follower!r} mimics {leader!r}, but {odd!r} is a {types[odd]} joint; "
         "mimic joints must be revolute, continuous or prismatic"
