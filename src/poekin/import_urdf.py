@@ -11,22 +11,35 @@ link's origin, so anchors and ``ref`` are 0:
 ========================  ===========================================================
 URDF joint                tree joint
 ========================  ===========================================================
-revolute                  ``"revolute"``, limits from ``<limit lower upper>``
+revolute                  ``"revolute"``, limits from ``<limit lower upper>`` (below)
 continuous                ``"revolute"``, no limits
-prismatic                 ``"prismatic"``, limits from ``<limit lower upper>``
+prismatic                 ``"prismatic"``, limits from ``<limit lower upper>`` (below)
 fixed                     none: the child link stays a body (a frame)
 floating                  ``"free"``, on a child of a root link named ``world`` only
 spherical                 ``"ball"`` (Bullet's extension of URDF, which MuJoCo reads too)
-planar                    refused (:class:`~poekin.errors.ModelError`)
+planar                    refused (:class:`~poekin.errors.URDFError`)
 ========================  ===========================================================
 
-``<axis>`` defaults to ``1 0 0`` and is divided by its norm, as MuJoCo does. A ``<limit>``
-without both ``lower`` and ``upper`` leaves the joint unlimited, as MuJoCo does. ``<mimic>``
-makes a :class:`~poekin.tree.Mimic` joint with no ``qpos`` entry.
+``<axis>`` defaults to ``1 0 0`` and is divided by its norm, as MuJoCo does (which refuses a
+squared norm under ``1e-14``). ``<mimic>`` makes a :class:`~poekin.tree.Mimic` joint with no
+``qpos`` entry; its leader may come before or after it.
+
+Limits are MuJoCo's: a revolute or prismatic joint is limited to ``[lower, upper]`` when both
+are given and ``lower < upper``, and is unlimited otherwise: ``lower > upper`` (Bullet's way to
+say "no limit"), ``lower = upper``, a ``<limit>`` without ``lower`` or ``upper`` (which the
+URDF spec reads as 0, a locked joint) or no ``<limit>``. A :class:`URDFLimitsWarning` names
+those joints.
 
 This is how MuJoCo compiles the same URDF with ``compiler.fusestatic = False``: the same bodies
 in the same order (a root link named ``world`` is MuJoCo's world body, not a body), the same
 joint names; MuJoCo's ``qpos`` holds mimic followers too, tied by equality constraints.
+
+What poekin reads is checked first, and a file is refused (:class:`~poekin.errors.URDFError`,
+one line naming the joint, the element and the fix) rather than guessed at: an ``<origin>`` or
+``<axis>`` without exactly 3 finite numbers, a joint with two ``<parent>``, ``<child>``,
+``<origin>``, ``<axis>``, ``<limit>`` or ``<mimic>`` elements, a xacro file not yet expanded.
+Links' contents (inertia, geometry) are not read, so not checked. Blank lines before
+``<?xml ...?>`` are accepted, as MuJoCo and Pinocchio accept them.
 """
 
 from __future__ import annotations
@@ -124,11 +137,16 @@ def tree_from_urdf(
             ``"floating_base_2"``, ...: ``tree.joint_names[0]``.
         robot: a label stored in the tree; default: the URDF's ``<robot name>``.
 
+    Warns:
+        URDFLimitsWarning: revolute or prismatic joints whose ``<limit>`` gives no range
+            (see the module's docstring) are unlimited, as in MuJoCo; one warning names them.
+
     Raises:
-        ModelError: yourdfpy is not installed; the file is missing, not XML, not a URDF, or
-            an unexpanded xacro; its links do not form one tree; a planar joint, a floating
-            joint below the root, a zero axis, ``lower > upper``, or a mimic of an unknown,
-            fixed or cyclic joint.
+        ModelError: yourdfpy is not installed.
+        URDFError: the file is missing, not XML, not a URDF, or an unexpanded xacro file; a
+            malformed joint (numbers, repeated elements); its links do not form one tree; a
+            planar joint, a floating joint below the root, a zero axis, or a mimic of an
+            unknown, fixed or cyclic joint.
     """
     where = os.fspath(path)
     urdf_robot = _parse(where)
