@@ -225,7 +225,33 @@ BAD_INPUTS = [
         "No space left on device",
         marks=pytest.mark.skipif(not os.path.exists("/dev/full"), reason="no /dev/full"),
     ),
+    # URDF files (issue 15): BAD_URDFS below. verify compiles with MuJoCo first, so MuJoCo's
+    # reason comes first for what MuJoCo refuses too
+    (["screws", "{rpy_of_4}"], "joint 'j': <origin rpy=\"0 0 1 0\"> has 4 numbers; give 3"),
+    (["verify", "{rpy_of_4}"], "attribute 'rpy' has too much data"),
+    (["fk", "{two_axes}", "--q", "0"], "joint 'j' has 2 <axis> elements; keep one"),
+    (["screws", "{xacro}"], "a xacro file, not URDF yet (it has $(find my_robot) in <mesh"),
+    (["screws", "{mimic_no_joint}"], "joint 'j': <mimic> has no joint; name the joint it"),
+    (["verify", "{mimic_cycle}"], "mimic joints form a cycle: j -> k -> j"),
+    (["screws", "{world_only}"], "no link to pose"),
+    (["verify", "{planar}"], "joint 'j' is planar"),
 ]
+
+_LINKS = '<link name="base"/><link name="a"/>'
+_ONE_JOINT = _LINKS + '<joint name="j" type="{}"><parent link="base"/><child link="a"/>{}</joint>'
+_MESH = '<mesh filename="$(find my_robot)/base.stl"/>'
+# {name}.urdf files for BAD_INPUTS
+BAD_URDFS = {
+    "rpy_of_4": _ONE_JOINT.format("continuous", '<origin rpy="0 0 1 0"/>'),
+    "two_axes": _ONE_JOINT.format("continuous", '<axis xyz="0 0 1"/><axis xyz="0 1 0"/>'),
+    "xacro": f"<link name='a'><visual><geometry>{_MESH}</geometry></visual></link>",
+    "mimic_no_joint": _ONE_JOINT.format("continuous", '<mimic multiplier="2"/>'),
+    "mimic_cycle": _ONE_JOINT.format("continuous", '<mimic joint="k"/>')
+    + '<link name="b"/><joint name="k" type="continuous"><parent link="a"/><child link="b"/>'
+    '<mimic joint="j"/></joint>',
+    "world_only": '<link name="world"/>',
+    "planar": _ONE_JOINT.format("planar", ""),
+}
 
 
 def _param_file(tmp_path: pathlib.Path, name: str, joint: int, screw: list[float]) -> str:
@@ -266,6 +292,10 @@ def test_bad_input_gives_one_line_and_exit_2(
         "half_axis": _param_file(tmp_path, "half.json", 2, [0.0, -0.5, 0.0, 0.163, 0.0, 0.425]),
         "skewed_home": _param_file(tmp_path, "skewed.json", 0, []),
         "other_csv": other,
+    }
+    fills |= {
+        k: _write(tmp_path, f"{k}.urdf", f'<robot name="r">{v}</robot>')
+        for k, v in BAD_URDFS.items()
     }
     before = pathlib.Path(other).read_bytes()
     code, _, err = run(capsys, *[a.format(**fills) for a in argv])
