@@ -263,6 +263,25 @@ def test_spherical_joint_is_a_ball_joint() -> None:
     np.testing.assert_array_equal(tree.qpos0, model.qpos0)
 
 
+@pytest.mark.parametrize(
+    "contents",
+    [
+        '<visual><origin xyz="0 1"/><geometry><box size="1 1 1"/></geometry></visual>',
+        '<visual><origin xyz="0 0 1"/></visual>',  # no <geometry>
+    ],
+)
+def test_link_contents_are_not_read(tmp_path: pathlib.Path, contents: str) -> None:
+    """Flawed geometry or inertia that MuJoCo and Pinocchio let pass (yourdfpy refused each):
+    poekin reads links' names only."""
+    path = tmp_path / "robot.urdf"
+    text = _urdf(_joint("ja", "revolute", "base", "a", '<limit lower="-1" upper="1"/>'), "base")
+    path.write_text(text.replace("</robot>", f'<link name="a">{contents}</link></robot>'))
+    tree = tree_from_urdf(path)
+    model = compile_with_mujoco(path, floating_base=False)
+    q = random_qpos(tree, 20, seed=9)
+    assert_close("MuJoCo", tree.fk(q), mujoco_body_poses(model, tree, q), MJ_TOL)
+
+
 def test_package_meshes_are_never_opened(caplog: pytest.LogCaptureFixture) -> None:
     with caplog.at_level(logging.DEBUG, logger="yourdfpy"):
         tree = tree_from_urdf(DATA / "package_meshes.urdf")
@@ -629,6 +648,10 @@ ERROR_CASES = {
     "limit not a number": (
         _urdf(CHAIN + _joint("jb", "revolute", "a", "b", '<limit lower="-pi" upper="1"/>')),
         """joint 'jb': <limit lower="-pi">: '-pi' is not a finite number; give one number""",
+    ),
+    "effort not a number": (  # not read by poekin, but yourdfpy reads it
+        _urdf(_joint("ja", "revolute", "base", "a", '<limit effort="x"/>'), "base a"),
+        "malformed URDF (ValueError: could not convert string to float: 'x')",
     ),
     "mimic of itself": (
         _urdf(CHAIN + _joint("jb", "continuous", "a", "b", '<mimic joint="jb"/>')),

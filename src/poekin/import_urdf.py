@@ -244,9 +244,10 @@ def _parse(path: str) -> Any:
             raise URDFError(_xacro_message(path, "<xacro:...> elements")) from exc
         raise URDFError(f"{path}: not well-formed XML ({exc}); fix the file") from exc
     _check_structure(root, path)
+    _keep_kinematics(root)
     try:
         urdf = yourdfpy.URDF.load(
-            io.BytesIO(text),
+            io.BytesIO(ET.tostring(root)),
             build_scene_graph=False,
             load_meshes=False,
             load_collision_meshes=False,
@@ -254,6 +255,19 @@ def _parse(path: str) -> Any:
     except (ValueError, TypeError, KeyError, AttributeError, IndexError) as exc:
         raise URDFError(f"{path}: malformed URDF ({type(exc).__name__}: {exc})") from exc
     return urdf.robot
+
+
+def _keep_kinematics(root: ET.Element) -> None:
+    """Remove from ``root`` all that poekin does not read: links' contents (inertia, geometry,
+    whose flaws MuJoCo and Pinocchio may let pass or not), joints' elements other than those
+    :func:`_check_joint` checks, and other top-level elements (materials, transmissions...)."""
+    for elem in list(root):
+        if elem.tag not in ("link", "joint"):
+            root.remove(elem)
+            continue
+        for child in list(elem):
+            if elem.tag == "link" or child.tag not in _AT_MOST_ONCE:
+                elem.remove(child)
 
 
 def _xml_text(data: bytes) -> bytes:
