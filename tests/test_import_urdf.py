@@ -583,6 +583,23 @@ ERROR_CASES = {
     ),
     "unnamed link": ('<robot name="r"><link/></robot>', "a <link> has no 'name'"),
     "no link": ('<robot name="r"/>', "no link to pose (a link named 'world' is the world"),
+    "unnamed joint": (
+        _urdf('<joint type="fixed"><parent link="base"/><child link="a"/></joint>'),
+        "a <joint> has no 'name' attribute; add it",
+    ),
+    "joint without type": (
+        _urdf('<joint name="j"><parent link="base"/><child link="a"/></joint>'),
+        "joint 'j' has no 'type' attribute; add it",
+    ),
+    "link twice": (_urdf("", "base a a"), "links named more than once: ['a']; rename them"),
+    "joint twice": (
+        _urdf(_joint("j", "fixed", "base", "a") + _joint("j", "fixed", "a", "b")),
+        "joints named more than once: ['j']; rename them",
+    ),
+    "every link a child": (
+        _urdf(_joint("ja", "fixed", "a", "b") + _joint("jb", "fixed", "b", "a"), "a b"),
+        "no root link: the joints form a cycle through every link",
+    ),
     "world alone": ('<robot name="r"><link name="world"/></robot>', "no link to pose"),
     "planar": (_urdf(_joint("jp", "planar", "base", "a"), "base a"), "joint 'jp' is planar"),
     "zero axis": (
@@ -600,6 +617,10 @@ ERROR_CASES = {
     "NaN origin": (
         _urdf(_joint("jn", "continuous", "base", "a", '<origin rpy="nan 0 0"/>'), "base a"),
         "'nan' is not a finite number; give 3 numbers (roll pitch yaw)",
+    ),
+    "overflow": (
+        _urdf(_joint("jo", "fixed", "base", "a", '<origin xyz="1e999 0 0"/>'), "base a"),
+        "'1e999' is not a finite number; give 3 numbers (x y z)",
     ),
     "rpy of 4": (
         _urdf(_joint("jr", "fixed", "base", "a", '<origin rpy="0.1 0.2 0.3 0.4"/>'), "base a"),

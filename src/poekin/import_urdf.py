@@ -392,7 +392,10 @@ def _check_numbers(elem: ET.Element, attribute: str, joint: str, path: str) -> N
     words = text.split()
     given = f'{path}: joint {joint!r}: <{elem.tag} {attribute}="{text}">'
     fix = f"give {count} numbers ({meaning})" if count > 1 else "give one number"
-    bad = next((word for word in words if not _NUMBER.fullmatch(word)), None)
+    bad = next(
+        (word for word in words if not _NUMBER.fullmatch(word) or not math.isfinite(float(word))),
+        None,
+    )
     if bad is not None:
         raise URDFError(f"{given}: {bad!r} is not a finite number; {fix}")
     if len(words) != count:
