@@ -185,7 +185,7 @@ def tree_from_urdf(
             mimics=_mimics(urdf_joints, urdf_robot.joints, where),
             robot=robot or urdf_robot.name,
         )
-    except InputError as exc:  # e.g. a NaN in an <origin>
+    except InputError as exc:  # what Tree refuses: a guard, as the checks above catch all known
         raise URDFError(f"{where}: {exc}") from exc
 
 
@@ -224,7 +224,8 @@ def _bodies(
 
 
 def _parse(path: str) -> Any:
-    """The ``yourdfpy.Robot`` of the URDF at ``path``, meshes not loaded."""
+    """The ``yourdfpy.Robot`` of the URDF at ``path``, once the file is checked
+    (:func:`_check_structure`), parsed from what poekin reads only (:func:`_keep_kinematics`)."""
     try:
         import yourdfpy  # type: ignore[import-untyped]
     except ImportError as exc:

@@ -301,10 +301,16 @@ class Tree:
         if mimic is None:
             return -1
         name, leader = self.joint_names[k], names.get(mimic.leader)
-        if leader is None or self.mimics[leader] is not None:
+        if leader is None:
             raise InputError(
-                f"joint {name!r} mimics {mimic.leader!r}, which must be a joint that mimics "
-                f"none: {did_you_mean(mimic.leader, list(names))}"
+                f"joint {name!r} mimics {mimic.leader!r}, which is no joint: "
+                f"{did_you_mean(mimic.leader, list(names))}"
+            )
+        followed = self.mimics[leader]
+        if followed is not None:
+            raise InputError(
+                f"joint {name!r} mimics {mimic.leader!r}, which mimics {followed.leader!r} "
+                "itself: a leader must be a joint that mimics none"
             )
         hinge_or_slide = ("revolute", "prismatic")
         if self.joint_types[k] not in hinge_or_slide or (
