@@ -10,9 +10,11 @@ import mujoco
 import numpy as np
 import pytest
 from helpers import MJ_TOL, assert_close, load_quiet
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 import poekin
-from poekin import InputError, ModelError, UnknownFrameError
+from poekin import InputError, ModelError, UnknownFrameError, lie
 from poekin.import_mujoco import tree_from_model
 from poekin.tree import Mimic, Tree
 from poekin.verify import sample_qpos
@@ -360,6 +362,58 @@ def test_a_follower_may_come_before_its_leader() -> None:
         mimic._jacobian_numpy(q2[:, None], tip, "world"),
     ):
         assert_close("jacobian", J_mimic[..., 0], -2.0 * J[..., 0] + J[..., 1], 1e-15)
+
+
+def _random_chain_tree(rng: np.random.Generator, n: int, mimics: list[Mimic | None]) -> Tree:
+    """A serial tree of ``n`` hinges and slides with random offsets and axes."""
+    axes = rng.normal(size=(n, 3))
+    return Tree(
+        body_names=tuple(f"b{k}" for k in range(n)),
+        body_parents=np.arange(n) - 1,
+        body_pos=rng.uniform(-0.5, 0.5, (n, 3)),
+        body_rot=[lie.exp_so3(w) for w in rng.normal(size=(n, 3))],
+        joint_names=tuple(f"j{k}" for k in range(n)),
+        joint_types=tuple(rng.choice(["revolute", "prismatic"], n).tolist()),
+        joint_bodies=np.arange(n),
+        joint_axes=axes / np.linalg.norm(axes, axis=1, keepdims=True),
+        joint_anchors=rng.uniform(-0.1, 0.1, (n, 3)),
+        joint_refs=np.zeros(n),
+        joint_limits=[[-np.inf, np.inf]] * n,
+        mimics=mimics,
+    )
+
+
+@settings(max_examples=40, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1), n=st.integers(2, 7))
+def test_followers_anywhere_move_as_their_leaders_say(seed: int, n: int) -> None:
+    """Random followers of random leaders, before or after them: fk is the tree without mimics
+    at the expanded positions, and each Jacobian column the sum of the columns of its joints."""
+    rng = np.random.default_rng(seed)
+    follows = rng.random(n) < 0.5
+    follows[rng.integers(n)] = False  # at least one leader
+    leaders = np.flatnonzero(~follows)
+    mimics: list[Mimic | None] = [
+        Mimic(f"j{rng.choice(leaders)}", float(rng.uniform(-2, 2)), float(rng.uniform(-1, 1)))
+        if f
+        else None
+        for f in follows
+    ]
+    tree = _random_chain_tree(np.random.default_rng(seed), n, mimics)
+    free = _random_chain_tree(np.random.default_rng(seed), n, [None] * n)
+    q = rng.uniform(-3, 3, (5, len(leaders)))
+    full = np.empty((5, n))
+    to_tree = np.zeros((n, len(leaders)))  # d full / d q
+    for k, mimic in enumerate(mimics):
+        column = np.searchsorted(leaders, k if mimic is None else int(mimic.leader[1:]))
+        scale, offset = (1.0, 0.0) if mimic is None else (mimic.multiplier, mimic.offset)
+        full[:, k] = scale * q[:, column] + offset
+        to_tree[k, column] = scale
+    assert tree.nq == tree.nv == len(leaders)
+    assert_close("full_qpos", tree.full_qpos(q), full, 0.0)
+    assert_close("fk", tree.fk(q), free.fk(full), 0.0)
+    for frame in tree.frame_names:
+        expected = free.jacobian(full, frame) @ to_tree
+        assert_close(frame, tree.jacobian(q, frame), expected, 1e-13)
 
 
 @pytest.mark.parametrize(
