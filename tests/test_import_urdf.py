@@ -574,8 +574,8 @@ ERROR_CASES = {
         "(it has ${pi/2} in <origin rpy>)",
     ),
     "xacro optenv": (
-        _urdf("<gazebo><plugin>$(optenv ROBOT_NS robot)</plugin></gazebo>", "base"),
-        "(it has $(optenv ROBOT_NS robot) in <plugin>)",
+        _urdf(_joint("ja", "fixed", "base", "a", '<origin xyz="$(optenv X 0) 0 0"/>'), "base a"),
+        "(it has $(optenv X 0) in <origin xyz>)",
     ),
     "no child": (
         _urdf('<joint name="j" type="fixed"><parent link="base"/></joint>'),
@@ -763,6 +763,15 @@ def test_axes_are_normalised_as_in_mujoco(tmp_path: pathlib.Path, xyz: str) -> N
     path.write_text(_urdf(_joint("js", "prismatic", "base", "a", f'<axis xyz="{xyz}"/>'), "base a"))
     model = compile_with_mujoco(path, floating_base=False)
     assert_close("axis", tree_from_urdf(path).joint_axes, model.jnt_axis, 2e-16)
+
+
+def test_substitutions_for_other_tools_are_not_xacro(tmp_path: pathlib.Path) -> None:
+    """What only Gazebo or ros2_control reads may keep $(...) (launch files substitute it):
+    MuJoCo and Pinocchio load such a file, and so does poekin."""
+    path = tmp_path / "robot.urdf"
+    plugin = "<gazebo><plugin><parameters>$(find my_robot)/controllers.yaml</parameters></plugin>"
+    path.write_text(_urdf(_joint("ja", "continuous", "base", "a") + plugin + "</gazebo>", "base a"))
+    assert tree_from_urdf(path).joint_names == ("ja",)
 
 
 def test_missing_file(tmp_path: pathlib.Path) -> None:

@@ -306,22 +306,26 @@ def _check_structure(root: ET.Element, path: str) -> None:
 def _xacro_trace(root: ET.Element) -> str:
     """The first sign that ``root`` is xacro, not URDF, in words (empty if none): an element or
     attribute in the xacro namespace, or a substitution (``$(find ...)``, ``${...}``) in an
-    attribute or text. The namespace declared on ``<robot>`` is no sign: xacro's output keeps
-    it."""
+    attribute or text of a link or joint. The namespace declared on ``<robot>`` is no sign
+    (xacro's output keeps it), nor is a substitution in what only other tools read
+    (``<gazebo>``, ``<ros2_control>``...)."""
+    read = [root, *(e for top in root if top.tag in ("link", "joint") for e in top.iter())]
     for elem in root.iter():
         namespace, _, tag = elem.tag.rpartition("}")
         if "xacro" in namespace:
             return f"<xacro:{tag}>"
-        for key, value in elem.attrib.items():
+        for key in elem.attrib:
             namespace, _, attribute = key.rpartition("}")
             if "xacro" in namespace:
                 return f"the attribute xacro:{attribute} of <{tag}>"
+    for elem in read:
+        for attribute, value in elem.attrib.items():
             match = _XACRO_SUBSTITUTION.search(value)
             if match:
-                return f"{match.group()} in <{tag} {attribute}>"
+                return f"{match.group()} in <{elem.tag} {attribute}>"
         match = _XACRO_SUBSTITUTION.search(elem.text or "")
         if match:
-            return f"{match.group()} in <{tag}>"
+            return f"{match.group()} in <{elem.tag}>"
     return ""
 
 
