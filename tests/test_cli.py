@@ -253,7 +253,33 @@ BAD_INPUTS = [
         "No space left on device",
         marks=pytest.mark.skipif(not os.path.exists("/dev/full"), reason="no /dev/full"),
     ),
+    # URDF files (issue 15): BAD_URDFS below. verify reads a URDF before MuJoCo compiles it,
+    # so poekin's reason, naming the joint, comes first for what MuJoCo refuses too
+    (["screws", "{rpy_of_4}"], "joint 'j': <origin rpy=\"0 0 1 0\"> has 4 numbers; give 3"),
+    (["verify", "{rpy_of_4}"], "joint 'j': <origin rpy=\"0 0 1 0\"> has 4 numbers; give 3"),
+    (["fk", "{two_axes}", "--q", "0"], "joint 'j' has 2 <axis> elements; keep one"),
+    (["screws", "{xacro}"], "a xacro file, not URDF yet (it has $(find my_robot) in <mesh"),
+    (["screws", "{mimic_no_joint}"], "joint 'j': <mimic> has no joint; name the joint it"),
+    (["verify", "{mimic_cycle}"], "mimic joints form a cycle: j -> k -> j"),
+    (["screws", "{world_only}"], "no link to pose"),
+    (["verify", "{planar}"], "joint 'j' is planar"),
 ]
+
+_LINKS = '<link name="base"/><link name="a"/>'
+_ONE_JOINT = _LINKS + '<joint name="j" type="{}"><parent link="base"/><child link="a"/>{}</joint>'
+_MESH = '<mesh filename="$(find my_robot)/base.stl"/>'
+# {name}.urdf files for BAD_INPUTS
+BAD_URDFS = {
+    "rpy_of_4": _ONE_JOINT.format("continuous", '<origin rpy="0 0 1 0"/>'),
+    "two_axes": _ONE_JOINT.format("continuous", '<axis xyz="0 0 1"/><axis xyz="0 1 0"/>'),
+    "xacro": f"<link name='a'><visual><geometry>{_MESH}</geometry></visual></link>",
+    "mimic_no_joint": _ONE_JOINT.format("continuous", '<mimic multiplier="2"/>'),
+    "mimic_cycle": _ONE_JOINT.format("continuous", '<mimic joint="k"/>')
+    + '<link name="b"/><joint name="k" type="continuous"><parent link="a"/><child link="b"/>'
+    '<mimic joint="j"/></joint>',
+    "world_only": '<link name="world"/>',
+    "planar": _ONE_JOINT.format("planar", ""),
+}
 
 
 UR5E_DH_DICT = poekin.named_params("ur5e-dh").describe()
@@ -312,6 +338,10 @@ def test_bad_input_gives_one_line_and_exit_2(
         "deg_unit_typo": _write(
             tmp_path, "t.json", json.dumps({**UR5E_DH_DICT, "angle_unit": "degree"})
         ),
+    }
+    fills |= {
+        k: _write(tmp_path, f"{k}.urdf", f'<robot name="r">{v}</robot>')
+        for k, v in BAD_URDFS.items()
     }
     before = pathlib.Path(other).read_bytes()
     code, _, err = run(capsys, *[a.format(**fills) for a in argv])
@@ -938,3 +968,18 @@ def test_floating_base_from_the_command_line(capsys: pytest.CaptureFixture[str])
     code, _, err = run(capsys, "verify", "--floating-base")
     assert code == 2
     assert_one_error_line(err, "floating_base applies to URDF")
+
+
+def test_verify_of_a_malformed_urdf_names_the_joint(
+    capsys: pytest.CaptureFixture[str], tmp_path: pathlib.Path
+) -> None:
+    """poekin reads a URDF before MuJoCo compiles it, so its message (naming the joint and the
+    fix) comes first, not MuJoCo's 'attribute has too much data'."""
+    text = (pathlib.Path(__file__).parent / "data" / "urdf" / "serial_arm.urdf").read_text()
+    bad = text.replace('rpy="0 0 0.3"', 'rpy="0 0 0.3 0"', 1)
+    assert bad != text
+    path = _write(tmp_path, "bad.urdf", bad)
+    code, _, err = run(capsys, "verify", path)
+    assert code == 2
+    assert_one_error_line(err, "has 4 numbers; give 3 numbers (roll pitch yaw)")
+    assert "joint '" in err

@@ -7,6 +7,7 @@ import copy
 import dataclasses
 import inspect
 import os
+import pathlib
 import pickle
 import re
 import warnings
@@ -29,6 +30,7 @@ from poekin.verify import sample_qpos
 # and cos (the kernel's own, below 1 ulp, against the C library's), which moves a pose by a
 # few 1e-16 on metre-sized robots. Issue #5 asks for <= 1e-15.
 REF_TOL = 1e-15
+URDF = pathlib.Path(__file__).parent / "data" / "urdf"
 N_SAMPLES = 10_000
 BATCH_SHAPES = [(), (1,), (3, 1, 2, 1)]
 FORMS = ["4x4", "3x4", "pos_quat"]
@@ -114,10 +116,18 @@ def test_every_joint_type_equals_the_reference(features: Tree) -> None:
     assert_close("features", features.fk(qpos), features._fk_numpy(qpos), REF_TOL)
 
 
-def test_mimic_joints_equal_the_reference() -> None:
-    tree = _two_link((None, Mimic("j1", multiplier=-2.0, offset=0.25)))
+@pytest.mark.parametrize("leader_first", [True, False])
+def test_mimic_joints_equal_the_reference(leader_first: bool) -> None:
+    mimic = Mimic("j1" if leader_first else "j2", multiplier=-2.0, offset=0.25)
+    tree = _two_link((None, mimic) if leader_first else (mimic, None))
     q = np.random.default_rng(5).uniform(-10, 10, (1_000, 1))
     assert_close("mimic", tree.fk(q), tree._fk_numpy(q), REF_TOL)
+
+
+def test_urdf_followers_before_their_leader_equal_the_reference() -> None:
+    tree = poekin.load_tree(URDF / "gripper_mimic_later.urdf")
+    qpos = sample_qpos(tree, N_SAMPLES, seed=5)
+    assert_close("gripper", tree.fk(qpos), tree._fk_numpy(qpos), REF_TOL)
 
 
 @pytest.mark.parametrize("scale", [1e3, 1e5, 6e5, 1e6, 1e9])
@@ -482,13 +492,16 @@ def test_random_chain_jacobians_equal_the_reference(seed: int) -> None:
         assert_close(convention, getattr(chain, f"jacobian_{convention}")(q), expected, tol)
 
 
-@pytest.mark.parametrize("robot", [*MENAGERIE, "features", "mimic"])
+@pytest.mark.parametrize("robot", [*MENAGERIE, "features", "mimic", "gripper_mimic_later.urdf"])
 def test_tree_jacobians_equal_the_reference(robot: str, features: Tree) -> None:
-    """Every frame in every convention: hinge, slide, ball, free and mimic joints."""
+    """Every frame in every convention: hinge, slide, ball, free and mimic joints (followers
+    after and before their leaders)."""
     if robot == "features":
         tree = features
     elif robot == "mimic":
         tree = _two_link((None, Mimic("j1", multiplier=-2.0, offset=0.25)))
+    elif robot.endswith(".urdf"):
+        tree = poekin.load_tree(URDF / robot)
     else:
         tree = poekin.load_tree(load_quiet(robot))
     qpos = sample_qpos(tree, 500, seed=17)

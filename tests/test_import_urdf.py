@@ -1,21 +1,31 @@
 """Trees from URDF files: poses checked by hand, every body against MuJoCo compiling the same
-URDF, fixed links, mimic joints, meshes that do not exist, floating bases, and the errors."""
+URDF and against Pinocchio reading it, fixed links, mimic joints (leaders before and after),
+limits as MuJoCo reads them, meshes that do not exist, floating bases, files as ROS packages
+ship them, and the errors: one line for each malformed file."""
 
 from __future__ import annotations
 
 import logging
 import pathlib
+import re
 import sys
+from typing import Any
 
 import mujoco
 import numpy as np
 import pytest
 from helpers import MJ_TOL, assert_close
 
-from poekin import ModelError, PoekinError
-from poekin.import_urdf import FLOATING_BASE, tree_from_urdf
+from poekin import ModelError, URDFError
+from poekin._extras import install_command
+from poekin.errors import MissingExtraError
+from poekin.import_urdf import FLOATING_BASE, URDFLimitsWarning, tree_from_urdf
+from poekin.sources import _mujoco_warnings
 from poekin.tree import Mimic, Tree
+from poekin.verify import sample_qpos
 
+# limits.urdf's note is checked once, in test_unusable_limits_are_unlimited_as_in_mujoco
+pytestmark = pytest.mark.filterwarnings("ignore::poekin.import_urdf.URDFLimitsWarning")
 DATA = pathlib.Path(__file__).parent / "data" / "urdf"
 N_SAMPLES = 1000
 HAND_TOL = 1e-14  # closed form vs tree.fk: a few roundings of numbers of order 1
@@ -28,7 +38,14 @@ MUJOCO_CASES = [
     ("planar_2link.urdf", False),
     ("package_meshes.urdf", False),
     ("world_floating.urdf", False),
+    ("gripper_mimic_later.urdf", False),
+    ("limits.urdf", False),
+    ("ros_package.urdf", False),
+    ("bullet_spherical.urdf", False),
 ]
+# Pinocchio (urdfdom) refuses a revolute or prismatic joint without <limit>, as limits.urdf has,
+# and the spherical joint type
+PINOCCHIO_CASES = [c for c in MUJOCO_CASES if c[0] not in ("limits.urdf", "bullet_spherical.urdf")]
 
 
 def Rx(a: float) -> np.ndarray:
@@ -55,15 +72,17 @@ def _quat_matrix(q: np.ndarray) -> np.ndarray:
     )
 
 
-def compile_with_mujoco(path: pathlib.Path, floating_base: bool) -> mujoco.MjModel:
+def compile_with_mujoco(path: pathlib.Path, floating_base: bool | str) -> mujoco.MjModel:
     """MuJoCo's model of the same URDF, one body per link: the recipe ``poekin verify`` needs.
 
     fusestatic=False keeps fixed-joint links as bodies (MuJoCo's URDF default fuses them, and
     the root link too, into their parents); the meshes go, since MuJoCo opens ``package://``
     URIs as files when it compiles; boundmass/boundinertia give massless moving links (their
     mass lived in a deleted mesh or was never given) the mass MuJoCo insists on.
+    ``floating_base``: add a free joint named so (True: FLOATING_BASE) to the root link.
     """
-    spec = mujoco.MjSpec.from_file(str(path))
+    with _mujoco_warnings():  # e.g. limits.urdf's lower = upper: no MUJOCO_LOG.TXT here
+        spec = mujoco.MjSpec.from_file(str(path))
     spec.compiler.fusestatic = False
     spec.compiler.boundmass = 1e-6
     spec.compiler.boundinertia = 1e-9
@@ -73,27 +92,31 @@ def compile_with_mujoco(path: pathlib.Path, floating_base: bool) -> mujoco.MjMod
     for mesh in list(spec.meshes):
         spec.delete(mesh)
     if floating_base:
-        spec.worldbody.first_body().add_freejoint(name=FLOATING_BASE)
+        name = floating_base if isinstance(floating_base, str) else FLOATING_BASE
+        spec.worldbody.first_body().add_freejoint(name=name)
     return spec.compile()
 
 
 def random_qpos(tree: Tree, n: int, seed: int) -> np.ndarray:
-    """``(n, nq)``: hinges in [-2 pi, 2 pi], slides within limits (else +-1 m), free joints at a
-    random position with a random, unnormalised quaternion."""
+    """``(n, nq)``: hinges in [-2 pi, 2 pi], slides within limits (else +-1 m), ball joints a
+    random, unnormalised quaternion, free joints one at a random position."""
     rng = np.random.default_rng(seed)
     q = np.empty((n, tree.nq))
     for k, kind in enumerate(tree.joint_types):
         if tree.mimics[k] is not None:
             continue
         a = int(tree.qpos_adr[k])
-        if kind == "free":
-            q[:, a : a + 3] = rng.uniform(-2.0, 2.0, size=(n, 3))
-            q[:, a + 3 : a + 7] = rng.normal(size=(n, 4)) * rng.uniform(0.1, 10.0, size=(n, 1))
+        if kind in ("free", "ball"):
+            if kind == "free":
+                q[:, a : a + 3] = rng.uniform(-2.0, 2.0, size=(n, 3))
+                a += 3
+            q[:, a : a + 4] = rng.normal(size=(n, 4)) * rng.uniform(0.1, 10.0, size=(n, 1))
         elif kind == "revolute":
             q[:, a] = rng.uniform(-2 * np.pi, 2 * np.pi, size=n)
         else:
             lo, hi = tree.joint_limits[k]
-            q[:, a] = rng.uniform(lo, hi, size=n) if np.isfinite(lo + hi) else rng.uniform(-1, 1, n)
+            limited = np.isfinite(lo) and np.isfinite(hi)
+            q[:, a] = rng.uniform(lo, hi, size=n) if limited else rng.uniform(-1, 1, n)
     return q
 
 
@@ -113,14 +136,14 @@ def mujoco_body_poses(model: mujoco.MjModel, tree: Tree, qpos: np.ndarray) -> np
     data = mujoco.MjData(model)
     ids = [mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, b) for b in tree.body_names]
     adr = [model.jnt_qposadr[model.joint(name).id] for name in tree.joint_names]
-    hinges = [k for k, t in enumerate(tree.joint_types) if t != "free"]
-    frees = [k for k, t in enumerate(tree.joint_types) if t == "free"]
+    hinges = [k for k, t in enumerate(tree.joint_types) if t in ("revolute", "prismatic")]
+    quats = {k: 7 if t == "free" else 4 for k, t in enumerate(tree.joint_types) if k not in hinges}
     positions = joint_positions(tree, qpos, tuple(hinges))
     out = np.zeros((qpos.shape[0], len(ids), 4, 4))
     out[..., 3, 3] = 1.0
     for i in range(qpos.shape[0]):
-        for k in frees:
-            data.qpos[adr[k] : adr[k] + 7] = qpos[i, tree.qpos_adr[k] : tree.qpos_adr[k] + 7]
+        for k, size in quats.items():
+            data.qpos[adr[k] : adr[k] + size] = qpos[i, tree.qpos_adr[k] : tree.qpos_adr[k] + size]
         data.qpos[[adr[k] for k in hinges]] = positions[i]
         mujoco.mj_kinematics(model, data)
         out[i, :, :3, :3] = data.xmat[ids].reshape(-1, 3, 3)
@@ -218,6 +241,49 @@ def test_mimic_chain_resolved_to_independent_joint() -> None:
     assert tree.qpos_adr[tree.joint_names.index("right_finger_b_joint")] == grip
 
 
+def test_followers_before_their_leader() -> None:
+    """Finger joints listed (and so in the body order) before the joint that drives them:
+    qpos holds the independent joints in body order, every follower takes its leader's entry."""
+    tree = tree_from_urdf(DATA / "gripper_mimic_later.urdf")
+    assert tree.qpos_layout() == "qpos = [arm_joint, wrist_joint, drive]"
+    mimics = dict(zip(tree.joint_names, tree.mimics, strict=True))
+    assert mimics["left_finger_joint"] == Mimic("drive", 0.02, 0.001)
+    assert mimics["knuckle_joint"] == Mimic("drive", -1.0, 0.1)
+    assert mimics["tip_joint"] == Mimic("drive", -0.5, 0.05)  # 0.5 * (-1 drive + 0.1)
+    drive = tree.joint_names.index("drive")
+    assert drive > tree.joint_names.index("knuckle_joint")
+    assert all(tree.qpos_adr[k] == 2 for k, m in enumerate(tree.mimics) if m is not None)
+    assert tree.dof_names() == ("arm_joint", "wrist_joint", "drive")
+
+
+def test_spherical_joint_is_a_ball_joint() -> None:
+    """Bullet's spherical joint, as MuJoCo reads it: a ball joint, qpos a quaternion wxyz."""
+    tree = tree_from_urdf(DATA / "bullet_spherical.urdf")
+    assert tree.joint_types == ("revolute", "ball")
+    assert tree.qpos_layout() == "qpos = [waist_joint, hip (ball: qw qx qy qz)]"
+    model = compile_with_mujoco(DATA / "bullet_spherical.urdf", floating_base=False)
+    np.testing.assert_array_equal(tree.qpos0, model.qpos0)
+
+
+@pytest.mark.parametrize(
+    "contents",
+    [
+        '<visual><origin xyz="0 1"/><geometry><box size="1 1 1"/></geometry></visual>',
+        '<visual><origin xyz="0 0 1"/></visual>',  # no <geometry>
+    ],
+)
+def test_link_contents_are_not_read(tmp_path: pathlib.Path, contents: str) -> None:
+    """Flawed geometry or inertia that MuJoCo and Pinocchio let pass (yourdfpy refused each):
+    poekin reads links' names only."""
+    path = tmp_path / "robot.urdf"
+    text = _urdf(_joint("ja", "revolute", "base", "a", '<limit lower="-1" upper="1"/>'), "base")
+    path.write_text(text.replace("</robot>", f'<link name="a">{contents}</link></robot>'))
+    tree = tree_from_urdf(path)
+    model = compile_with_mujoco(path, floating_base=False)
+    q = random_qpos(tree, 20, seed=9)
+    assert_close("MuJoCo", tree.fk(q), mujoco_body_poses(model, tree, q), MJ_TOL)
+
+
 def test_package_meshes_are_never_opened(caplog: pytest.LogCaptureFixture) -> None:
     with caplog.at_level(logging.DEBUG, logger="yourdfpy"):
         tree = tree_from_urdf(DATA / "package_meshes.urdf")
@@ -252,6 +318,48 @@ def test_world_root_link_is_the_world() -> None:
     assert_close("qpos0 of the floating joint = its origin", tree.qpos0[:7], expected, 2e-16)
 
 
+@pytest.mark.parametrize(
+    "before", [b"\n", b"\n  \n\t", b"\r\n\r\n", b"\xef\xbb\xbf\n", b"\xef\xbb\xbf"]
+)
+def test_blank_lines_before_the_xml_declaration(tmp_path: pathlib.Path, before: bytes) -> None:
+    """Accepted as MuJoCo and Pinocchio accept them (their XML reader, tinyxml2, skips them),
+    with or without a UTF-8 byte order mark, and MuJoCo reads the same robot."""
+    path = tmp_path / "blank_first.urdf"
+    path.write_bytes(before + (DATA / "serial_arm.urdf").read_bytes())
+    tree, expected = tree_from_urdf(path), tree_from_urdf(DATA / "serial_arm.urdf")
+    assert tree.joint_names == expected.joint_names
+    q = random_qpos(tree, 50, seed=5)
+    assert_close("same poses", tree.fk(q), expected.fk(q), 0.0)
+    model = compile_with_mujoco(path, floating_base=False)
+    assert_close("MuJoCo", tree.fk(q), mujoco_body_poses(model, tree, q), MJ_TOL)
+
+
+@pytest.mark.parametrize("variant", ["CRLF", "BOM CRLF", "CR", "tabs and newlines in numbers"])
+def test_line_endings_and_spaces(tmp_path: pathlib.Path, variant: str) -> None:
+    """Windows (and old Mac) line endings, a byte order mark, and numbers split by tabs and
+    newlines (XML reads them as spaces; so does MuJoCo, not Pinocchio): the same robot as MuJoCo
+    reads it."""
+    text = (DATA / "ros_package.urdf").read_text()
+    if variant == "tabs and newlines in numbers":
+        text = text.replace('xyz="-0.425 0 0"', 'xyz="-0.425\t0\n\t0"')
+    else:
+        text = text.replace("\n", "\r" if variant == "CR" else "\r\n")
+    path = tmp_path / "variant.urdf"
+    path.write_bytes(b"\xef\xbb\xbf" * ("BOM" in variant) + text.encode())
+    tree, expected = tree_from_urdf(path), tree_from_urdf(DATA / "ros_package.urdf")
+    q = random_qpos(tree, 50, seed=8)
+    assert_close("same poses", tree.fk(q), expected.fk(q), 0.0)
+    model = compile_with_mujoco(path, floating_base=False)
+    assert_close("MuJoCo", tree.fk(q), mujoco_body_poses(model, tree, q), MJ_TOL)
+
+
+def test_parse_errors_after_blank_lines_name_the_right_line(tmp_path: pathlib.Path) -> None:
+    path = tmp_path / "broken.urdf"
+    path.write_text('\n\n<?xml version="1.0"?>\n<robot name="r">\n<link name="a">\n</robot>\n')
+    with pytest.raises(ModelError, match="mismatched tag: line 6, column 2"):
+        tree_from_urdf(path)
+
+
 # --- against MuJoCo -------------------------------------------------------------------------
 
 
@@ -284,6 +392,61 @@ def test_every_body_matches_mujoco(fixture: str, floating_base: bool) -> None:
         assert_close(f"{fixture}: {name}", T[:, b], expected[:, b], MJ_TOL)
 
 
+@pytest.mark.parametrize(("fixture", "floating_base"), MUJOCO_CASES)
+def test_limits_are_mujocos(fixture: str, floating_base: bool) -> None:
+    """MuJoCo's range where MuJoCo limits the joint, else unlimited: ``sample_qpos`` and
+    ``--within-limits`` then sample what a model verified against MuJoCo allows."""
+    tree = tree_from_urdf(DATA / fixture, floating_base=floating_base)
+    model = compile_with_mujoco(DATA / fixture, floating_base)
+    hinges = [k for k, t in enumerate(tree.joint_types) if t != "free"]
+    expected = np.where(model.jnt_limited[hinges, None], model.jnt_range[hinges], [-np.inf, np.inf])
+    np.testing.assert_array_equal(tree.joint_limits[hinges], expected)
+
+
+def test_unusable_limits_are_unlimited_as_in_mujoco() -> None:
+    """One note names the joints whose <limit> gives no range (limits.urdf has one of each
+    kind), and says why."""
+    with pytest.warns(URDFLimitsWarning) as notes:
+        tree = tree_from_urdf(DATA / "limits.urdf")
+    assert len(notes) == 1
+    note = str(notes[0].message)
+    assert note.startswith(f"{DATA / 'limits.urdf'}: 7 joints are unlimited, as in MuJoCo (")
+    assert "\n" not in note
+    assert """'bullet_no_limit': <limit lower="1" upper="-1">, Bullet's "no limit";""" in note
+    assert note.endswith("; and 4 more)")
+    limits = dict(zip(tree.joint_names, tree.joint_limits.tolist(), strict=True))
+    assert limits.pop("normal") == [-1.0, 2.0]
+    assert limits.pop("slide") == [-0.2, 0.3]
+    assert all(lower_upper == [-np.inf, np.inf] for lower_upper in limits.values())
+    q = sample_qpos(tree, 200, seed=0, within_limits=True)
+    assert np.ptp(q[:, tree.joint_names.index("equal")]) > 6, "samples [-2 pi, 2 pi]"
+
+
+@pytest.mark.parametrize(
+    ("joint", "why"),
+    [
+        ('<limit lower="0" upper="0" effort="1" velocity="1"/>', '<limit lower="0" upper="0">'),
+        ('<limit effort="1" velocity="1"/>', "<limit> without lower and upper, which the URDF"),
+        ('<limit upper="1" effort="1" velocity="1"/>', "<limit> with upper only"),
+        ("", "no <limit>"),
+    ],
+)
+def test_each_unusable_limit_is_named(tmp_path: pathlib.Path, joint: str, why: str) -> None:
+    path = tmp_path / "robot.urdf"
+    path.write_text(_urdf(_joint("jl", "prismatic", "base", "a", joint), "base a"))
+    with pytest.warns(
+        URDFLimitsWarning, match=f"1 joint is unlimited, as in MuJoCo \\('jl': {re.escape(why)}"
+    ):
+        tree = tree_from_urdf(path)
+    np.testing.assert_array_equal(tree.joint_limits, [[-np.inf, np.inf]])
+
+
+def test_usable_limits_give_no_note(recwarn: pytest.WarningsRecorder) -> None:
+    for fixture in ("serial_arm.urdf", "two_arms.urdf", "gripper_mimic_later.urdf"):
+        tree_from_urdf(DATA / fixture)
+    assert not recwarn.list
+
+
 @pytest.mark.parametrize(
     ("fixture", "frame"),
     [
@@ -293,6 +456,9 @@ def test_every_body_matches_mujoco(fixture: str, floating_base: bool) -> None:
         ("two_arms.urdf", "right_finger_tip"),  # two followers on the path
         ("planar_2link.urdf", "tool"),
         ("package_meshes.urdf", "hand"),
+        ("gripper_mimic_later.urdf", "tool"),  # a follower before its leader on the path
+        ("gripper_mimic_later.urdf", "right_finger"),
+        ("ros_package.urdf", "tool0"),
     ],
 )
 def test_chain_matches_tree_and_mujoco(fixture: str, frame: str) -> None:
@@ -304,6 +470,61 @@ def test_chain_matches_tree_and_mujoco(fixture: str, frame: str) -> None:
     assert_close(f"{frame}: chain vs tree", T_chain, tree.fk(q)[:, b], MJ_TOL)
     expected = mujoco_body_poses(compile_with_mujoco(DATA / fixture, False), tree, q)
     assert_close(f"{frame}: chain vs MuJoCo", T_chain, expected[:, b], MJ_TOL)
+
+
+# --- against Pinocchio ----------------------------------------------------------------------
+
+
+def pinocchio_q(model: Any, tree: Tree, qpos: np.ndarray) -> np.ndarray:
+    """``(n, model.nq)``: Pinocchio's configuration for the tree's ``qpos``, joint by joint
+    (by name; ``root_joint`` is the floating base). Mimic followers are joints of their own
+    (Pinocchio's default), set from their leaders. A continuous joint is ``cos, sin``; a free
+    joint ``x y z qx qy qz qw`` relative to its ``<origin>`` (which poekin and MuJoCo fold into
+    qpos: their qpos is the world pose)."""
+    from poekin import lie
+
+    full = tree.full_qpos(qpos)
+    q = np.zeros((len(qpos), model.nq))
+    for j in range(1, model.njoints):
+        name, joint = model.names[j], model.joints[j]
+        k = 0 if name == "root_joint" else tree.joint_names.index(name)
+        a, i = tree.full_qpos_adr[k], joint.idx_q
+        if joint.nq == 7:
+            T = np.tile(np.eye(4), (len(qpos), 1, 1))
+            T[:, :3, 3] = full[:, a : a + 3]
+            T[:, :3, :3] = lie.quat_to_rotation(lie.quat_normalize(full[:, a + 3 : a + 7]))
+            local = np.linalg.inv(model.jointPlacements[j].homogeneous) @ T
+            wxyz = lie.rotation_to_quat(local[:, :3, :3])
+            q[:, i : i + 3], q[:, i + 3 : i + 6], q[:, i + 6] = (
+                local[:, :3, 3],
+                wxyz[:, 1:],
+                wxyz[:, 0],
+            )
+        elif joint.nq == 2:
+            q[:, i], q[:, i + 1] = np.cos(full[:, a]), np.sin(full[:, a])
+        else:
+            q[:, i] = full[:, a]
+    return q
+
+
+@pytest.mark.parametrize(("fixture", "floating_base"), PINOCCHIO_CASES)
+def test_every_link_matches_pinocchio(fixture: str, floating_base: bool) -> None:
+    """Pinocchio reads the URDF with its own parser (urdfdom), orders the joints its own way
+    (children by joint name), and gives each link a frame: every link's pose on random qpos."""
+    import pinocchio as pin
+
+    path = str(DATA / fixture)
+    tree = tree_from_urdf(path, floating_base=floating_base)
+    model = pin.buildModelFromUrdf(path, *([pin.JointModelFreeFlyer()] if floating_base else []))
+    assert model.njoints - 1 == len(tree.joint_names)
+    data = model.createData()
+    qpos = random_qpos(tree, 300, seed=7)
+    frames = [model.getFrameId(name, pin.FrameType.BODY) for name in tree.body_names]
+    expected = np.empty((len(qpos), len(frames), 4, 4))
+    for n, q in enumerate(pinocchio_q(model, tree, qpos)):
+        pin.framesForwardKinematics(model, data, q)
+        expected[n] = [data.oMf[f].homogeneous for f in frames]
+    assert_close(fixture, tree.fk(qpos), expected, MJ_TOL)
 
 
 # --- errors ---------------------------------------------------------------------------------
@@ -330,25 +551,134 @@ ERROR_CASES = {
     "xacro": (
         '<robot name="r" xmlns:xacro="http://www.ros.org/wiki/xacro"><xacro:macro name="m"/>'
         "</robot>",
-        "unexpanded xacro",
+        "robot.urdf: a xacro file, not URDF yet (it has <xacro:macro>); expand it first with "
+        "ROS's xacro: xacro ",
+    ),
+    "xacro undeclared": (
+        '<robot name="r"><xacro:include filename="arm.xacro"/></robot>',
+        "a xacro file, not URDF yet (it has <xacro:...> elements)",
+    ),
+    "xacro attribute": (
+        '<robot name="r" xmlns:x="http://ros.org/wiki/xacro"><link name="a" x:if="1"/></robot>',
+        "(it has the attribute xacro:if of <link>)",
+    ),
+    "xacro find": (
+        '<robot name="r"><link name="base"><visual><geometry>'
+        '<mesh filename="$(find my_robot)/base.stl"/></geometry></visual></link></robot>',
+        "(it has $(find my_robot) in <mesh filename>)",
+    ),
+    "xacro arg": (
+        _urdf(_joint("ja", "fixed", "base", "a", '<origin xyz="$(arg x) 0 0"/>'), "base a"),
+        "(it has $(arg x) in <origin xyz>)",
+    ),
+    "xacro property": (
+        _urdf(_joint("ja", "fixed", "base", "a", '<origin rpy="0 0 ${pi/2}"/>'), "base a"),
+        "(it has ${pi/2} in <origin rpy>)",
+    ),
+    "xacro optenv": (
+        _urdf(_joint("ja", "fixed", "base", "a", '<origin xyz="$(optenv X 0) 0 0"/>'), "base a"),
+        "(it has $(optenv X 0) in <origin xyz>)",
     ),
     "no child": (
         _urdf('<joint name="j" type="fixed"><parent link="base"/></joint>'),
         "joint 'j' has no <child",
     ),
     "unnamed link": ('<robot name="r"><link/></robot>', "a <link> has no 'name'"),
+    "no link": ('<robot name="r"/>', "no link to pose (a link named 'world' is the world"),
+    "unnamed joint": (
+        _urdf('<joint type="fixed"><parent link="base"/><child link="a"/></joint>'),
+        "a <joint> has no 'name' attribute; add it",
+    ),
+    "joint without type": (
+        _urdf('<joint name="j"><parent link="base"/><child link="a"/></joint>'),
+        "joint 'j' has no 'type' attribute; add it",
+    ),
+    "link twice": (_urdf("", "base a a"), "links named more than once: ['a']; rename them"),
+    "joint twice": (
+        _urdf(_joint("j", "fixed", "base", "a") + _joint("j", "fixed", "a", "b")),
+        "joints named more than once: ['j']; rename them",
+    ),
+    "every link a child": (
+        _urdf(_joint("ja", "fixed", "a", "b") + _joint("jb", "fixed", "b", "a"), "a b"),
+        "no root link: the joints form a cycle through every link",
+    ),
+    "world alone": ('<robot name="r"><link name="world"/></robot>', "no link to pose"),
     "planar": (_urdf(_joint("jp", "planar", "base", "a"), "base a"), "joint 'jp' is planar"),
     "zero axis": (
         _urdf(_joint("jz", "continuous", "base", "a", '<axis xyz="0 0 0"/>'), "base a"),
-        "joint 'jz' has a zero <axis",
+        "joint 'jz' has a zero <axis xyz> (length 0, under MuJoCo's 1e-7); give the direction",
+    ),
+    "tiny axis": (  # 5.9e-8^2 + 8e-8^2 < 1e-14: "axis too small" in MuJoCo
+        _urdf(_joint("jz", "prismatic", "base", "a", '<axis xyz="5.9e-8 8e-8 0"/>'), "base a"),
+        "joint 'jz' has a zero <axis xyz> (length 9.94e-08, under MuJoCo's 1e-7)",
     ),
     "bad number": (
         _urdf(_joint("jn", "continuous", "base", "a", '<origin xyz="0 x 0"/>'), "base a"),
-        "malformed URDF",
+        """joint 'jn': <origin xyz="0 x 0">: 'x' is not a finite number; give 3 numbers""",
     ),
     "NaN origin": (
         _urdf(_joint("jn", "continuous", "base", "a", '<origin rpy="nan 0 0"/>'), "base a"),
-        "body_rot contains NaN or inf",
+        "'nan' is not a finite number; give 3 numbers (roll pitch yaw)",
+    ),
+    "overflow": (
+        _urdf(_joint("jo", "fixed", "base", "a", '<origin xyz="1e999 0 0"/>'), "base a"),
+        "'1e999' is not a finite number; give 3 numbers (x y z)",
+    ),
+    "rpy of 4": (
+        _urdf(_joint("jr", "fixed", "base", "a", '<origin rpy="0.1 0.2 0.3 0.4"/>'), "base a"),
+        """joint 'jr': <origin rpy="0.1 0.2 0.3 0.4"> has 4 numbers; give 3 numbers (roll pitch""",
+    ),
+    "xyz of 4": (
+        _urdf(_joint("jx", "revolute", "base", "a", '<origin xyz="0 0 1 0"/>'), "base a"),
+        """joint 'jx': <origin xyz="0 0 1 0"> has 4 numbers; give 3 numbers (x y z)""",
+    ),
+    "xyz of 2": (
+        _urdf(_joint("jx", "revolute", "base", "a", '<origin xyz="0 1"/>'), "base a"),
+        """<origin xyz="0 1"> has 2 numbers; give 3""",
+    ),
+    "axis with commas": (
+        _urdf(_joint("jc", "continuous", "base", "a", '<axis xyz="0,0,1"/>'), "base a"),
+        """joint 'jc': <axis xyz="0,0,1">: '0,0,1' is not a finite number; give 3 numbers""",
+    ),
+    "axis without xyz": (
+        _urdf(_joint("ja", "prismatic", "base", "a", "<axis/>"), "base a"),
+        """joint 'ja': <axis> has no xyz; give <axis xyz="x y z">, or remove <axis> for the""",
+    ),
+    **{
+        f"two <{tag}>": (
+            _urdf(
+                _joint("j2", "revolute", "base", "a", repeat) + _joint("jb", "revolute", "a", "b"),
+            ),
+            f"joint 'j2' has 2 <{tag}> elements; keep one",
+        )
+        for tag, repeat in [  # _joint gives one <parent> and one <child>
+            ("parent", '<parent link="base"/>'),
+            ("child", '<child link="a"/>'),
+            ("origin", '<origin xyz="0 0 1"/>' * 2),
+            ("axis", '<axis xyz="0 0 1"/>' * 2),
+            ("limit", '<limit lower="-1" upper="1"/>' * 2),
+            ("mimic", '<mimic joint="jb"/>' * 2),
+        ]
+    },
+    "mimic without joint": (
+        _urdf(CHAIN + _joint("jb", "continuous", "a", "b", '<mimic multiplier="2"/>')),
+        "joint 'jb': <mimic> has no joint; name the joint it follows",
+    ),
+    "mimic multiplier of 2": (
+        _urdf(CHAIN + _joint("jb", "continuous", "a", "b", '<mimic joint="ja" multiplier="2 3"/>')),
+        """joint 'jb': <mimic multiplier="2 3"> has 2 numbers; give one number""",
+    ),
+    "limit not a number": (
+        _urdf(CHAIN + _joint("jb", "revolute", "a", "b", '<limit lower="-pi" upper="1"/>')),
+        """joint 'jb': <limit lower="-pi">: '-pi' is not a finite number; give one number""",
+    ),
+    "effort not a number": (  # not read by poekin, but yourdfpy reads it
+        _urdf(_joint("ja", "revolute", "base", "a", '<limit effort="x"/>'), "base a"),
+        "malformed URDF (ValueError: could not convert string to float: 'x')",
+    ),
+    "mimic of itself": (
+        _urdf(CHAIN + _joint("jb", "continuous", "a", "b", '<mimic joint="jb"/>')),
+        "mimic joints form a cycle: jb -> jb",
     ),
     "unknown type": (_urdf(_joint("ju", "hinge", "base", "a"), "base a"), "a URDF joint is one of"),
     "unknown link": (_urdf(_joint("ja", "fixed", "base", "c")), "link 'c', which is not defined"),
@@ -367,15 +697,16 @@ ERROR_CASES = {
         _urdf(CHAIN + _joint("jf", "floating", "a", "b")),
         "floating joint 'jf' hangs below link 'a'",
     ),
-    "inverted limits": (
-        _urdf(
-            CHAIN + _joint("jb", "revolute", "a", "b", '<limit lower="1" upper="-1"/>'),
-        ),
-        "joint 'jb' has <limit lower=1 upper=-1>",
-    ),
     "mimic unknown joint": (
         _urdf(CHAIN + _joint("jb", "continuous", "a", "b", '<mimic joint="jaa"/>')),
         "joint 'jb' mimics 'jaa', which is not a joint: did you mean 'ja'?",
+    ),
+    "mimic spherical joint": (
+        _urdf(
+            _joint("ja", "spherical", "base", "a")
+            + _joint("jb", "continuous", "a", "b", '<mimic joint="ja"/>')
+        ),
+        "joint 'jb' mimics 'ja', but 'ja' is a spherical joint; mimic joints must be revolute,",
     ),
     "mimic fixed joint": (
         _urdf(
@@ -391,13 +722,6 @@ ERROR_CASES = {
         ),
         "mimic joints form a cycle: ja -> jb -> ja",
     ),
-    "leader after follower": (
-        _urdf(
-            _joint("ja", "continuous", "base", "a", '<mimic joint="jb"/>')
-            + _joint("jb", "continuous", "a", "b")
-        ),
-        "joint 'ja' mimics 'jb', which comes after it",
-    ),
 }
 
 
@@ -405,11 +729,51 @@ ERROR_CASES = {
 def test_errors_are_one_line(tmp_path: pathlib.Path, text: str, phrase: str) -> None:
     path = tmp_path / "robot.urdf"
     path.write_text(text)
-    with pytest.raises(ModelError) as info:
+    with pytest.raises(URDFError) as info:
         tree_from_urdf(path)
     message = str(info.value)
     assert phrase in message
     assert message.startswith(str(path)) and "\n" not in message
+
+
+@pytest.mark.parametrize(
+    ("name", "expanded"),
+    [("robot.urdf", "robot_expanded.urdf"), ("robot.urdf.xacro", "robot.urdf")],
+)
+def test_xacro_is_expanded_to_a_new_file(tmp_path: pathlib.Path, name: str, expanded: str) -> None:
+    """The command given writes a file other than the one read (a shell truncates the output
+    file before xacro reads the input)."""
+    path = tmp_path / name
+    path.write_text('<robot name="r" xmlns:xacro="http://ros.org/wiki/xacro"><xacro:arg/></robot>')
+    with pytest.raises(URDFError) as info:
+        tree_from_urdf(path)
+    assert str(info.value).endswith(f"xacro {path} > {expanded}")
+
+
+def test_xacro_namespace_left_in_an_expanded_file(tmp_path: pathlib.Path) -> None:
+    """xacro's output keeps the namespace declaration on <robot>: that alone is URDF."""
+    path = tmp_path / "expanded.urdf"
+    text = (DATA / "serial_arm.urdf").read_text()
+    path.write_text(text.replace("<robot ", '<robot xmlns:xacro="http://ros.org/wiki/xacro" '))
+    assert tree_from_urdf(path).joint_names == tree_from_urdf(DATA / "serial_arm.urdf").joint_names
+
+
+@pytest.mark.parametrize("xyz", ["6e-8 8e-8 0", "0 0 2", "0.3 -4 1e3"])
+def test_axes_are_normalised_as_in_mujoco(tmp_path: pathlib.Path, xyz: str) -> None:
+    """Down to the shortest axis MuJoCo takes (squared length 1e-14)."""
+    path = tmp_path / "robot.urdf"
+    path.write_text(_urdf(_joint("js", "prismatic", "base", "a", f'<axis xyz="{xyz}"/>'), "base a"))
+    model = compile_with_mujoco(path, floating_base=False)
+    assert_close("axis", tree_from_urdf(path).joint_axes, model.jnt_axis, 2e-16)
+
+
+def test_substitutions_for_other_tools_are_not_xacro(tmp_path: pathlib.Path) -> None:
+    """What only Gazebo or ros2_control reads may keep $(...) (launch files substitute it):
+    MuJoCo and Pinocchio load such a file, and so does poekin."""
+    path = tmp_path / "robot.urdf"
+    plugin = "<gazebo><plugin><parameters>$(find my_robot)/controllers.yaml</parameters></plugin>"
+    path.write_text(_urdf(_joint("ja", "continuous", "base", "a") + plugin + "</gazebo>", "base a"))
+    assert tree_from_urdf(path).joint_names == ("ja",)
 
 
 def test_missing_file(tmp_path: pathlib.Path) -> None:
@@ -422,15 +786,28 @@ def test_floating_base_on_world_root_refused() -> None:
         tree_from_urdf(DATA / "world_floating.urdf", floating_base=True)
 
 
-def test_floating_base_name_taken(tmp_path: pathlib.Path) -> None:
+@pytest.mark.parametrize("kind", ["continuous", "fixed"])
+def test_floating_base_name_taken(tmp_path: pathlib.Path, kind: str) -> None:
+    """A URDF joint named floating_base (moving or fixed): the free joint takes the first free
+    name of floating_base_1, floating_base_2, ..."""
     path = tmp_path / "robot.urdf"
-    path.write_text(_urdf(_joint(FLOATING_BASE, "continuous", "base", "a"), "base a"))
-    with pytest.raises(ModelError, match="already named 'floating_base'"):
-        tree_from_urdf(path, floating_base=True)
-    assert tree_from_urdf(path).joint_names == (FLOATING_BASE,)
+    joints = _joint(FLOATING_BASE, kind, "base", "a") + _joint("floating_base_1", kind, "a", "b")
+    path.write_text(_urdf(joints))
+    tree = tree_from_urdf(path, floating_base=True)
+    moving = (FLOATING_BASE, "floating_base_1") if kind == "continuous" else ()
+    assert tree.joint_names == ("floating_base_2", *moving)
+    assert tree.joint_types[0] == "free"
+    assert tree_from_urdf(path).joint_names == moving
+    model = compile_with_mujoco(path, "floating_base_2")
+    assert tree.joint_names == tuple(model.joint(j).name for j in range(model.njnt))
+    q = random_qpos(tree, 100, seed=6)
+    assert_close("MuJoCo", tree.fk(q), mujoco_body_poses(model, tree, q), MJ_TOL)
 
 
 def test_without_yourdfpy(monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setitem(sys.modules, "yourdfpy", None)  # import raises ImportError
-    with pytest.raises(PoekinError, match=r"needs yourdfpy: pip install 'poekin\[urdf\]'"):
+    with pytest.raises(MissingExtraError) as info:
         tree_from_urdf(DATA / "serial_arm.urdf")
+    assert str(info.value) == (
+        f"reading serial_arm.urdf needs yourdfpy, which is not installed: {install_command('urdf')}"
+    )

@@ -95,6 +95,29 @@ def test_ball_and_free_joints_match_mj_jac() -> None:
         assert_close(f"features {name}", tree.jacobian(qpos, name), expected, MJ_JAC_TOL)
 
 
+@pytest.mark.parametrize("fixture", ["two_arms", "gripper_mimic_later"])
+def test_urdf_mimic_joints_match_mj_jac(fixture: str) -> None:
+    """MuJoCo compiles a URDF mimic joint as a joint of its own (tied to its leader by an
+    equality constraint), so its column, times the multiplier, adds to the leader's: followers
+    before and after their leader, and a follower on the path before its leader."""
+    loaded = load_quiet(str(URDF / f"{fixture}.urdf"))
+    model, tree = loaded.model, poekin.load_tree(loaded)
+    assert tree.nv < model.nv, "the fixture has mimic joints"
+    to_tree = np.zeros((model.nv, tree.nv))
+    for k, name in enumerate(tree.joint_names):
+        mimic = tree.mimics[k]
+        column = model.jnt_dofadr[model.joint(name).id]
+        to_tree[column, tree._dof_adr[k]] = 1.0 if mimic is None else mimic.multiplier
+    qpos = sample_qpos(tree, 1000, seed=6)
+    full = tree.full_qpos(qpos)
+    for f, name in enumerate(tree.frame_names):
+        expected = mj_jacobians(model, full, f) @ to_tree
+        assert_close(f"{fixture} {name}", tree.jacobian(qpos, name), expected, MJ_JAC_TOL)
+        assert_close(
+            f"{name} reference", tree._jacobian_numpy(qpos, f, "world"), expected, MJ_JAC_TOL
+        )
+
+
 # --- against finite differences -------------------------------------------------------------
 
 

@@ -41,7 +41,20 @@ def test_load_urdf_chain_defaults_to_the_only_leaf() -> None:
         poekin.load(URDF / "two_arms.urdf")
 
 
-@pytest.mark.parametrize("name", ["serial_arm", "two_arms", "world_floating", "package_meshes"])
+@pytest.mark.filterwarnings("ignore::poekin.URDFLimitsWarning", "ignore::poekin.MuJoCoWarning")
+@pytest.mark.parametrize(
+    "name",
+    [
+        "serial_arm",
+        "two_arms",
+        "world_floating",
+        "package_meshes",
+        "gripper_mimic_later",
+        "limits",
+        "ros_package",
+        "bullet_spherical",
+    ],
+)
 def test_verify_urdf_against_mujocos_compile(name: str) -> None:
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", poekin.AssetsStrippedWarning)  # package:// meshes
@@ -60,6 +73,19 @@ def test_verify_urdf_frame_on_the_command_line(capsys: pytest.CaptureFixture[str
     out = capsys.readouterr().out
     assert code == 0
     assert "frame 'right_finger_b'" in out and "space PoE" in out and "PASS" in out
+
+
+def test_unused_urdf_limits_are_one_note_on_the_command_line(
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    code = main(["verify", str(URDF / "limits.urdf"), "--within-limits"])
+    err = capsys.readouterr().err.splitlines()
+    assert code == 0
+    assert all(line.startswith("poekin: note: ") for line in err), err
+    ours = [line for line in err if "unlimited, as in MuJoCo" in line]
+    assert len(ours) == 1 and "limits.urdf: 7 joints are unlimited" in ours[0]
+    mujocos = [line for line in err if "MuJoCo: joint 'equal' has equal lower and upper" in line]
+    assert len(mujocos) == 1
 
 
 def test_mimic_followers_get_their_own_mujoco_qpos() -> None:

@@ -22,6 +22,7 @@ from poekin import (
     LoadedModel,
     MenagerieUnavailableError,
     ModelError,
+    MuJoCoWarning,
     UnknownRobotError,
     load_model,
 )
@@ -744,3 +745,23 @@ def test_download_that_cannot_happen(
     monkeypatch.setenv("MENAGERIE_BASE_URL", (tmp_path / "no-archives").as_uri())
     with pytest.raises(MenagerieUnavailableError, match="set MENAGERIE_ROOT to a local"):
         load_model("franka_fr3")
+
+
+def test_mujoco_warnings_are_notes_not_a_log_file(
+    tmp_path: pathlib.Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """MuJoCo warns of a URDF joint with lower = upper (and ignores the limit): one note, and
+    no MUJOCO_LOG.TXT in the working folder, where MuJoCo's own handler would append it."""
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "locked.urdf").write_text(
+        '<robot name="r"><link name="a"/><link name="b"/><joint name="lock" type="revolute">'
+        '<parent link="a"/><child link="b"/><limit lower="0" upper="0" effort="1" velocity="1"/>'
+        "</joint></robot>"
+    )
+    with pytest.warns(MuJoCoWarning) as notes:
+        load_model("locked.urdf")
+    assert [str(n.message) for n in notes if n.category is MuJoCoWarning] == [
+        "locked.urdf: MuJoCo: joint 'lock' has equal lower and upper limits, limit ignored"
+    ]
+    assert list(tmp_path.iterdir()) == [tmp_path / "locked.urdf"]
+    assert mujoco.get_mju_user_warning() is None, "MuJoCo's own handler is back"

@@ -10,9 +10,11 @@ import mujoco
 import numpy as np
 import pytest
 from helpers import MJ_TOL, assert_close, load_quiet
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 import poekin
-from poekin import InputError, ModelError, UnknownFrameError
+from poekin import InputError, ModelError, UnknownFrameError, lie
 from poekin.import_mujoco import tree_from_model
 from poekin.tree import Mimic, Tree
 from poekin.verify import sample_qpos
@@ -270,6 +272,18 @@ def test_unknown_frame_suggests_the_near_miss(features: mujoco.MjModel) -> None:
         tree_from_model(features).frame_index("fingr")
 
 
+def test_a_model_with_nothing_to_pose_is_refused(tmp_path: pathlib.Path) -> None:
+    """An empty worldbody: one line (it crashed in the kernel's builder). A world site alone
+    is a frame, and is posed."""
+    path = tmp_path / "empty.xml"
+    path.write_text("<mujoco><worldbody/></mujoco>")
+    with pytest.raises(InputError, match="the model has no body and no site: no frame to pose"):
+        poekin.load_tree(path)
+    path.write_text('<mujoco><worldbody><site name="s" pos="1 2 3"/></worldbody></mujoco>')
+    tree = poekin.load_tree(path)
+    assert_close("world site", tree.fk(np.zeros(0))[0, :3, 3], [1.0, 2.0, 3.0], 0.0)
+
+
 def test_load_tree_from_a_path(tmp_path: pathlib.Path) -> None:
     path = tmp_path / "features.xml"
     path.write_text(FEATURES_XML)
@@ -329,14 +343,88 @@ def test_mimic_follower_is_multiplier_times_leader_plus_offset() -> None:
     assert_close("chain", chain.fk(np.stack([q1, q2], -1)), expected[:, 2], 1e-15)
 
 
+def test_a_follower_may_come_before_its_leader() -> None:
+    """The follower j1 is the parent joint of its leader j2: qpos holds j2 alone, and the
+    Jacobian column of j2 holds both joints' motion, as the derivative of fk says."""
+    mimic = _two_link((Mimic("j2", multiplier=-2.0, offset=0.25), None))
+    free = _two_link((None, None))
+    assert (mimic.nq, mimic.nv, tuple(mimic.qpos_adr)) == (1, 1, (0, 0))
+    assert mimic.qpos_layout() == "qpos = [j2]"
+    q2 = np.linspace(-3, 3, 13)
+    full = np.stack([-2.0 * q2 + 0.25, q2], axis=-1)
+    assert_close("full_qpos", mimic.full_qpos(q2[:, None]), full, 0.0)
+    assert_close("fk", mimic.fk(q2[:, None]), free.fk(full), 0.0)
+    assert_close("numpy fk", mimic._fk_numpy(q2[:, None]), free._fk_numpy(full), 0.0)
+    J = free.jacobian(full, "tip")
+    tip = mimic.frame_index("tip")
+    for J_mimic in (
+        mimic.jacobian(q2[:, None], "tip"),
+        mimic._jacobian_numpy(q2[:, None], tip, "world"),
+    ):
+        assert_close("jacobian", J_mimic[..., 0], -2.0 * J[..., 0] + J[..., 1], 1e-15)
+
+
+def _random_chain_tree(rng: np.random.Generator, n: int, mimics: list[Mimic | None]) -> Tree:
+    """A serial tree of ``n`` hinges and slides with random offsets and axes."""
+    axes = rng.normal(size=(n, 3))
+    return Tree(
+        body_names=tuple(f"b{k}" for k in range(n)),
+        body_parents=np.arange(n) - 1,
+        body_pos=rng.uniform(-0.5, 0.5, (n, 3)),
+        body_rot=[lie.exp_so3(w) for w in rng.normal(size=(n, 3))],
+        joint_names=tuple(f"j{k}" for k in range(n)),
+        joint_types=tuple(rng.choice(["revolute", "prismatic"], n).tolist()),
+        joint_bodies=np.arange(n),
+        joint_axes=axes / np.linalg.norm(axes, axis=1, keepdims=True),
+        joint_anchors=rng.uniform(-0.1, 0.1, (n, 3)),
+        joint_refs=np.zeros(n),
+        joint_limits=[[-np.inf, np.inf]] * n,
+        mimics=mimics,
+    )
+
+
+@settings(max_examples=40, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1), n=st.integers(2, 7))
+def test_followers_anywhere_move_as_their_leaders_say(seed: int, n: int) -> None:
+    """Random followers of random leaders, before or after them: fk is the tree without mimics
+    at the expanded positions, and each Jacobian column the sum of the columns of its joints."""
+    rng = np.random.default_rng(seed)
+    follows = rng.random(n) < 0.5
+    follows[rng.integers(n)] = False  # at least one leader
+    leaders = np.flatnonzero(~follows)
+    mimics: list[Mimic | None] = [
+        Mimic(f"j{rng.choice(leaders)}", float(rng.uniform(-2, 2)), float(rng.uniform(-1, 1)))
+        if f
+        else None
+        for f in follows
+    ]
+    tree = _random_chain_tree(np.random.default_rng(seed), n, mimics)
+    free = _random_chain_tree(np.random.default_rng(seed), n, [None] * n)
+    q = rng.uniform(-3, 3, (5, len(leaders)))
+    full = np.empty((5, n))
+    to_tree = np.zeros((n, len(leaders)))  # d full / d q
+    for k, mimic in enumerate(mimics):
+        column = np.searchsorted(leaders, k if mimic is None else int(mimic.leader[1:]))
+        scale, offset = (1.0, 0.0) if mimic is None else (mimic.multiplier, mimic.offset)
+        full[:, k] = scale * q[:, column] + offset
+        to_tree[k, column] = scale
+    assert tree.nq == tree.nv == len(leaders)
+    assert_close("full_qpos", tree.full_qpos(q), full, 0.0)
+    assert_close("fk", tree.fk(q), free.fk(full), 0.0)
+    for frame in tree.frame_names:
+        expected = free.jacobian(full, frame) @ to_tree
+        assert_close(frame, tree.jacobian(q, frame), expected, 1e-13)
+
+
 @pytest.mark.parametrize(
     ("change", "message"),
     [
         ({"body_parents": [1, -1]}, "must come before it"),
         ({"joint_types": ("revolute", "screw")}, "unknown type 'screw'"),
         ({"joint_axes": [[0.0, 0.0, 2.0], [0.0, 0.0, 1.0]]}, "'j1' must be a unit vector"),
-        ({"mimics": (None, Mimic("j0"))}, "mimics 'j0'.*Valid names: 'j1'"),
-        ({"mimics": (Mimic("j2"), None)}, "must be an earlier joint"),
+        ({"mimics": (None, Mimic("j0"))}, "mimics 'j0', which is no joint: .*Valid names: 'j1'"),
+        ({"mimics": (Mimic("j2"), Mimic("j1"))}, "'j1' mimics 'j2', which mimics 'j1' itself"),
+        ({"mimics": (Mimic("j1"), None)}, "'j1' mimics 'j1', which mimics 'j1' itself: a leader"),
         ({"body_rot": [np.eye(3), 2 * np.eye(3)]}, "body_rot of 'b' is not a rotation"),
         ({"joint_types": ("revolute", "free")}, "free joint 'j2' must be the only joint"),
         ({"joint_limits": [[1.0, -1.0]] * 2}, "lower <= upper"),

@@ -24,9 +24,10 @@ from poekin.errors import (
     UnknownFrameError,
     UnknownParamsError,
     UnknownRobotError,
+    URDFError,
 )
 from poekin.import_mujoco import chain_from_model, tree_from_model
-from poekin.import_urdf import tree_from_urdf
+from poekin.import_urdf import URDFLimitsWarning, tree_from_urdf
 from poekin.lie import (
     adjoint,
     exp_se3,
@@ -61,7 +62,7 @@ from poekin.params import (
     named_params,
     ur5e_chain,
 )
-from poekin.sources import AssetsStrippedWarning, LoadedModel, load_model
+from poekin.sources import AssetsStrippedWarning, LoadedModel, MuJoCoWarning, load_model
 from poekin.tree import Mimic, Tree, TreeJointType
 from poekin.verify import VerifyReport, pose_errors, sample_joint_values, sample_qpos, verify
 
@@ -86,10 +87,13 @@ __all__ = [
     "Mimic",
     "MissingExtraError",
     "ModelError",
+    "MuJoCoWarning",
     "PoekinError",
     "SlowPathWarning",
     "Tree",
     "TreeJointType",
+    "URDFError",
+    "URDFLimitsWarning",
     "UnitWarning",
     "UnknownFrameError",
     "UnknownParamsError",

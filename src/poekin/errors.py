@@ -16,6 +16,7 @@ __all__ = [
     "MissingExtraError",
     "ModelError",
     "PoekinError",
+    "URDFError",
     "UnitWarning",
     "UnknownFrameError",
     "UnknownParamsError",
@@ -35,6 +36,10 @@ class InputError(PoekinError, ValueError):
 
 class ModelError(PoekinError):
     """A model file is missing, unreadable, malformed, or MuJoCo rejects it."""
+
+
+class URDFError(ModelError):
+    """A URDF file that poekin cannot read as a robot: malformed, or outside what it supports."""
 
 
 class UnknownRobotError(ModelError, LookupError):

@@ -25,6 +25,7 @@ sub-model file is an error too.
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import math
 import os
@@ -51,6 +52,7 @@ __all__ = [
     "BUILTIN_ROBOTS",
     "AssetsStrippedWarning",
     "LoadedModel",
+    "MuJoCoWarning",
     "Resolved",
     "load_model",
     "resolve_source",
@@ -70,6 +72,10 @@ _XML_KINDS = {"include": "included file", "model": "sub-model file"}
 
 class AssetsStrippedWarning(UserWarning):
     """Asset files were missing, so the model was loaded for kinematics only."""
+
+
+class MuJoCoWarning(UserWarning):
+    """MuJoCo warned while reading or compiling the model (e.g. of a URDF limit it ignores)."""
 
 
 @dataclasses.dataclass(frozen=True)
@@ -585,6 +591,21 @@ def _read_spec(xml_path: pathlib.Path, free_root: str | None = None) -> mujoco.M
     return spec
 
 
+@contextlib.contextmanager
+def _mujoco_warnings() -> Iterator[list[str]]:
+    """Collect MuJoCo's warnings in the list given, instead of MuJoCo's default: print them and
+    append them to ``MUJOCO_LOG.TXT`` in the working folder."""
+    import mujoco
+
+    said: list[str] = []
+    previous = mujoco.get_mju_user_warning()
+    mujoco.set_mju_user_warning(said.append)
+    try:
+        yield said
+    finally:
+        mujoco.set_mju_user_warning(previous)
+
+
 def _compile(spec: mujoco.MjSpec, xml_path: pathlib.Path) -> mujoco.MjModel:
     try:
         return spec.compile()
@@ -612,6 +633,8 @@ def load_model(source: str | os.PathLike[str], *, free_root: str | None = None) 
     Warns:
         AssetsStrippedWarning: asset files were missing; the one-line message says what was
             stripped. The poses are those of the complete model.
+        MuJoCoWarning: MuJoCo warned while reading or compiling (each warning once), which it would
+            otherwise print and append to ``MUJOCO_LOG.TXT`` in the working folder.
 
     Raises:
         ModelError (or a subclass): the model cannot be found, parsed or compiled, an included
@@ -620,17 +643,21 @@ def load_model(source: str | os.PathLike[str], *, free_root: str | None = None) 
     resolved = resolve_source(source)
     xml_path = resolved.path
     xml = _model_xml(xml_path)
-    spec = _read_spec(xml_path, free_root)
-    found, missing, present = _scan_assets(spec, xml)
-    files = tuple(sorted({p.resolve() for p in [*xml.files, *found]}))
-    stripped, stubs = _strip_for_kinematics(spec, missing, present)
-    model = _compile(spec, xml_path)
-    needed = _check_alignment(spec, model, stubs, xml_path)
-    if needed:  # read those files after all: compile again, with them
+    with _mujoco_warnings() as said:
         spec = _read_spec(xml_path, free_root)
-        _, missing, present = _scan_assets(spec, xml)
-        _strip_for_kinematics(spec, missing, [a for a in present if _asset_key(a) not in needed])
+        found, missing, present = _scan_assets(spec, xml)
+        files = tuple(sorted({p.resolve() for p in [*xml.files, *found]}))
+        stripped, stubs = _strip_for_kinematics(spec, missing, present)
         model = _compile(spec, xml_path)
+        needed = _check_alignment(spec, model, stubs, xml_path)
+        if needed:  # read those files after all: compile again, with them
+            spec = _read_spec(xml_path, free_root)
+            _, missing, present = _scan_assets(spec, xml)
+            kept = [a for a in present if _asset_key(a) not in needed]
+            _strip_for_kinematics(spec, missing, kept)
+            model = _compile(spec, xml_path)
+    for message in dict.fromkeys(said):
+        warnings.warn(f"{xml_path.name}: MuJoCo: {message}", MuJoCoWarning, stacklevel=2)
     builtin = resolved.robot in BUILTIN_ROBOTS and xml_path == _builtin(resolved.robot)
     if stripped and not builtin:  # the built-in copy has no meshes by design, and says so
         warnings.warn(

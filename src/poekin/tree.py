@@ -15,8 +15,8 @@ MuJoCo normalises them (:func:`poekin.lie.quat_normalize`): an unnormalised quat
 the rotation of its unit version, and a zero one the identity.
 
 ``qpos`` uses MuJoCo's layout: the independent joints in order, 7 numbers for a free joint,
-4 for a ball joint, 1 for a hinge or slide. A *mimic* joint (from URDF) has no entry: its
-position is ``multiplier * qpos[leader] + offset``.
+4 for a ball joint, 1 for a hinge or slide. A *mimic* joint (from URDF) has no entry, whether
+it comes before or after its leader: its position is ``multiplier * qpos[leader] + offset``.
 
 Frames: every body, then every site. A site sits at a fixed pose in its body (or the world).
 """
@@ -210,6 +210,8 @@ class Tree:
         set_(self, "_jacobian_kernels", {})
 
     def _check_topology(self) -> None:
+        if not self.body_names and not self.site_names:
+            raise InputError("the model has no body and no site: no frame to pose")
         for b, parent in enumerate(self.body_parents):
             if not -1 <= parent < b:
                 raise InputError(
@@ -237,38 +239,36 @@ class Tree:
                 )
 
     def _layout(self) -> None:
-        """qpos addresses, and the gather that expands qpos to one slot set per joint."""
+        """qpos addresses, and the gather that expands qpos to one slot set per joint.
+
+        Two passes, so that a follower may come before its leader: the independent joints take
+        their ``qpos`` (and ``qvel``) addresses in joint order, then each follower takes its
+        leader's.
+        """
         set_ = object.__setattr__
         names = {n: k for k, n in enumerate(self.joint_names)}
+        leaders = [self._leader(k, names) for k in range(len(self.joint_names))]
         adr = np.zeros(len(self.joint_names), dtype=np.intp)
+        dof_adr = np.zeros(len(self.joint_names), dtype=np.intp)
+        nq = nv = 0
+        for k, kind in enumerate(self.joint_types):
+            if leaders[k] < 0:
+                adr[k], nq = nq, nq + _QPOS_SIZE[kind]
+                dof_adr[k], nv = nv, nv + _DOF[kind]
         slots: list[int] = []
         scale: list[float] = []
         offset: list[float] = []
-        nq = 0
-        for k, (name, kind, mimic) in enumerate(
-            zip(self.joint_names, self.joint_types, self.mimics, strict=True)
-        ):
-            size = _QPOS_SIZE[kind]
+        for k, (kind, mimic) in enumerate(zip(self.joint_types, self.mimics, strict=True)):
             if mimic is None:
-                adr[k] = nq
-                nq += size
+                size = _QPOS_SIZE[kind]
                 slots.extend(range(adr[k], adr[k] + size))
                 scale.extend([1.0] * size)
                 offset.extend([0.0] * size)
                 continue
-            leader = names.get(mimic.leader)
-            if leader is None or leader >= k or self.mimics[leader] is not None:
-                raise InputError(
-                    f"joint {name!r} mimics {mimic.leader!r}, which must be an earlier joint that "
-                    f"mimics none: {did_you_mean(mimic.leader, list(names))}"
-                )
-            if kind not in ("revolute", "prismatic") or self.joint_types[leader] not in (
-                "revolute",
-                "prismatic",
-            ):
-                raise InputError(f"mimic joint {name!r}: leader and follower must be hinge/slide")
-            adr[k] = adr[leader]
-            slots.append(int(adr[leader]))
+            # moves with its leader: its qpos is the leader's, its velocity column adds to the
+            # leader's
+            adr[k], dof_adr[k] = adr[leaders[k]], dof_adr[leaders[k]]
+            slots.append(int(adr[k]))
             scale.append(float(mimic.multiplier))
             offset.append(float(mimic.offset))
         adr.flags.writeable = False
@@ -281,13 +281,6 @@ class Tree:
         full_adr = np.concatenate([[0], np.cumsum(sizes)[:-1]]).astype(np.intp)
         full_adr.flags.writeable = False
         set_(self, "_full_adr", full_adr)
-        dof_adr = np.zeros(len(self.joint_names), dtype=np.intp)
-        nv = 0
-        for k, (kind, mimic) in enumerate(zip(self.joint_types, self.mimics, strict=True)):
-            if mimic is None:
-                dof_adr[k], nv = nv, nv + _DOF[kind]
-            else:  # moves with its leader: its velocity column adds to the leader's
-                dof_adr[k] = dof_adr[names[mimic.leader]]
         set_(self, "_dof_adr", dof_adr)
         set_(
             self,
@@ -297,6 +290,35 @@ class Tree:
                 for b in range(len(self.body_names))
             ),
         )
+
+    def _leader(self, k: int, names: dict[str, int]) -> int:
+        """The index of joint ``k``'s leader, -1 for an independent joint.
+
+        Raises:
+            InputError: the leader is no joint, follows another joint itself, or is not a hinge
+                or slide, or joint ``k`` is not.
+        """
+        mimic = self.mimics[k]
+        if mimic is None:
+            return -1
+        name, leader = self.joint_names[k], names.get(mimic.leader)
+        if leader is None:
+            raise InputError(
+                f"joint {name!r} mimics {mimic.leader!r}, which is no joint: "
+                f"{did_you_mean(mimic.leader, list(names))}"
+            )
+        followed = self.mimics[leader]
+        if followed is not None:
+            raise InputError(
+                f"joint {name!r} mimics {mimic.leader!r}, which mimics {followed.leader!r} "
+                "itself: a leader must be a joint that mimics none"
+            )
+        hinge_or_slide = ("revolute", "prismatic")
+        if self.joint_types[k] not in hinge_or_slide or (
+            self.joint_types[leader] not in hinge_or_slide
+        ):
+            raise InputError(f"mimic joint {name!r}: leader and follower must be hinge/slide")
+        return leader
 
     def _default_qpos(self) -> FloatArray:
         q = np.zeros(self.nq)
@@ -642,9 +664,9 @@ class Tree:
                 raise ModelError(
                     f"joint {self.joint_names[k]!r} on the path to {frame!r} is a "
                     f"{self.joint_types[k]} joint; a PoE chain holds hinge and slide joints only: "
-                    "use the whole tree (tree.pose(qpos, frame), tree.jacobian(qpos, frame); "
-                    "'poekin fk/jacobian --tree' on the command line), or choose a frame whose "
-                    "path has none"
+                    "use the whole tree, poekin.load_tree(...), with tree.pose(qpos, frame) and "
+                    "tree.jacobian(qpos, frame) ('poekin fk/jacobian --tree' on the command "
+                    "line), or choose a frame whose path has none"
                 )
         x = self._expand(self.qpos0)
         x[self._full_adr[list(joints)]] = 0.0  # every chain joint at position 0

@@ -50,7 +50,7 @@ def _verdict(passed: bool, pos_tol: float, ori_tol: float) -> str:
 
 
 def _cmd_verify(args: argparse.Namespace, out: TextIO) -> int:
-    from poekin.loading import load_tree
+    from poekin.loading import is_urdf, load_tree
     from poekin.sources import load_model
     from poekin.verify import verify
 
@@ -62,8 +62,12 @@ def _cmd_verify(args: argparse.Namespace, out: TextIO) -> int:
     if args.against and not args.params:
         raise InputError("--against SOURCE goes with --params FILE|NAME (what to check)")
     source = model_source(args)
-    tree = load_tree(source, floating_base=True) if args.floating_base else None
-    loaded = load_model(source, free_root=tree.joint_names[0] if tree else None)
+    # a URDF is read by poekin first: a malformed file gets poekin's message, naming the joint
+    tree = load_tree(source, floating_base=args.floating_base) if is_urdf(source) else None
+    if args.floating_base and tree is None:
+        load_tree(source, floating_base=True)  # refuses a model that is not a URDF
+    free_root = tree.joint_names[0] if args.floating_base and tree is not None else None
+    loaded = load_model(source, free_root=free_root)
     common = {
         "samples": args.samples,
         "seed": args.seed,
@@ -72,7 +76,7 @@ def _cmd_verify(args: argparse.Namespace, out: TextIO) -> int:
         "ori_tol": args.ori_tol,
         "progress": True,
     }
-    if tree is not None:
+    if args.floating_base and tree is not None:
         if args.params:
             raise InputError("--floating-base checks a URDF model's own tree, not --params")
         report = verify(tree, args.frame, against=loaded, **common)  # type: ignore[arg-type]
