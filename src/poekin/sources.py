@@ -491,7 +491,7 @@ def _compile(spec: mujoco.MjSpec, xml_path: pathlib.Path) -> mujoco.MjModel:
         raise ModelError(f"MuJoCo rejected {xml_path}: {_first_line(e)}") from e
 
 
-def load_model(source: str | os.PathLike[str]) -> LoadedModel:
+def load_model(source: str | os.PathLike[str], *, read_assets: bool = False) -> LoadedModel:
     """Resolve ``source`` and compile it with MuJoCo for kinematics.
 
     Mesh, height field, skin and texture files are not read, except the meshes and height
@@ -504,6 +504,8 @@ def load_model(source: str | os.PathLike[str]) -> LoadedModel:
             URDF file. A URDF is compiled with ``fusestatic`` off, so that every link stays a
             body (poekin reads URDF itself with :func:`poekin.import_urdf.tree_from_urdf`;
             this compile is the reference it is verified against).
+        read_assets: read every asset file that exists (for drawing: the meshes); only the
+            missing ones are stripped. Poses are the same either way.
 
     Warns:
         AssetsStrippedWarning: asset files were missing; the one-line message says what was
@@ -518,7 +520,7 @@ def load_model(source: str | os.PathLike[str]) -> LoadedModel:
     spec = _read_spec(xml_path)
     found, missing, present = _scan_assets(spec, xml)
     files = tuple(sorted({p.resolve() for p in [*xml.files, *found]}))
-    stripped, stubs = _strip_for_kinematics(spec, missing, present)
+    stripped, stubs = _strip_for_kinematics(spec, missing, [] if read_assets else present)
     model = _compile(spec, xml_path)
     needed = _check_alignment(spec, model, stubs, xml_path)
     if needed:  # read those files after all: compile again, with them
