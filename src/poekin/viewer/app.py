@@ -33,6 +33,7 @@ from poekin.errors import InputError
 from poekin.tree import Tree
 from poekin.viewer import panel
 from poekin.viewer.geometry import Geometry, Part, mjcf_geometry, stand_in, urdf_geometry
+from poekin.viewer.loading import Shown, load_params_comparison, load_shown
 from poekin.viewer.scene import (
     Comparison,
     Control,
@@ -40,7 +41,6 @@ from poekin.viewer.scene import (
     Snapshot,
     Subject,
     axis_pose,
-    compare,
     controls,
     dh_frames,
     ghost,
@@ -53,7 +53,7 @@ from poekin.viewer.scene import (
     snapshot,
 )
 
-__all__ = ["Viewer", "is_loopback", "keyframes", "load_subject", "view"]
+__all__ = ["Viewer", "is_loopback", "view"]
 
 FloatArray = NDArray[np.float64]
 Unit = Literal["rad", "deg"]
@@ -944,51 +944,15 @@ def _start_server(host: str, port: int | None) -> viser.ViserServer:
     return server
 
 
-def _geometry_loader(model: Any) -> Callable[[Subject], Geometry]:
-    from poekin.sources import LoadedModel
-
-    if isinstance(model, LoadedModel):
-        return lambda s: mjcf_geometry(model, s)
-    if isinstance(model, (str, os.PathLike)):
-        return lambda s: urdf_geometry(model, s)
-    why = (
-        "a Tree has no geometry of its own: pass the model file for its meshes"
-        if isinstance(model, Tree)
-        else ""
-    )
+def _geometry_loader(shown: Shown) -> Callable[[Subject], Geometry]:
+    if shown.loaded is not None:
+        loaded = shown.loaded
+        return lambda s: mjcf_geometry(loaded, s)
+    if shown.urdf is not None:
+        urdf = shown.urdf
+        return lambda s: urdf_geometry(urdf, s)
+    why = "" if shown.subject.tree is None else "a Tree has no meshes: pass its model file"
     return lambda s: stand_in(s, why)
-
-
-def load_subject(
-    model: str | os.PathLike[str] | Any, frame: str | None = None
-) -> tuple[Subject, Callable[[Subject], Geometry]]:
-    """The subject to show and how to get its geometry, for a Menagerie name, an MJCF or URDF
-    path, a loaded model, a :class:`Tree`, a :class:`Chain` or a :class:`DHTable`."""
-    from poekin.import_mujoco import tree_from_model
-    from poekin.loading import is_urdf, load_tree
-    from poekin.sources import LoadedModel, load_model
-
-    if isinstance(model, (Tree, Chain, DHTable)):
-        return make_subject(model, frame), _geometry_loader(model)
-    if not isinstance(model, LoadedModel) and is_urdf(model):
-        return make_subject(load_tree(model), frame), _geometry_loader(os.fspath(model))
-    loaded = model if isinstance(model, LoadedModel) else load_model(model)
-    tree = tree_from_model(loaded.model, robot=loaded.robot)
-    return make_subject(
-        tree, frame, keyframes=keyframes(loaded.model), name=loaded.robot
-    ), _geometry_loader(loaded)
-
-
-def keyframes(model: Any) -> dict[str, FloatArray]:
-    """A compiled MuJoCo model's named keyframes, ``{name: qpos}``."""
-    import mujoco
-
-    out = {}
-    for k in range(model.nkey):
-        name = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_KEY, k)
-        if name:
-            out[name] = np.array(model.key_qpos[k], dtype=np.float64)
-    return out
 
 
 def _in_jupyter() -> bool:
@@ -1031,15 +995,12 @@ def view(
     Raises:
         PoekinError: an unknown robot, frame or parameter set, a port in use, and the like.
     """
-    from poekin.paramfile import load_params
-
-    subject, geometry = load_subject(model, frame)
-    comparison = None
-    if params is not None:
-        given = load_params(params) if isinstance(params, (str, os.PathLike)) else params
-        name = os.fspath(params) if isinstance(params, (str, os.PathLike)) else ""
-        comparison = compare(subject, given, name)
-    viewer = Viewer(subject, geometry=geometry, comparison=comparison, host=host, port=port)
+    shown = load_shown(model, frame)
+    subject = shown.subject
+    comparison = load_params_comparison(subject, params)
+    viewer = Viewer(
+        subject, geometry=_geometry_loader(shown), comparison=comparison, host=host, port=port
+    )
     if open_browser is None:
         open_browser = not _in_jupyter()
     if open_browser:
