@@ -504,12 +504,14 @@ def _cmd_diagnose(args: argparse.Namespace, out: TextIO) -> int:
 
 def _cmd_view(args: argparse.Namespace, out: TextIO) -> int:
     """Serve the viewer until Ctrl-C (which :func:`main` reports as exit 130)."""
-    import importlib.util
     import time
 
-    if importlib.util.find_spec("viser") is None:
-        raise InputError("'poekin view' needs the viewer extra: pip install \"poekin[view]\"")
-    from poekin.viewer.app import is_loopback, view
+    try:
+        from poekin.viewer.app import is_loopback, view
+    except ImportError as exc:
+        raise InputError(
+            f"'poekin view' needs the viewer extra: pip install \"poekin[view]\" ({exc})"
+        ) from None
 
     source = _model_source(args)
     if not is_loopback(args.host):
