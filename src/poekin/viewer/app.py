@@ -29,7 +29,7 @@ from numpy.typing import ArrayLike, NDArray
 from poekin import lie
 from poekin.chain import Chain, JacobianConvention
 from poekin.dh import Convention, DHTable
-from poekin.errors import InputError
+from poekin.errors import InputError, did_you_mean
 from poekin.tree import Tree
 from poekin.viewer import panel
 from poekin.viewer.geometry import Geometry, Part, mjcf_geometry, stand_in, urdf_geometry
@@ -139,6 +139,7 @@ class Viewer:
         self._geometry: Geometry | None = None
         self._geometry_ready = threading.Event()
         self._rng = np.random.default_rng(0)
+        self._closed = False
         self._extent = subject.extent
         self.server = _start_server(host, port)
         self.host = host
@@ -217,6 +218,22 @@ class Viewer:
         assert self._geometry is not None
         return self._geometry
 
+    def options(self) -> dict[str, Any]:
+        """The panel's settings by their label: ``{"form": "space (S_i)", "DH frames": False,
+        ...}``."""
+        return {name: handle.value for name, handle in self._options.items()}
+
+    def set_option(self, name: str, value: Any) -> None:
+        """Change a panel setting, as the page's control of that label does (the page shows it
+        too): e.g. ``set_option("DH frames", True)``, ``set_option("Jacobian", "body")``.
+
+        Raises:
+            InputError: no such setting; the message lists them.
+        """
+        if name not in self._options:
+            raise InputError(f"no panel setting {name!r}: {did_you_mean(name, self._options)}")
+        self._options[name].value = value
+
     def snapshot(self) -> Snapshot:
         """What is drawn now (:func:`poekin.viewer.scene.snapshot` at :attr:`q`)."""
         return snapshot(self.subject, self._qpos)
@@ -255,8 +272,12 @@ class Viewer:
 
     def close(self) -> None:
         """Stop the server (the page shows it as disconnected)."""
-        with contextlib.redirect_stdout(io.StringIO()):  # viser says "Server stopped"
-            self.server.stop()
+        with self._lock:
+            if self._closed:
+                return
+            self._closed = True
+            with contextlib.redirect_stdout(io.StringIO()):  # viser says "Server stopped"
+                self.server.stop()
 
     def __enter__(self) -> Viewer:
         return self
@@ -471,14 +492,13 @@ class Viewer:
         except Exception as exc:  # a broken mesh file must not take the viewer down
             geometry = stand_in(self.subject, f"the geometry failed to load: {exc}")
         with self._lock:
-            try:
-                with self.server.atomic():
-                    for k, part in enumerate(geometry.parts):
-                        self._add_part(k, part)
-                    self._geometry = geometry
-                    self._geometry_note.content = f"geometry: {geometry.note}"
-            except Exception:  # the server was closed meanwhile
+            if self._closed:
                 return
+            with self.server.atomic():
+                for k, part in enumerate(geometry.parts):
+                    self._add_part(k, part)
+                self._geometry = geometry
+                self._geometry_note.content = f"geometry: {geometry.note}"
         self._geometry_ready.set()
 
     def _add_part(self, k: int, part: Part) -> None:
@@ -561,6 +581,25 @@ class Viewer:
                 self._align_input: Any = gui.add_checkbox("align your base to the model's", False)
                 self._align_input.on_update(lambda _: self._on_align())
                 self._compare_text = gui.add_markdown("")
+        self._options: dict[str, Any] = {
+            handle.label: handle
+            for handle in (
+                self._unit_input,
+                self._form_input,
+                self._step_input,
+                self._show_screws,
+                self._show_levers,
+                self._show_home,
+                self._show_frames,
+                self._show_geometry,
+                self._opacity_input,
+                self._convention_input,
+                self._show_dh,
+                self._dh_input,
+                *([self._frame_input] if hasattr(self, "_frame_input") else []),
+                *([self._align_input] if self.comparison is not None else []),
+            )
+        }
 
     def _build_joint_controls(self) -> None:
         gui = self.server.gui
