@@ -20,7 +20,7 @@ from poekin.errors import InputError
 
 pytest.importorskip("viser")
 
-from poekin.viewer.app import Viewer, is_loopback, view  # noqa: E402
+from poekin.viewer.app import Viewer, is_loopback, view
 
 TOL = 1e-12
 
@@ -142,7 +142,7 @@ def test_poe_steps_dh_frames_and_all_frames(ur5e: Viewer) -> None:
     ur5e.set_option("all frames", False)
     with pytest.raises(InputError, match="did you mean 'DH frames'"):
         ur5e.set_option("DH frame", True)
-    with pytest.raises(InputError, match="in 0..6"):
+    with pytest.raises(InputError, match=r"in 0\.\.6"):
         ur5e.step = 7
 
 

@@ -247,11 +247,9 @@ def test_axis_pose_and_nearest_point() -> None:
         T = scene.axis_pose([1.0, 2.0, 3.0], d)
         assert_close("z", T[:3, 2], np.array(d) / np.linalg.norm(d), 1e-15)
         assert_close("rotation", T[:3, :3] @ T[:3, :3].T, np.eye(3), 1e-15)
-    S = np.array(
-        [0.0, 0.0, 1.0, 0.5, -0.2, 0.0]
-    )  # the z axis through (-0.2, -0.5, z)... v = -w x p
+    S = np.array([0.0, 0.0, 1.0, 0.5, -0.2, 0.0])  # along z through w x v, as v = -w x p
     p = np.cross(S[:3], S[3:])
-    foot = scene.nearest_point(S, p + [0, 0, 3.0], [1.0, 1.0, 1.0])
+    foot = scene.nearest_point(S, p + np.array([0, 0, 3.0]), [1.0, 1.0, 1.0])
     assert_close("foot", foot, [p[0], p[1], 1.0], 1e-15)
     slide = np.array([0.0, 0.0, 0.0, 1.0, 0.0, 0.0])
     assert_close("slide", scene.nearest_point(slide, np.ones(3), np.zeros(3)), np.ones(3), 0.0)
