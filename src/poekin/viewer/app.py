@@ -278,6 +278,11 @@ class Viewer:
             self._closed = True
             with contextlib.redirect_stdout(io.StringIO()):  # viser says "Server stopped"
                 self.server.stop()
+        # let a mesh compile in progress finish: native code running in a daemon thread while
+        # the interpreter shuts down can crash it
+        loader = getattr(self, "_loader", None)
+        if loader is not None and loader is not threading.current_thread():
+            loader.join(timeout=60.0)
 
     def __enter__(self) -> Viewer:
         return self
