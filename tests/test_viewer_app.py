@@ -119,12 +119,13 @@ def test_poe_steps_dh_frames_and_all_frames(ur5e: Viewer) -> None:
     index = tree.frame_index(ur5e.frame)
     for k in range(7):
         ur5e.step = k
-        zeroed = qpos.copy()
-        zeroed[k:] = 0.0  # the UR5e's qpos is its chain's q
-        assert_close(
-            f"T_{k}", ur5e.node_poses("partial")[f"/poe/t{k}"], tree.fk(zeroed)[index], TOL
-        )
+        drawn = ur5e.node_poses("partial")
+        for j in range(k + 1 if k < 6 else 0):  # T_0 .. T_k are shown while stepping
+            zeroed = qpos.copy()
+            zeroed[j:] = 0.0  # the UR5e's qpos is its chain's q
+            assert_close(f"T_{j}", drawn[f"/poe/t{j}"], tree.fk(zeroed)[index], TOL)
         assert ur5e.node("/poe/t0").visible == (k < 6)
+        assert ur5e.node("/poe/t6").visible is False
         assert f"PoE step k = {k} of 6" in ur5e.texts()["poe"]
     for convention in ("standard", "modified"):
         ur5e.set_option("convention", convention)

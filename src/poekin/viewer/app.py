@@ -136,6 +136,7 @@ class Viewer:
         self._aligned = False
         self._syncing = False
         self._texts: dict[str, str] = {}
+        self._pending: list[tuple[str, FloatArray]] = []
         self._geometry: Geometry | None = None
         self._geometry_ready = threading.Event()
         self._rng = np.random.default_rng(0)
@@ -816,9 +817,21 @@ class Viewer:
     # --- one update -------------------------------------------------------------------------------
 
     def _pose(self, name: str, T: FloatArray) -> None:
-        handle = self._nodes[name].handle
-        handle.wxyz = _quat(T[:3, :3])
-        handle.position = T[:3, 3]
+        """Queue a node's world pose; :meth:`_send_poses` sends them all at once."""
+        self._pending.append((name, T))
+
+    def _send_poses(self) -> None:
+        """Set the queued poses: one batched quaternion conversion, then each node's pose."""
+        if not self._pending:
+            return
+        names = [name for name, _ in self._pending]
+        T = np.stack([T for _, T in self._pending])
+        quats = np.asarray(lie.rotation_to_quat(T[:, :3, :3]), dtype=np.float64)
+        self._pending = []
+        for name, quat, p in zip(names, quats, T[:, :3, 3], strict=True):
+            handle = self._nodes[name].handle
+            handle.wxyz = quat
+            handle.position = p
 
     def _set_text(self, key: str, handle: Any, text: str) -> None:
         if self._texts.get(key) != text:
@@ -865,16 +878,17 @@ class Viewer:
             self._texts["q"] = " ".join(f"{v + 0.0:.6g}" for v in snap.qpos)
             if self.comparison is not None:
                 self._refresh_ghost(snap)
+            self._send_poses()
         self.server.flush()
 
     def _refresh_screws(self, snap: Snapshot) -> None:
         show = self._show_screws.value
         ref = snap.T[:3, 3] if self._form == "body" else np.zeros(3)
         levers = np.zeros((max(self.subject.n_joints, 1), 2, 3))
+        poses = axis_pose(snap.points, _directions(snap.screws))
         for i, S in enumerate(snap.screws):
-            direction = S[:3] if np.any(S[:3]) else S[3:]
             name = f"/screws/s{i}"
-            self._pose(name, axis_pose(snap.points[i], direction))
+            self._pose(name, poses[i])
             self._nodes[name].handle.visible = show
             levers[i] = [ref, nearest_point(S, snap.points[i], ref)]
         lever = self._nodes["/levers"].handle
@@ -887,7 +901,8 @@ class Viewer:
         stepping = k < n
         for j in range(n + 1):
             name = f"/poe/t{j}"
-            self._pose(name, snap.partial[j])
+            if stepping and j <= k:
+                self._pose(name, snap.partial[j])
             self._nodes[name].handle.visible = stepping and j <= k
         label = self._nodes["/poe/label"].handle
         label.visible = stepping
@@ -920,15 +935,21 @@ class Viewer:
         stops = np.vstack([gh.links[0][None, :3, 3], gh.points, gh.T[None, :3, 3]])
         arm = self._nodes["/ghost/arm"].handle
         arm.points = np.stack([stops[:-1], stops[1:]], axis=1).astype(np.float32)
-        for i, S in enumerate(gh.screws):
-            direction = S[:3] if np.any(S[:3]) else S[3:]
-            self._pose(f"/ghost/s{i}", axis_pose(gh.points[i], direction))
+        poses = axis_pose(gh.points, _directions(gh.screws))
+        for i in range(len(gh.screws)):
+            self._pose(f"/ghost/s{i}", poses[i])
             self._nodes[f"/ghost/s{i}"].handle.visible = self._show_screws.value
         self._pose("/ghost/end", gh.T)
         self._pose("/ghost/home", gh.home)
         self._set_text(
             "compare", self._compare_text, panel.compare_text(self.comparison, gh, self._aligned)
         )
+
+
+def _directions(screws: FloatArray) -> FloatArray:
+    """``(n, 3)`` each screw's direction: ``w``, or ``v`` for a prismatic one."""
+    turning = np.any(screws[:, :3] != 0.0, axis=1, keepdims=True)
+    return np.where(turning, screws[:, :3], screws[:, 3:])
 
 
 def _turn_marker(kind: str, pitch: float, extent: float) -> FloatArray:

@@ -684,19 +684,23 @@ def format_matrix(M: ArrayLike, digits: int = 6) -> list[str]:
 
 
 def axis_pose(point: ArrayLike, direction: ArrayLike) -> FloatArray:
-    """``(4, 4)`` a frame at ``point`` whose z axis is the unit ``direction``, turned from the
-    world by the smallest rotation that does it (how a screw axis is drawn)."""
+    """``(..., 4, 4)`` frames at ``point`` ``(..., 3)`` whose z axis is the unit ``direction``
+    ``(..., 3)``, turned from the world by the smallest rotation that does it (how a screw axis
+    is drawn)."""
     z = np.asarray(direction, dtype=np.float64)
-    z = z / np.linalg.norm(z)
+    z = z / np.linalg.norm(z, axis=-1, keepdims=True)
     k = np.cross([0.0, 0.0, 1.0], z)
-    s = float(np.linalg.norm(k))
-    if s < 1e-12:
-        R = np.eye(3) if z[2] > 0 else np.diag([1.0, -1.0, -1.0])
-    else:
-        R = np.asarray(lie.exp_so3(k / s * math.atan2(s, float(z[2]))), dtype=np.float64)
-    T = np.eye(4)
-    T[:3, :3] = R
-    T[:3, 3] = np.asarray(point, dtype=np.float64)
+    s = np.linalg.norm(k, axis=-1, keepdims=True)
+    turned = s[..., 0] >= 1e-12
+    angle = np.arctan2(s, z[..., 2:3])
+    axis = np.where(turned[..., None], k / np.where(s > 0, s, 1.0), [1.0, 0.0, 0.0])
+    R = np.asarray(lie.exp_so3(axis * np.where(turned[..., None], angle, 0.0)), dtype=np.float64)
+    # z = -e_z exactly: half a turn about x
+    R = np.where((~turned & (z[..., 2] < 0))[..., None, None], np.diag([1.0, -1.0, -1.0]), R)
+    T = np.zeros((*z.shape[:-1], 4, 4))
+    T[..., :3, :3] = R
+    T[..., :3, 3] = np.asarray(point, dtype=np.float64)
+    T[..., 3, 3] = 1.0
     return T
 
 
