@@ -361,16 +361,32 @@ class Viewer:
         self._build_chain_nodes()
         if self.comparison is not None:
             self._build_ghost_nodes()
-        # the robot left of centre: the panel covers the right third of the page
-        snap = snapshot(subject, self._qpos)
-        origins = snap.frames[:, :3, 3]
-        centre = (origins.max(axis=0) + origins.min(axis=0)) / 2
-        position = centre + e * np.array([0.9, -1.25, 0.65])
-        forward = (centre - position) / np.linalg.norm(centre - position)
-        right = np.cross(forward, [0.0, 0.0, 1.0])
-        look_at = centre + 0.3 * e * right / np.linalg.norm(right)
+        position, look_at = self._camera(snapshot(subject, self._qpos))
         self.server.initial_camera.position = position
         self.server.initial_camera.look_at = look_at
+
+    def _camera(self, snap: Snapshot) -> tuple[FloatArray, FloatArray]:
+        """A camera position and target that show the robot (and your arm) at ``snap``, left
+        of centre: the panel covers the right third of the page."""
+        origins = np.vstack([snap.frames[:, :3, 3], snap.points, snap.T[None, :3, 3]])
+        if self.comparison is not None:  # your arm too: as given, it may point elsewhere
+            gh = ghost(self.comparison, snap, aligned=self._aligned)
+            origins = np.vstack([origins, gh.points, gh.T[None, :3, 3]])
+        lo, hi = origins.min(axis=0), origins.max(axis=0)
+        centre, size = (lo + hi) / 2, max(float(np.linalg.norm(hi - lo)), 0.1)
+        position = centre + size * np.array([0.8, -1.1, 0.6])
+        forward = (centre - position) / np.linalg.norm(centre - position)
+        right = np.cross(forward, [0.0, 0.0, 1.0])
+        return position, centre + 0.3 * size * right / np.linalg.norm(right)
+
+    def frame_view(self) -> None:
+        """Point every open page's camera at the robot as it is now (the button "frame the
+        robot" does it for one page)."""
+        position, look_at = self._camera(self.snapshot())
+        for client in self.server.get_clients().values():
+            with client.atomic():
+                client.camera.position = position
+                client.camera.look_at = look_at
 
     def _screw_node(
         self,
@@ -480,7 +496,7 @@ class Viewer:
         )
         for i in range(n):
             bad = i in labels
-            label = f"J{i + 1} {labels[i]}" if bad else f"yours {i + 1}"
+            label = f"J{i + 1} {labels[i]}" if bad else ""
             self._screw_node(
                 f"/ghost/s{i}",
                 "ghost_screw",
@@ -529,6 +545,8 @@ class Viewer:
             title += f" from the floating body `{subject.tree.body_names[subject.base_body]}`"
         self._title = gui.add_markdown(title)
         self._geometry_note = gui.add_markdown("geometry: loading ...")
+        frame_button = gui.add_button("frame the robot", hint="point the camera at the robot")
+        frame_button.on_click(lambda event: self._frame_client(event.client))
         if subject.tree is not None and self.comparison is None:
             self._frame_input: Any = gui.add_dropdown(
                 "end frame", list(subject.tree.frame_names), initial_value=subject.frame
@@ -743,6 +761,14 @@ class Viewer:
             for i in range(self.subject.n_joints):
                 self._nodes[f"/screws/s{i}/label"].handle.text = f"{symbol}{i + 1}"
             self._refresh()
+
+    def _frame_client(self, client: Any) -> None:
+        if client is None:
+            return
+        position, look_at = self._camera(self.snapshot())
+        with client.atomic():
+            client.camera.position = position
+            client.camera.look_at = look_at
 
     def _on_opacity(self) -> None:
         with self._lock:
