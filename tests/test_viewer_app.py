@@ -305,3 +305,14 @@ def test_import_poekin_imports_no_viewer() -> None:
     )
     proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert proc.stdout.splitlines() == ["[]", "True False"]
+
+
+def test_opacity_and_framing(ur5e: Viewer) -> None:
+    ur5e.wait_geometry()
+    ur5e.set_option("robot opacity", 0.5)
+    assert {ur5e.node(n).opacity for n in ur5e.node_names("part")} == {0.5}
+    ur5e.set_option("robot opacity", 1.0)
+    assert {ur5e.node(n).opacity for n in ur5e.node_names("part")} == {None}
+    ur5e.frame_view()  # no page open: nothing to point
+    position, look_at = ur5e._camera(ur5e.snapshot())
+    assert np.linalg.norm(position - look_at) > ur5e.subject.extent

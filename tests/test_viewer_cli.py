@@ -105,3 +105,19 @@ def test_readme_draw_commands_print_what_readme_shows(tmp_path: pathlib.Path) ->
         assert proc.returncode == 0, proc.stderr
         assert proc.stdout.splitlines() == [lines[k + 1]]
         assert (tmp_path / argv[-1]).stat().st_size > 10_000
+
+
+def test_view_in_process_serves_until_ctrl_c(
+    monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    opened: list[str] = []
+
+    def interrupt(_: float) -> None:
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr("time.sleep", interrupt)
+    monkeypatch.setattr("webbrowser.open", opened.append)
+    assert main(["view", "--port", "0", "--params", "ur5e-poe"]) == 130
+    out, err = capsys.readouterr()
+    assert out.startswith("poekin view: http://127.0.0.1:") and err == "poekin: interrupted\n"
+    assert len(opened) <= 1  # the browser is opened from a thread, maybe after the stop

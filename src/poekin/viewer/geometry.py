@@ -275,6 +275,7 @@ def urdf_geometry(path: str | os.PathLike[str], subject: Subject) -> Geometry:
     urdf_path = pathlib.Path(path)
     robot = _parse(str(urdf_path))
     names = {n: b for b, n in enumerate(subject.body_names)}
+    named = {m.name: m for m in robot.materials if m.name}
     pieces = []
     missing: list[str] = []
     for link in robot.links:
@@ -306,6 +307,8 @@ def urdf_geometry(path: str | os.PathLike[str], subject: Subject) -> Geometry:
                 continue
             color = (180, 180, 180)
             material = visual.material
+            if material is not None and material.color is None:  # a robot-level material
+                material = named.get(material.name, material)
             if (
                 material is not None
                 and material.color is not None
