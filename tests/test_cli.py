@@ -248,6 +248,27 @@ BAD_INPUTS = [
     (["fk", "unitree_go2", "--relative-to", "bse", "--q", "0"], "did you mean 'base'"),
     (["fk", "--params", "ur5e-dh", "--tree", "--q", "0"], "not --params"),
     (["dh", "--params", "{deg_unit_typo}"], "'angle_unit' is 'degree'"),
+    # issue #17: poekin view and poekin draw
+    (
+        ["draw", "universal_robots_ur5", "--out", "{tmp}/a.png"],
+        "did you mean 'universal_robots_ur5e'",
+    ),
+    (["draw", "--q", "1", "2", "--out", "{tmp}/a.png"], "expected 6 qpos values"),
+    (["draw", "--out", "{tmp}/a.gif"], "names no format poekin knows: .png, .pdf"),
+    (["draw", "--out", "{tmp}/missing/a.png"], "does not exist"),
+    (["draw", "--q", *"0" * 5, "nan", "--out", "{tmp}/a.png"], "NaN or inf"),
+    (
+        ["draw", "--params", "lynch-park-ur", "--out", "{tmp}/a.png"],
+        "did you mean 'lynch-park-ur5'",
+    ),
+    (
+        ["draw", "--params", "ur5e-dh", "--frame", "wrist_1_link", "--out", "{tmp}/a.png"],
+        "6 joints",
+    ),
+    (["view", "universal_robots_ur5", "--no-browser"], "did you mean 'universal_robots_ur5e'"),
+    (["view", "--params", "lynch-park-ur", "--no-browser"], "did you mean 'lynch-park-ur5'"),
+    (["view", "--frame", "atachment_site", "--no-browser"], "did you mean 'attachment_site'"),
+    (["view", "--port", "70000", "--no-browser"], "--port must be in 0..65535"),
     pytest.param(
         ["verify", "--metrics", "/dev/full"],
         "No space left on device",
@@ -381,7 +402,9 @@ def test_no_network_menagerie(
     )
 
 
-@pytest.mark.parametrize("command", ["verify", "screws", "fk", "jacobian", "dh", "diagnose"])
+@pytest.mark.parametrize(
+    "command", ["verify", "screws", "fk", "jacobian", "dh", "diagnose", "view", "draw"]
+)
 def test_every_command_has_help_with_an_example(
     command: str, capsys: pytest.CaptureFixture[str]
 ) -> None:

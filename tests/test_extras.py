@@ -65,3 +65,11 @@ def test_require(monkeypatch: pytest.MonkeyPatch) -> None:
         "reading arm.urdf needs yourdfpy, which is not installed: "
         f"{_extras.install_command('urdf')} (or use MJCF)"
     )
+
+
+def test_require_installed_does_not_import(monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.delitem(sys.modules, "csv", raising=False)
+    _extras.require_installed("csv", "none", "writing")
+    assert "csv" not in sys.modules
+    with pytest.raises(MissingExtraError, match=r"'poekin view' needs no_such_module_xyz, which"):
+        _extras.require_installed("no_such_module_xyz", "view", "'poekin view'")

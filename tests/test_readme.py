@@ -12,7 +12,11 @@ import io
 import os
 import pathlib
 import re
+import select
 import shlex
+import signal
+import subprocess
+import sys
 import warnings
 
 import numpy as np
@@ -120,10 +124,38 @@ def test_every_command_has_examples() -> None:
     assert commands >= {"verify", "screws", "fk", "jacobian", "dh", "diagnose"}
 
 
+def _serve_then_stop(example: str, folder: pathlib.Path) -> tuple[int, str]:
+    """A ``poekin view`` example serves until Ctrl-C: run it (without opening a browser) until
+    it prints its URL line, then press Ctrl-C. Returns the exit code and the output."""
+    argv = [sys.executable, "-m", "poekin", *shlex.split(example)[1:], "--no-browser"]
+    proc = subprocess.Popen(
+        argv, cwd=folder, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True
+    )
+    assert proc.stdout is not None
+    lines = []
+    try:
+        while select.select([proc.stdout], [], [], 120)[0]:
+            line = proc.stdout.readline()
+            lines.append(line)
+            if not line or line.startswith("poekin view: http://"):
+                break
+        proc.send_signal(signal.SIGINT)
+        rest, _ = proc.communicate(timeout=60)
+    finally:
+        proc.kill()
+    return proc.returncode, "".join(lines) + (rest or "")
+
+
 @pytest.mark.filterwarnings("ignore::poekin.AssetsStrippedWarning")
 @pytest.mark.parametrize(("command", "example"), EXAMPLES, ids=[e for _, e in EXAMPLES])
 def test_help_example_runs(command: str, example: str, tmp_path: pathlib.Path) -> None:
     _fixtures(tmp_path)
+    if command == "view":
+        pytest.importorskip("viser")
+        code, out = _serve_then_stop(example, tmp_path)
+        assert code == 130 and "poekin view: http://127.0.0.1:" in out, out
+        assert "Traceback" not in out and "poekin: error:" not in out, out
+        return
     code, out = rb.run(example, tmp_path)
     assert code in (0, 1), f"{example}: exit {code}\n{out}"  # 1: verify/diagnose found a mismatch
     assert "Traceback" not in out and "poekin: error:" not in out, out

@@ -7,7 +7,12 @@ exactly what MuJoCo stores in ``qpos``.
 >>> import poekin
 >>> chain = poekin.load("universal_robots_ur5e")        # screws and M from the model
 >>> T_world_ee = chain.fk([0.0, -1.57, 1.57, 0.0, 0.0, 0.0])
+
+``poekin.view`` (the browser viewer, ``pip install "poekin[view]"``) and ``poekin.draw`` (the same
+scene as a matplotlib figure) are imported when first used, so ``import poekin`` stays fast.
 """
+
+from typing import TYPE_CHECKING, Any
 
 from poekin._fast import Form, SlowPathWarning, compiled_kernel, get_threads, set_threads
 from poekin.chain import Chain, JointType
@@ -65,6 +70,10 @@ from poekin.params import (
 from poekin.sources import AssetsStrippedWarning, LoadedModel, MuJoCoWarning, load_model
 from poekin.tree import Mimic, Tree, TreeJointType
 from poekin.verify import VerifyReport, pose_errors, sample_joint_values, sample_qpos, verify
+
+if TYPE_CHECKING:
+    from poekin.viewer.app import view as view
+    from poekin.viewer.draw import draw as draw
 
 __version__ = "0.1.0"
 
@@ -139,3 +148,20 @@ __all__ = [
     "vee_so3",
     "verify",
 ]
+
+
+def __getattr__(name: str) -> Any:
+    """``poekin.view`` and ``poekin.draw``, imported at first use (viser, matplotlib)."""
+    if name == "view":
+        from poekin._extras import require_installed
+
+        for module in ("viser", "trimesh"):
+            require_installed(module, "view", "poekin.view")
+        from poekin.viewer.app import view as view
+
+        return view
+    if name == "draw":
+        from poekin.viewer.draw import draw as draw
+
+        return draw
+    raise AttributeError(f"module 'poekin' has no attribute {name!r}")

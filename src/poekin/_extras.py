@@ -8,14 +8,16 @@ from __future__ import annotations
 
 import functools
 import importlib
+import importlib.util
 import json
+import sys
 from importlib import metadata
 from types import ModuleType
 from urllib.parse import unquote, urlparse
 
 from poekin.errors import MissingExtraError
 
-__all__ = ["install_command", "require"]
+__all__ = ["install_command", "require", "require_installed"]
 
 
 @functools.cache
@@ -56,3 +58,16 @@ def require(
         raise MissingExtraError(
             f"{purpose} needs {name}, which is not installed: {install_command(extra)}{other}"
         ) from e
+
+
+def require_installed(module: str, extra: str, purpose: str) -> None:
+    """Raise :class:`MissingExtraError` as :func:`require` does if ``module`` is not installed,
+    without importing it (it may be slow to import, and not needed yet)."""
+    if module in sys.modules:  # imported, or blocked with None
+        installed = sys.modules[module] is not None
+    else:
+        installed = importlib.util.find_spec(module) is not None
+    if not installed:
+        raise MissingExtraError(
+            f"{purpose} needs {module}, which is not installed: {install_command(extra)}"
+        )

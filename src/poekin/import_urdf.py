@@ -62,7 +62,7 @@ from poekin.tree import Mimic, Tree, TreeJointType
 if TYPE_CHECKING:
     import xml.etree.ElementTree as ET
 
-__all__ = ["FLOATING_BASE", "URDFLimitsWarning", "tree_from_urdf"]
+__all__ = ["FLOATING_BASE", "URDFLimitsWarning", "parse_urdf", "tree_from_urdf"]
 
 FLOATING_BASE = "floating_base"
 """Name of the free joint that ``floating_base=True`` puts on the root link (or, if a URDF joint
@@ -149,7 +149,7 @@ def tree_from_urdf(
             unknown, fixed or cyclic joint.
     """
     where = os.fspath(path)
-    urdf_robot = _parse(where)
+    urdf_robot = parse_urdf(where)
     link_names = [link.name for link in urdf_robot.links]
     parent_joint = _parent_joints(urdf_robot.joints, link_names, where)
     root = _root_link(link_names, parent_joint, where)
@@ -223,9 +223,10 @@ def _bodies(
     return parents, poses, joints
 
 
-def _parse(path: str) -> Any:
+def parse_urdf(path: str, *, visuals: bool = False) -> Any:
     """The ``yourdfpy.Robot`` of the URDF at ``path``, once the file is checked
-    (:func:`_check_structure`), parsed from what poekin reads only (:func:`_keep_kinematics`)."""
+    (:func:`_check_structure`), parsed from what poekin reads only (:func:`_keep_kinematics`),
+    or with ``visuals`` from all of it (links' visual geometry and materials, for drawing)."""
     from poekin._extras import require
 
     yourdfpy = require("yourdfpy", "urdf", f"reading {os.path.basename(path)}")
@@ -244,7 +245,8 @@ def _parse(path: str) -> Any:
             raise URDFError(_xacro_message(path, "<xacro:...> elements")) from exc
         raise URDFError(f"{path}: not well-formed XML ({exc}); fix the file") from exc
     _check_structure(root, path)
-    _keep_kinematics(root)
+    if not visuals:
+        _keep_kinematics(root)
     try:
         urdf = yourdfpy.URDF.load(
             io.BytesIO(ET.tostring(root)),

@@ -432,8 +432,18 @@ def _note(
     )
 
 
-def _triad(ax: Any, T: FloatArray, length: float, *, dashed: bool, zorder: float) -> None:
-    """The x, y, z axes of the frame ``T`` as short red, green, blue lines."""
+def draw_triad(
+    ax: Any,
+    T: FloatArray,
+    length: float,
+    *,
+    dashed: bool = False,
+    width: float = 1.6,
+    zorder: float = 4.0,
+) -> None:
+    """The x, y, z axes of the frame ``T`` as short red, green, blue lines (thinner and dashed
+    for a frame drawn as a ghost). Shared by the diagnosis figure and :mod:`poekin.viewer.draw`.
+    """
     o = T[:3, 3]
     for k, color in enumerate(_TRIAD_COLORS):
         tip = o + length * T[:3, k]
@@ -442,7 +452,7 @@ def _triad(ax: Any, T: FloatArray, length: float, *, dashed: bool, zorder: float
             [o[1], tip[1]],
             [o[2], tip[2]],
             color=color,
-            linewidth=1.1 if dashed else 1.6,
+            linewidth=width * (0.7 if dashed else 1.0),
             linestyle=(0, (2, 1.5)) if dashed else "-",
             zorder=zorder,
         )
@@ -501,7 +511,7 @@ def _skeleton(
             markeredgewidth=0.8 if mine else 1.8,
             zorder=z + 0.2,
         )
-    _triad(ax, chain.home, triad, dashed=mine, zorder=z + 0.3)
+    draw_triad(ax, chain.home, triad, dashed=mine, zorder=z + 0.3)
 
 
 def _span(points: FloatArray) -> float:
@@ -574,10 +584,10 @@ def _panel(
 
     _skeleton(ax, model, eye, arrow, triad, mine=False)
     _skeleton(ax, yours, your_base, arrow, triad, mine=True)
-    _triad(ax, eye, triad, dashed=False, zorder=2.5)
+    draw_triad(ax, eye, triad, dashed=False, zorder=2.5)
     placed: list[tuple[FloatArray, FloatArray]] = []  # (point, screen direction) of each text
     if not np.allclose(your_base, eye, atol=1e-9):
-        _triad(ax, your_base, triad, dashed=True, zorder=3.5)
+        draw_triad(ax, your_base, triad, dashed=True, zorder=3.5)
         _note(ax, fig, your_base[:3, 3], "your base", _DOWN, _YOURS_COLOR, offset_pt=20.0)
         placed.append((your_base[:3, 3], _DOWN))
     if base_note:

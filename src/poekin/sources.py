@@ -613,7 +613,9 @@ def _compile(spec: mujoco.MjSpec, xml_path: pathlib.Path) -> mujoco.MjModel:
         raise ModelError(f"MuJoCo rejected {xml_path}: {_reason(e)}") from e
 
 
-def load_model(source: str | os.PathLike[str], *, free_root: str | None = None) -> LoadedModel:
+def load_model(
+    source: str | os.PathLike[str], *, free_root: str | None = None, read_assets: bool = False
+) -> LoadedModel:
     """Resolve ``source`` and compile it with MuJoCo for kinematics.
 
     Mesh, height field, skin and texture files are not read, except the meshes and height
@@ -629,6 +631,8 @@ def load_model(source: str | os.PathLike[str], *, free_root: str | None = None) 
         free_root: URDF only: give the root link a free joint of this name before compiling,
             as :func:`poekin.load_tree` does with ``floating_base=True``, so that the two can be
             compared.
+        read_assets: read every asset file that exists (for drawing: the meshes); only the
+            missing ones are stripped. Poses are the same either way.
 
     Warns:
         AssetsStrippedWarning: asset files were missing; the one-line message says what was
@@ -647,7 +651,7 @@ def load_model(source: str | os.PathLike[str], *, free_root: str | None = None) 
         spec = _read_spec(xml_path, free_root)
         found, missing, present = _scan_assets(spec, xml)
         files = tuple(sorted({p.resolve() for p in [*xml.files, *found]}))
-        stripped, stubs = _strip_for_kinematics(spec, missing, present)
+        stripped, stubs = _strip_for_kinematics(spec, missing, [] if read_assets else present)
         model = _compile(spec, xml_path)
         needed = _check_alignment(spec, model, stubs, xml_path)
         if needed:  # read those files after all: compile again, with them

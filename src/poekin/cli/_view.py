@@ -1,0 +1,135 @@
+"""``poekin view`` and ``poekin draw``: the robot, its screw axes and its PoE, in the browser or
+in an image file."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from typing import Any, TextIO
+
+from poekin.cli._args import (
+    DEFAULT_ROBOT,
+    JointSpace,
+    add_params,
+    add_source,
+    model_source,
+    read_joint_values,
+)
+
+__all__ = ["register"]
+
+
+def _cmd_view(args: argparse.Namespace, out: TextIO) -> int:
+    """Serve the viewer until Ctrl-C (which :func:`poekin.cli.main` reports as exit 130)."""
+    import time
+
+    from poekin._extras import require_installed
+
+    for module in ("viser", "trimesh"):
+        require_installed(module, "view", "'poekin view'")
+    from poekin.viewer.app import is_loopback, view
+
+    source = model_source(args)
+    if not is_loopback(args.host):
+        print(
+            f"poekin: warning: --host {args.host}: the page is reachable from other machines",
+            file=sys.stderr,
+        )
+    viewer = view(
+        source,
+        frame=args.frame,
+        params=args.params,
+        port=args.port,
+        host=args.host,
+        open_browser=not args.no_browser,
+    )
+    try:
+        print(
+            f"poekin view: {viewer.url}  ({viewer.subject.name}, end frame {viewer.frame!r}); "
+            "Ctrl-C to stop",
+            file=out,
+            flush=True,
+        )
+        while True:
+            time.sleep(3600)
+    finally:
+        viewer.close()
+
+
+def _cmd_draw(args: argparse.Namespace, out: TextIO) -> int:
+    from poekin.fileio import check_new_file, figure_format
+    from poekin.loading import load_tree
+    from poekin.viewer.draw import draw
+
+    figure_format(args.out, "--out")
+    check_new_file(args.out, "drawing", force=args.force)
+    source = model_source(args)
+    qpos = None
+    if args.q is not None:
+        args.input = None  # read_joint_values reads --q or --input
+        qpos = read_joint_values(args, JointSpace.of_tree(load_tree(source)))
+    draw(
+        source,
+        qpos,
+        path=args.out,
+        frame=args.frame,
+        params=args.params,
+        aligned=args.aligned,
+        all_frames=args.all_frames,
+        form=args.form,
+    )
+    print(f"drawing written to {args.out}", file=out)
+    return 0
+
+
+def register(sub: Any, fmt: type[argparse.HelpFormatter]) -> None:
+    w = sub.add_parser(
+        "view",
+        help="see the robot, its screw axes and its PoE in the browser",
+        description="Serve an interactive page (viser) with a slider per joint, the screw axes "
+        "S_i / B_i at the current q, T(q) and the Jacobian, the PoE step by step and DH frames; "
+        "with --params, your parameters as a ghost arm with diagnose's findings. Needs the "
+        "extra poekin[view]. Ctrl-C stops it.",
+        epilog="examples:\n  poekin view\n  poekin view unitree_go2 --no-browser --port 8081\n"
+        "  poekin view --params lynch-park-ur5",
+        formatter_class=fmt,
+    )
+    add_source(w, DEFAULT_ROBOT)
+    add_params(w, "draw these parameters as a ghost beside the model")
+    w.add_argument(
+        "--port", type=int, default=None, help="port (default: 8080, or the next free one)"
+    )
+    w.add_argument(
+        "--host",
+        default="127.0.0.1",
+        help="interface to serve on (default 127.0.0.1: this machine only)",
+    )
+    w.add_argument("--no-browser", action="store_true", help="do not open a browser")
+    w.set_defaults(run=_cmd_view)
+
+    a = sub.add_parser(
+        "draw",
+        help="draw the robot with its screw axes at q to an image",
+        description="Draw the robot at q (its qpos, MuJoCo's layout; default qpos0) with each "
+        "joint's screw axis, the world, end and home frames; with --params, your parameters as "
+        "a second arm and the end-frame error. The suffix of --out decides the format.",
+        epilog="examples:\n"
+        "  poekin draw universal_robots_ur5e --q 0 -1.57 1.57 0 0 0 --out arm.png\n"
+        "  poekin draw --params lynch-park-ur5 --q 0 -90 90 0 0 0 --deg --out ghost.pdf\n"
+        "  poekin draw unitree_go2 --all-frames --out go2.svg",
+        formatter_class=fmt,
+    )
+    add_source(a, DEFAULT_ROBOT)
+    add_params(a, "draw these parameters beside the model")
+    a.add_argument(
+        "--q", type=float, nargs="+", metavar="Q", help="qpos (rad, m; see --deg); default qpos0"
+    )
+    a.add_argument("--deg", action="store_true", help="revolute joint values are in degrees")
+    a.add_argument("--out", metavar="PATH", required=True, help="image file: .png .pdf .svg .jpg")
+    a.add_argument("--force", action="store_true", help="replace an existing --out file")
+    a.add_argument("--form", choices=["space", "body"], default="space", help="label S_i or B_i")
+    a.add_argument(
+        "--aligned", action="store_true", help="with --params: your arm after base alignment"
+    )
+    a.add_argument("--all-frames", action="store_true", help="every body and site as a triad")
+    a.set_defaults(run=_cmd_draw)

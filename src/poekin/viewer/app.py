@@ -1,0 +1,1115 @@
+"""The browser viewer: a viser server that shows one robot, its screw axes, its PoE and its
+Jacobian, and the :class:`Viewer` handle that :func:`view` returns.
+
+Everything drawn comes from :mod:`poekin.viewer.scene` (poekin's own FK and Jacobians); this
+module only puts it on the page. Each part of the robot is sent once, as a child of its body's
+scene node; a configuration change then sends poses and the panel's texts only. The model's
+meshes are read in a background thread, so the page is usable before they arrive.
+
+Needs viser (``pip install "poekin[view]"``).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import dataclasses
+import io
+import ipaddress
+import math
+import os
+import threading
+import webbrowser
+from collections.abc import Callable
+from typing import Any, Literal
+
+import numpy as np
+import viser
+from numpy.typing import ArrayLike, NDArray
+
+from poekin import lie
+from poekin.chain import Chain, JacobianConvention
+from poekin.dh import Convention, DHTable
+from poekin.errors import InputError, did_you_mean
+from poekin.tree import Tree
+from poekin.viewer import panel
+from poekin.viewer.geometry import Geometry, Part, mjcf_geometry, stand_in, urdf_geometry
+from poekin.viewer.loading import Shown, load_params_comparison, load_shown
+from poekin.viewer.scene import (
+    Comparison,
+    Control,
+    Form,
+    Snapshot,
+    Subject,
+    axis_pose,
+    controls,
+    dh_frames,
+    ghost,
+    jacobian,
+    make_subject,
+    manipulability,
+    nearest_point,
+    rpy_from_rotation,
+    screw_kind,
+    snapshot,
+)
+
+__all__ = ["Viewer", "is_loopback", "view"]
+
+FloatArray = NDArray[np.float64]
+Unit = Literal["rad", "deg"]
+
+DEFAULT_PORT = 8080
+MODEL_COLOR = (10, 50, 150)  # a deep blue: three.js lighting pales colours
+YOURS_COLOR = (235, 110, 0)  # orange, as in poekin's diagnosis figure
+MISMATCH_COLOR = (200, 20, 20)
+PARTIAL_COLOR = (110, 40, 170)
+DH_COLOR = (0, 130, 130)
+LEVER_COLOR = (110, 110, 110)
+_SYMBOL = {"space": "S", "body": "B"}
+_REVOLUTE_STEP = 1e-4  # rad: four decimals in the number box
+_DEGREE_STEP = 0.01
+_SLIDE_STEP = 1e-4  # m
+
+
+#: Debian's Chromium, and how the tests, the benchmark and the README's screenshots start it
+#: headless on a machine without a GPU or a network: WebGL in software (SwiftShader), and none of
+#: Chromium's own connections. Never ``playwright install``, which downloads a browser.
+HEADLESS_CHROMIUM = "/usr/bin/chromium"
+HEADLESS_CHROMIUM_ARGS = (
+    "--no-sandbox",
+    "--use-gl=angle",
+    "--use-angle=swiftshader",
+    "--enable-unsafe-swiftshader",
+    "--disable-background-networking",
+    "--disable-component-update",
+    "--disable-sync",
+    "--no-first-run",
+)
+
+
+def is_loopback(host: str) -> bool:
+    """Whether ``host`` is only reachable from this machine (``localhost``, 127.0.0.0/8, ::1)."""
+    if host == "localhost":
+        return True
+    try:
+        return ipaddress.ip_address(host).is_loopback
+    except ValueError:
+        return False
+
+
+def _quat(R: FloatArray) -> FloatArray:
+    return np.asarray(lie.rotation_to_quat(R), dtype=np.float64)
+
+
+def _rpy_rotation(roll: float, pitch: float, yaw: float) -> FloatArray:
+    """``Rz(yaw) Ry(pitch) Rx(roll)``."""
+    exp = lie.exp_so3
+    R = exp([0.0, 0.0, yaw]) @ exp([0.0, pitch, 0.0]) @ exp([roll, 0.0, 0.0])
+    return np.asarray(R, dtype=np.float64)
+
+
+@dataclasses.dataclass
+class _Node:
+    """A scene node this viewer made, and what it stands for (for tests and the handle)."""
+
+    handle: Any
+    kind: str  # body, frame, end, home, screw, partial, dh, ghost_link, ghost_screw, ...
+    index: int = -1
+    opacity: float = 1.0  # a part's own
+
+
+class Viewer:
+    """A running viewer of one robot, as :func:`view` returns it.
+
+    ``q`` gets and sets the configuration (MuJoCo's ``qpos`` layout; a bare parameter set: its
+    joint values); every drawn frame, screw axis and readout follows. ``url`` is the page,
+    ``close()`` stops the server. In a Jupyter notebook the handle shows the page inline.
+
+    For tests and scripts: :meth:`node_poses` gives the world pose of every scene node, and
+    :meth:`texts` the panel's readouts, exactly as sent to the page.
+    """
+
+    def __init__(
+        self,
+        subject: Subject,
+        *,
+        geometry: Callable[[Subject], Geometry],
+        comparison: Comparison | None = None,
+        host: str = "127.0.0.1",
+        port: int | None = None,
+    ) -> None:
+        self.subject = subject
+        self.comparison = comparison
+        self._geometry_fn = geometry
+        self._lock = threading.RLock()
+        self._nodes: dict[str, _Node] = {}
+        self._qpos = subject.qpos0
+        self._form: Form = "space"
+        self._k = subject.n_joints
+        self._unit: Unit = "rad"
+        self._convention: JacobianConvention = "space"
+        self._dh_convention: Convention = "standard"
+        self._aligned = False
+        self._syncing = False
+        self._texts: dict[str, str] = {}
+        self._pending: list[tuple[str, FloatArray]] = []
+        self._geometry: Geometry | None = None
+        self._geometry_ready = threading.Event()
+        self._rng = np.random.default_rng(0)
+        self._closed = False
+        self._extent = subject.extent
+        self.server = _start_server(host, port)
+        self.host = host
+        self.port = int(self.server.get_port())
+        self._controls = controls(subject)
+        try:
+            with self.server.atomic():
+                self._build_scene()
+                self._build_gui()
+                self._refresh()
+                self._sync_controls()
+        except BaseException:
+            self.close()
+            raise
+        self._loader = threading.Thread(
+            target=self._load_geometry, name="poekin-geometry", daemon=True
+        )
+        self._loader.start()
+
+    # --- the handle -------------------------------------------------------------------------
+
+    @property
+    def url(self) -> str:
+        """The page's address (``localhost`` for a server on all interfaces)."""
+        host = "localhost" if self.host in ("0.0.0.0", "::") else self.host
+        host = f"[{host}]" if ":" in host else host
+        return f"http://{host}:{self.port}"
+
+    @property
+    def q(self) -> FloatArray:
+        """The configuration shown: ``(nq,)`` in MuJoCo's ``qpos`` layout (a copy)."""
+        return np.array(self._qpos, dtype=np.float64)
+
+    @q.setter
+    def q(self, qpos: ArrayLike) -> None:
+        x = self.subject.check_qpos(qpos)
+        with self._lock:
+            self._qpos = x
+            self._refresh()
+            self._sync_controls()
+
+    @property
+    def frame(self) -> str:
+        """The end frame: a body or site of the model."""
+        return self.subject.frame
+
+    @property
+    def form(self) -> Form:
+        """``"space"`` (labels ``S_i``, the twists in world coordinates) or ``"body"``."""
+        return self._form
+
+    @form.setter
+    def form(self, form: Form) -> None:
+        self._form_input.value = {"space": "space (S_i)", "body": "body (B_i)"}[form]
+
+    @property
+    def step(self) -> int:
+        """The PoE step ``k``: the partial product ``T_k`` shown (``0..n``)."""
+        return self._k
+
+    @step.setter
+    def step(self, k: int) -> None:
+        if not 0 <= k <= self.subject.n_joints:
+            raise InputError(f"the PoE step k must be in 0..{self.subject.n_joints}, got {k}")
+        self._step_input.value = int(k)
+
+    @property
+    def geometry(self) -> Geometry | None:
+        """The robot's parts, once loaded (None before)."""
+        return self._geometry
+
+    def wait_geometry(self, timeout: float = 30.0) -> Geometry:
+        """Block until the robot's parts are on the page; return them."""
+        if not self._geometry_ready.wait(timeout):
+            raise TimeoutError(f"the robot's geometry did not load within {timeout} s")
+        assert self._geometry is not None
+        return self._geometry
+
+    def options(self) -> dict[str, Any]:
+        """The panel's settings by their label: ``{"form": "space (S_i)", "DH frames": False,
+        ...}``."""
+        return {name: handle.value for name, handle in self._options.items()}
+
+    def set_option(self, name: str, value: Any) -> None:
+        """Change a panel setting, as the page's control of that label does (the page shows it
+        too): e.g. ``set_option("DH frames", True)``, ``set_option("Jacobian", "body")``.
+
+        Raises:
+            InputError: no such setting; the message lists them.
+        """
+        if name not in self._options:
+            raise InputError(f"no panel setting {name!r}: {did_you_mean(name, self._options)}")
+        self._options[name].value = value
+
+    def snapshot(self) -> Snapshot:
+        """What is drawn now (:func:`poekin.viewer.scene.snapshot` at :attr:`q`)."""
+        return snapshot(self.subject, self._qpos)
+
+    def texts(self) -> dict[str, str]:
+        """The panel's readouts as sent to the page: ``pose``, ``jacobian``, ``poe``, ``screws``,
+        ``dh``, ``q`` (and ``compare`` with parameters)."""
+        return dict(self._texts)
+
+    def node_names(self, kind: str | None = None) -> list[str]:
+        """Names of the scene nodes this viewer made (of one ``kind``: ``body``, ``frame``,
+        ``end``, ``home``, ``screw``, ``partial``, ``dh``, ``ghost_link``, ``ghost_screw``,
+        ``ghost_end``, ``ghost_home``, ``part``, ``world``)."""
+        return [n for n, node in self._nodes.items() if kind is None or node.kind == kind]
+
+    def node_poses(self, kind: str | None = None) -> dict[str, FloatArray]:
+        """World pose ``(4, 4)`` of every scene node (of one ``kind``), composed from the poses
+        sent to the page along its parents."""
+        out = {}
+        for name in self.node_names(kind):
+            T = np.eye(4)
+            parts = name.strip("/").split("/")
+            for depth in range(1, len(parts) + 1):
+                node = self._nodes.get("/" + "/".join(parts[:depth]))
+                if node is not None:
+                    local = np.eye(4)
+                    local[:3, :3] = lie.quat_to_rotation(node.handle.wxyz)
+                    local[:3, 3] = node.handle.position
+                    T = T @ local
+            out[name] = T
+        return out
+
+    def node(self, name: str) -> Any:
+        """The viser handle of a scene node (its ``visible``, ``wxyz``, ``position``, props)."""
+        return self._nodes[name].handle
+
+    def close(self) -> None:
+        """Stop the server (the page shows it as disconnected)."""
+        with self._lock:
+            if self._closed:
+                return
+            self._closed = True
+            with contextlib.redirect_stdout(io.StringIO()):  # viser says "Server stopped"
+                self.server.stop()
+        # let a mesh compile in progress finish: native code running in a daemon thread while
+        # the interpreter shuts down can crash it
+        loader = getattr(self, "_loader", None)
+        if loader is not None and loader is not threading.current_thread():
+            loader.join(timeout=60.0)
+
+    def __enter__(self) -> Viewer:
+        return self
+
+    def __exit__(self, *_: object) -> None:
+        self.close()
+
+    def __repr__(self) -> str:
+        return f"Viewer({self.subject.name!r}, frame={self.frame!r}, url={self.url!r})"
+
+    def _repr_html_(self) -> str:
+        """In Jupyter: the live page inline."""
+        return (
+            f'<iframe src="{self.url}" width="100%" height="600" '
+            'style="border:1px solid #ddd"></iframe>'
+        )
+
+    # --- scene --------------------------------------------------------------------------------
+
+    def _add(self, name: str, kind: str, handle: Any, index: int = -1) -> Any:
+        self._nodes[name] = _Node(handle, kind, index)
+        return handle
+
+    def _triad(
+        self,
+        name: str,
+        kind: str,
+        *,
+        scale: float = 1.0,
+        label: str | None = None,
+        visible: bool = True,
+        index: int = -1,
+        below: bool = False,
+    ) -> Any:
+        e = self._extent
+        handle = self.server.scene.add_frame(
+            name,
+            axes_length=0.09 * e * scale,
+            axes_radius=0.004 * e * scale,
+            origin_radius=0.008 * e * scale,
+            visible=visible,
+        )
+        self._add(name, kind, handle, index)
+        if label is not None:
+            self._add(
+                f"{name}/label",
+                "label",
+                self.server.scene.add_label(
+                    f"{name}/label",
+                    label,
+                    position=(0.0, 0.0, (-0.02 if below else 0.03) * e * scale),
+                    anchor="top-right" if below else "bottom-left",
+                ),
+            )
+        return handle
+
+    def _build_scene(self) -> None:
+        scene, e, subject = self.server.scene, self._extent, self.subject
+        scene.set_up_direction("+z")
+        cell = 10.0 ** math.floor(math.log10(e / 2))
+        scene.add_grid(
+            "/grid",
+            width=4 * e,
+            height=4 * e,
+            cell_size=cell,
+            section_size=10 * cell,
+            shadow_opacity=0.0,
+        )
+        self._triad("/world", "world", scale=1.3, label="world")
+        for b in range(len(subject.body_names)):
+            self._add(f"/robot/b{b}", "body", scene.add_frame(f"/robot/b{b}", show_axes=False), b)
+        for f, name in enumerate(subject.frame_names):
+            self._triad(f"/frames/f{f}", "frame", scale=0.6, label=name, visible=False, index=f)
+        self._triad("/home", "home", scale=0.8, label="M (home)", below=True)
+        self._build_chain_nodes()
+        if self.comparison is not None:
+            self._build_ghost_nodes()
+        position, look_at = self._camera(snapshot(subject, self._qpos))
+        self.server.initial_camera.position = position
+        self.server.initial_camera.look_at = look_at
+
+    def _camera(self, snap: Snapshot) -> tuple[FloatArray, FloatArray]:
+        """A camera position and target that show the robot (and your arm) at ``snap``, left
+        of centre: the panel covers the right third of the page."""
+        origins = np.vstack([snap.frames[:, :3, 3], snap.points, snap.T[None, :3, 3]])
+        if self.comparison is not None:  # your arm too: as given, it may point elsewhere
+            gh = ghost(self.comparison, snap, aligned=self._aligned)
+            origins = np.vstack([origins, gh.points, gh.T[None, :3, 3]])
+        lo, hi = origins.min(axis=0), origins.max(axis=0)
+        centre, size = (lo + hi) / 2, max(float(np.linalg.norm(hi - lo)), 0.1)
+        position = centre + size * np.array([0.8, -1.1, 0.6])
+        forward = (centre - position) / np.linalg.norm(centre - position)
+        right = np.cross(forward, [0.0, 0.0, 1.0])
+        return position, centre + 0.3 * size * right / np.linalg.norm(right)
+
+    def frame_view(self) -> None:
+        """Point every open page's camera at the robot as it is now (the button "frame the
+        robot" does it for one page)."""
+        position, look_at = self._camera(self.snapshot())
+        for client in self.server.get_clients().values():
+            with client.atomic():
+                client.camera.position = position
+                client.camera.look_at = look_at
+
+    def _screw_node(
+        self,
+        name: str,
+        kind: str,
+        index: int,
+        screw: FloatArray,
+        color: tuple[int, int, int],
+        label: str,
+    ) -> None:
+        """A screw axis at the origin along z: the line through its axis point with an arrow,
+        a curved arrow for the positive turn (a helix for a pitched screw), a rail of ticks
+        for a prismatic one; posed each update."""
+        scene, e = self.server.scene, self._extent
+        L = 0.25 * e
+        self._add(name, kind, scene.add_frame(name, show_axes=False), index)
+        what = screw_kind(screw)
+        start = 0.0 if what == "prismatic" else -0.6 * L
+        self._add(
+            f"{name}/arrow",
+            "arrow",
+            scene.add_arrows(
+                f"{name}/arrow",
+                np.array([[[0.0, 0.0, start], [0.0, 0.0, L]]]),
+                color,
+                shaft_radius=0.005 * e,
+                head_radius=0.014 * e,
+                head_length=0.04 * e,
+            ),
+        )
+        segments = _turn_marker(what, float(screw[:3] @ screw[3:]) if what == "pitched" else 0.0, e)
+        self._add(
+            f"{name}/turn",
+            "turn",
+            scene.add_line_segments(f"{name}/turn", segments, color, thickness=0.003 * e),
+        )
+        self._add(
+            f"{name}/label",
+            "label",
+            scene.add_label(
+                f"{name}/label", label, position=(0.0, 0.0, 1.12 * L), anchor="bottom-center"
+            ),
+        )
+
+    def _build_chain_nodes(self) -> None:
+        """Nodes that depend on the end frame: screws, end frame, PoE steps, DH frames."""
+        scene, e, subject = self.server.scene, self._extent, self.subject
+        snap = snapshot(subject, self._qpos)
+        for i in range(subject.n_joints):
+            self._screw_node(f"/screws/s{i}", "screw", i, snap.screws[i], MODEL_COLOR, f"S{i + 1}")
+        self._add(
+            "/levers",
+            "levers",
+            scene.add_line_segments(
+                "/levers",
+                np.zeros((max(subject.n_joints, 1), 2, 3)),
+                LEVER_COLOR,
+                thickness=0.002 * e,
+                visible=False,
+            ),
+        )
+        self._triad("/end", "end", scale=1.25, label=f"T(q): {subject.frame}")
+        for k in range(subject.n_joints + 1):
+            self._triad(f"/poe/t{k}", "partial", scale=0.7, visible=False, index=k)
+        self._add(
+            "/poe/label",
+            "label",
+            scene.add_label("/poe/label", "T", anchor="top-left", visible=False),
+        )
+        self._add(
+            "/poe/path",
+            "poe_path",
+            scene.add_line_segments(
+                "/poe/path",
+                np.zeros((max(subject.n_joints, 1), 2, 3)),
+                PARTIAL_COLOR,
+                thickness=0.003 * e,
+                visible=False,
+            ),
+        )
+        for i in range(subject.n_joints + 2):
+            label = f"DH {i}" if i <= subject.n_joints else "DH tool"
+            self._triad(f"/dh/f{i}", "dh", scale=0.7, label=label, visible=False, index=i)
+
+    def _remove_chain_nodes(self) -> None:
+        """Remove what :meth:`_build_chain_nodes` made (a node's children go with it)."""
+        doomed = [
+            n for n in self._nodes if n.split("/")[1] in ("screws", "levers", "end", "poe", "dh")
+        ]
+        for name in doomed:
+            node = self._nodes.pop(name)
+            if name.rsplit("/", 1)[0] not in doomed:
+                node.handle.remove()
+
+    def _build_ghost_nodes(self) -> None:
+        assert self.comparison is not None
+        scene, e = self.server.scene, self._extent
+        labels = self.comparison.diagnosis.joint_labels()
+        chain = self.comparison.chain(self._aligned)
+        n = chain.n_joints
+        self._add(
+            "/ghost/arm",
+            "ghost_arm",
+            scene.add_line_segments(
+                "/ghost/arm", np.zeros((n + 1, 2, 3)), YOURS_COLOR, thickness=0.012 * e
+            ),
+        )
+        for i in range(n):
+            bad = i in labels
+            label = f"J{i + 1} {labels[i]}" if bad else ""
+            self._screw_node(
+                f"/ghost/s{i}",
+                "ghost_screw",
+                i,
+                chain.screws[i],
+                MISMATCH_COLOR if bad else YOURS_COLOR,
+                label,
+            )
+        self._triad("/ghost/end", "ghost_end", scale=1.1, label=f"yours: {self.comparison.name}")
+        self._triad("/ghost/home", "ghost_home", scale=0.7, label="your M")
+
+    def _load_geometry(self) -> None:
+        try:
+            geometry = self._geometry_fn(self.subject)
+        except Exception as exc:  # a broken mesh file must not take the viewer down
+            geometry = stand_in(self.subject, f"the geometry failed to load: {exc}")
+        with self._lock:
+            if self._closed:
+                return
+            with self.server.atomic():
+                for k, part in enumerate(geometry.parts):
+                    self._add_part(k, part)
+                self._geometry = geometry
+                self._geometry_note.content = f"geometry: {geometry.note}"
+        self._geometry_ready.set()
+
+    def _add_part(self, k: int, part: Part) -> None:
+        name = f"/robot/b{part.body}/part{k}"
+        handle = self.server.scene.add_mesh_simple(
+            name,
+            part.vertices,
+            part.faces,
+            color=part.color,
+            visible=self._show_geometry.value,
+        )
+        self._nodes[name] = _Node(handle, "part", part.body, part.opacity)
+        handle.opacity = self._part_opacity(name)
+
+    # --- panel --------------------------------------------------------------------------------
+
+    def _build_gui(self) -> None:
+        gui, subject = self.server.gui, self.subject
+        gui.configure_theme(control_width="large", show_share_button=False)
+        title = f"**{subject.name}**, end frame `{subject.frame}`, {subject.n_joints} joints"
+        if subject.base_body is not None and subject.tree is not None:
+            title += f" from the floating body `{subject.tree.body_names[subject.base_body]}`"
+        self._title = gui.add_markdown(title)
+        self._geometry_note = gui.add_markdown("geometry: loading ...")
+        frame_button = gui.add_button("frame the robot", hint="point the camera at the robot")
+        frame_button.on_click(lambda event: self._frame_client(event.client))
+        if subject.tree is not None and self.comparison is None:
+            self._frame_input: Any = gui.add_dropdown(
+                "end frame", list(subject.tree.frame_names), initial_value=subject.frame
+            )
+            self._frame_input.on_update(lambda _: self._on_frame())
+        tabs = gui.add_tab_group()
+        with tabs.add_tab("Joints"):
+            self._build_joint_controls()
+        with tabs.add_tab("Screws & PoE"):
+            self._form_input: Any = gui.add_dropdown(
+                "form", ["space (S_i)", "body (B_i)"], initial_value="space (S_i)"
+            )
+            self._form_input.on_update(lambda _: self._on_view_option())
+            self._step_input: Any = gui.add_slider(
+                "PoE step k", 0, max(subject.n_joints, 1), 1, subject.n_joints
+            )
+            self._step_input.on_update(lambda _: self._on_view_option())
+            self._poe_text = gui.add_markdown("")
+            self._show_screws: Any = gui.add_checkbox("screw axes", True)
+            self._show_levers: Any = gui.add_checkbox(
+                "moment arms (v = -w x r)",
+                False,
+                hint="from the frame of the form to the nearest point of each axis",
+            )
+            self._show_home: Any = gui.add_checkbox("home pose M", True)
+            self._show_frames: Any = gui.add_checkbox("all frames", False)
+            self._show_geometry: Any = gui.add_checkbox("robot geometry", True)
+            self._opacity_input: Any = gui.add_slider("robot opacity", 0.1, 1.0, 0.05, 0.6)
+            self._opacity_input.on_update(lambda _: self._on_opacity())
+            for box in (
+                self._show_screws,
+                self._show_levers,
+                self._show_home,
+                self._show_frames,
+                self._show_geometry,
+            ):
+                box.on_update(lambda _: self._on_view_option())
+            self._screws_text = gui.add_markdown("")
+        with tabs.add_tab("T(q) & J"):
+            self._pose_text = gui.add_markdown("")
+            self._convention_input: Any = gui.add_dropdown(
+                "Jacobian", ["space", "body", "world"], initial_value="space"
+            )
+            self._convention_input.on_update(lambda _: self._on_view_option())
+            self._jacobian_text = gui.add_markdown("")
+        with tabs.add_tab("DH"):
+            self._show_dh: Any = gui.add_checkbox("DH frames", False)
+            self._dh_input: Any = gui.add_dropdown(
+                "convention", ["standard", "modified"], initial_value="standard"
+            )
+            for handle in (self._show_dh, self._dh_input):
+                handle.on_update(lambda _: self._on_view_option())
+            self._dh_text = gui.add_markdown("")
+        if self.comparison is not None:
+            with tabs.add_tab("Compare"):
+                self._align_input: Any = gui.add_checkbox("align your base to the model's", False)
+                self._align_input.on_update(lambda _: self._on_align())
+                self._compare_text = gui.add_markdown("")
+        self._options: dict[str, Any] = {
+            handle.label: handle
+            for handle in (
+                self._unit_input,
+                self._form_input,
+                self._step_input,
+                self._show_screws,
+                self._show_levers,
+                self._show_home,
+                self._show_frames,
+                self._show_geometry,
+                self._opacity_input,
+                self._convention_input,
+                self._show_dh,
+                self._dh_input,
+                *([self._frame_input] if hasattr(self, "_frame_input") else []),
+                *([self._align_input] if self.comparison is not None else []),
+            )
+        }
+
+    def _build_joint_controls(self) -> None:
+        gui = self.server.gui
+        self._unit_input: Any = gui.add_dropdown("angles", ["rad", "deg"], initial_value="rad")
+        self._unit_input.on_update(lambda _: self._on_unit())
+        self._sliders: list[tuple[Control, str, Any]] = []
+        e = self._extent
+        for c in self._controls:
+            if c.kind in ("revolute", "prismatic"):
+                step = _REVOLUTE_STEP if c.kind == "revolute" else _SLIDE_STEP
+                start_value = float(np.clip(self._qpos[c.adr], c.lower, c.upper))
+                slider = gui.add_slider(c.joint, c.lower, c.upper, step, start_value)
+                self._sliders.append((c, "value", slider))
+                continue
+            start = c.adr
+            if c.kind == "free":
+                for axis, key in enumerate("xyz"):
+                    x0 = float(self._qpos[start + axis])
+                    lo, hi = min(x0 - 2 * e, -2 * e), max(x0 + 2 * e, 2 * e)
+                    slider = gui.add_slider(f"{c.joint} {key} [m]", lo, hi, _SLIDE_STEP, x0)
+                    self._sliders.append((c, key, slider))
+            for key in ("roll", "pitch", "yaw"):
+                lim = math.pi / 2 if key == "pitch" else math.pi
+                slider = gui.add_slider(f"{c.joint} {key}", -lim, lim, _REVOLUTE_STEP, 0.0)
+                self._sliders.append((c, key, slider))
+        for control, _key, slider in self._sliders:
+            slider.on_update(lambda _, c=control: self._on_slider(c))
+        self._zero_button = gui.add_button(
+            "zero", hint="every hinge and slide at 0, ball joints at the identity"
+        )
+        self._random_button = gui.add_button(
+            "random", hint="hinges and slides uniform within their slider range"
+        )
+        home = "home" if "home" in self.subject.keyframes else None
+        self._home_button = gui.add_button(
+            "home" + (" (keyframe 'home')" if home else " (qpos0)"),
+            hint="the model's keyframe 'home'"
+            if home
+            else "the model's default configuration qpos0",
+        )
+        self._zero_button.on_click(lambda _: self._on_button("zero"))
+        self._random_button.on_click(lambda _: self._on_button("random"))
+        self._home_button.on_click(lambda _: self._on_button("home"))
+        self._q_input: Any = gui.add_text(
+            "qpos", "", hint="all values, rad and m, MuJoCo's qpos layout; then 'set qpos'"
+        )
+        self._q_button = gui.add_button("set qpos")
+        self._q_button.on_click(lambda _: self._on_set_q())
+        self._q_note = gui.add_markdown("")
+
+    # --- events ---------------------------------------------------------------------------------
+
+    def _slider_value(self, kind: str, value: float) -> float:
+        """A hinge slider's value in radians (it shows degrees in degree mode)."""
+        return (
+            math.radians(value)
+            if kind in ("revolute", "roll", "pitch", "yaw") and self._unit == "deg"
+            else value
+        )
+
+    def _on_slider(self, c: Control) -> None:
+        if self._syncing:
+            return
+        with self._lock:
+            x = self._qpos.copy()
+            mine = {key: slider.value for control, key, slider in self._sliders if control is c}
+            if c.kind in ("revolute", "prismatic"):
+                x[c.adr] = self._slider_value(c.kind, float(mine["value"]))
+            else:
+                start = c.adr
+                if c.kind == "free":
+                    x[start : start + 3] = [float(mine[k]) for k in "xyz"]
+                    start += 3
+                rpy = [self._slider_value("roll", float(mine[k])) for k in ("roll", "pitch", "yaw")]
+                x[start : start + 4] = _quat(_rpy_rotation(*rpy))
+            self._qpos = x
+            self._refresh()
+
+    def _on_button(self, which: str) -> None:
+        x = self._qpos.copy()
+        for c in self._controls:
+            if which == "home":
+                x = self.subject.keyframes.get("home", self.subject.qpos0).copy()
+                break
+            if c.kind in ("revolute", "prismatic"):
+                x[c.adr] = 0.0 if which == "zero" else self._rng.uniform(c.lower, c.upper)
+            elif c.kind == "ball":
+                quat = [1.0, 0.0, 0.0, 0.0] if which == "zero" else self._rng.normal(size=4)
+                x[c.adr : c.adr + 4] = np.asarray(quat) / np.linalg.norm(quat)
+        self.q = x
+
+    def _on_set_q(self) -> None:
+        text = self._q_input.value.replace(",", " ").replace("[", " ").replace("]", " ")
+        try:
+            self.q = [float(t) for t in text.split()]
+        except (ValueError, InputError) as exc:
+            self._q_note.content = f"**not set:** {exc}"
+            return
+        self._q_note.content = ""
+
+    def _on_unit(self) -> None:
+        unit: Unit = "deg" if self._unit_input.value == "deg" else "rad"
+        with self._lock:
+            self._unit = unit
+            self._syncing = True
+            try:
+                for c, key, slider in self._sliders:
+                    if c.kind == "revolute" or key in ("roll", "pitch", "yaw"):
+                        f = math.degrees if unit == "deg" else (lambda v: v)
+                        lo, hi = (
+                            (c.lower, c.upper)
+                            if c.kind == "revolute"
+                            else (
+                                (-math.pi / 2, math.pi / 2)
+                                if key == "pitch"
+                                else (-math.pi, math.pi)
+                            )
+                        )
+                        slider.step = _DEGREE_STEP if unit == "deg" else _REVOLUTE_STEP
+                        slider.min, slider.max = f(lo), f(hi)
+            finally:
+                self._syncing = False
+            self._sync_controls()
+            self._refresh()
+
+    def _on_view_option(self) -> None:
+        if self._syncing:
+            return
+        with self._lock:
+            self._form = "body" if self._form_input.value.startswith("body") else "space"
+            self._k = int(self._step_input.value)
+            self._convention = self._convention_input.value  # type: ignore[assignment]
+            self._dh_convention = self._dh_input.value  # type: ignore[assignment]
+            symbol = _SYMBOL[self._form]
+            for i in range(self.subject.n_joints):
+                self._nodes[f"/screws/s{i}/label"].handle.text = f"{symbol}{i + 1}"
+            self._refresh()
+
+    def _frame_client(self, client: Any) -> None:
+        if client is None:
+            return
+        position, look_at = self._camera(self.snapshot())
+        with client.atomic():
+            client.camera.position = position
+            client.camera.look_at = look_at
+
+    def _on_opacity(self) -> None:
+        with self._lock:
+            for name in self.node_names("part"):
+                self._nodes[name].handle.opacity = self._part_opacity(name)
+
+    def _part_opacity(self, name: str) -> float | None:
+        """A part's opacity: its own (from the model) times the slider's; None is opaque."""
+        value = self._opacity_input.value * self._nodes[name].opacity
+        return None if value >= 1.0 else float(value)
+
+    def _on_align(self) -> None:
+        with self._lock:
+            self._aligned = bool(self._align_input.value)
+            self._refresh()
+
+    def _on_frame(self) -> None:
+        frame = self._frame_input.value
+        if frame == self.subject.frame:
+            return
+        with self._lock:
+            subject = self.subject
+            assert subject.tree is not None
+            try:
+                new = make_subject(
+                    subject.tree, frame, keyframes=subject.keyframes, name=subject.name
+                )  # type: ignore[arg-type]
+            except Exception as exc:
+                self._q_note.content = f"**cannot show {frame!r}:** {exc}"
+                return
+            with self.server.atomic():
+                self._remove_chain_nodes()
+                self.subject = new
+                self._build_chain_nodes()
+                self._syncing = True
+                try:
+                    self._step_input.max = max(new.n_joints, 1)
+                    self._step_input.value = new.n_joints
+                finally:
+                    self._syncing = False
+                self._k = new.n_joints
+                title = f"**{new.name}**, end frame `{new.frame}`, {new.n_joints} joints"
+                if new.base_body is not None and new.tree is not None:
+                    title += f" from the floating body `{new.tree.body_names[new.base_body]}`"
+                self._title.content = title
+                self._on_view_option()
+
+    def _sync_controls(self) -> None:
+        """Show the current configuration on the sliders and in the qpos box, without
+        treating that as input."""
+        self._syncing = True
+        try:
+            x = self._qpos
+            for c, key, slider in self._sliders:
+                deg = self._unit == "deg"
+                if key == "value":
+                    value = float(x[c.adr])
+                    value = math.degrees(value) if deg and c.kind == "revolute" else value
+                elif key in "xyz":
+                    value = float(x[c.adr + "xyz".index(key)])
+                else:
+                    start = c.adr + (3 if c.kind == "free" else 0)
+                    quat = np.asarray(lie.quat_normalize(x[start : start + 4]), dtype=np.float64)
+                    rpy = rpy_from_rotation(np.asarray(lie.quat_to_rotation(quat)))
+                    value = rpy[("roll", "pitch", "yaw").index(key)]
+                    value = math.degrees(value) if deg else value
+                slider.value = value
+            self._q_input.value = " ".join(f"{v + 0.0:.6g}" for v in x)
+        finally:
+            self._syncing = False
+
+    # --- one update -------------------------------------------------------------------------------
+
+    def _pose(self, name: str, T: FloatArray) -> None:
+        """Queue a node's world pose; :meth:`_send_poses` sends them all at once."""
+        self._pending.append((name, T))
+
+    def _send_poses(self) -> None:
+        """Set the queued poses: one batched quaternion conversion, then each node's pose."""
+        if not self._pending:
+            return
+        names = [name for name, _ in self._pending]
+        T = np.stack([T for _, T in self._pending])
+        quats = np.asarray(lie.rotation_to_quat(T[:, :3, :3]), dtype=np.float64)
+        self._pending = []
+        for name, quat, p in zip(names, quats, T[:, :3, 3], strict=True):
+            handle = self._nodes[name].handle
+            handle.wxyz = quat
+            handle.position = p
+
+    def _set_text(self, key: str, handle: Any, text: str) -> None:
+        if self._texts.get(key) != text:
+            self._texts[key] = text
+            handle.content = text
+
+    def _refresh(self) -> None:
+        """Pose every node and write every readout for the current configuration."""
+        subject, snap = self.subject, snapshot(self.subject, self._qpos)
+        with self.server.atomic():
+            for b, T in enumerate(snap.bodies):
+                self._pose(f"/robot/b{b}", T)
+            show_frames = self._show_frames.value
+            for f, T in enumerate(snap.frames):
+                node = self._nodes[f"/frames/f{f}"].handle
+                node.visible = show_frames
+                if show_frames:
+                    self._pose(f"/frames/f{f}", T)
+            for node in self.node_names("part"):
+                self._nodes[node].handle.visible = self._show_geometry.value
+            self._pose("/end", snap.T)
+            self._pose("/home", snap.home)
+            self._nodes["/home"].handle.visible = self._show_home.value
+            self._nodes["/home/label"].handle.visible = self._show_home.value
+            self._refresh_screws(snap)
+            self._refresh_poe(snap)
+            self._refresh_dh()
+            J, columns = jacobian(subject, snap.qpos, self._convention)
+            sigma, w = manipulability(J)
+            self._set_text("pose", self._pose_text, panel.pose_text(snap.T, subject.frame))
+            self._set_text(
+                "jacobian",
+                self._jacobian_text,
+                panel.jacobian_text(J, columns, self._convention, sigma, w),
+            )
+            self._set_text(
+                "poe",
+                self._poe_text,
+                panel.poe_text(subject, snap, self._k, self._form, self._unit),
+            )
+            self._set_text(
+                "screws", self._screws_text, panel.screws_text(subject, snap, self._form)
+            )
+            self._texts["q"] = " ".join(f"{v + 0.0:.6g}" for v in snap.qpos)
+            if self.comparison is not None:
+                self._refresh_ghost(snap)
+            self._send_poses()
+        self.server.flush()
+
+    def _refresh_screws(self, snap: Snapshot) -> None:
+        show = self._show_screws.value
+        ref = snap.T[:3, 3] if self._form == "body" else np.zeros(3)
+        levers = np.zeros((max(self.subject.n_joints, 1), 2, 3))
+        poses = axis_pose(snap.points, _directions(snap.screws))
+        for i, S in enumerate(snap.screws):
+            name = f"/screws/s{i}"
+            self._pose(name, poses[i])
+            self._nodes[name].handle.visible = show
+            levers[i] = [ref, nearest_point(S, snap.points[i], ref)]
+        lever = self._nodes["/levers"].handle
+        lever.visible = show and self._show_levers.value
+        if lever.visible:
+            lever.points = levers.astype(np.float32)
+
+    def _refresh_poe(self, snap: Snapshot) -> None:
+        n, k = self.subject.n_joints, self._k
+        stepping = k < n
+        for j in range(n + 1):
+            name = f"/poe/t{j}"
+            if stepping and j <= k:
+                self._pose(name, snap.partial[j])
+            self._nodes[name].handle.visible = stepping and j <= k
+        label = self._nodes["/poe/label"].handle
+        label.visible = stepping
+        label.position = snap.partial[k][:3, 3]
+        label.text = f"T{k}"
+        path = self._nodes["/poe/path"].handle
+        path.visible = stepping and k > 0
+        if path.visible:
+            origins = snap.partial[: k + 1, :3, 3]
+            segs = np.zeros((max(n, 1), 2, 3))
+            segs[:k] = np.stack([origins[:-1], origins[1:]], axis=1)
+            segs[k:] = origins[-1]
+            path.points = segs.astype(np.float32)
+
+    def _refresh_dh(self) -> None:
+        show = self._show_dh.value
+        table = self.subject.dh(self._dh_convention)
+        self._set_text("dh", self._dh_text, panel.dh_text(table))
+        frames = dh_frames(self.subject, table, self._qpos) if show else None
+        for i in range(self.subject.n_joints + 2):
+            name = f"/dh/f{i}"
+            self._nodes[name].handle.visible = show
+            self._nodes[f"{name}/label"].handle.visible = show
+            if frames is not None:
+                self._pose(name, frames[i])
+
+    def _refresh_ghost(self, snap: Snapshot) -> None:
+        assert self.comparison is not None
+        gh = ghost(self.comparison, snap, aligned=self._aligned)
+        stops = np.vstack([gh.links[0][None, :3, 3], gh.points, gh.T[None, :3, 3]])
+        arm = self._nodes["/ghost/arm"].handle
+        arm.points = np.stack([stops[:-1], stops[1:]], axis=1).astype(np.float32)
+        poses = axis_pose(gh.points, _directions(gh.screws))
+        for i in range(len(gh.screws)):
+            self._pose(f"/ghost/s{i}", poses[i])
+            self._nodes[f"/ghost/s{i}"].handle.visible = self._show_screws.value
+        self._pose("/ghost/end", gh.T)
+        self._pose("/ghost/home", gh.home)
+        self._set_text(
+            "compare", self._compare_text, panel.compare_text(self.comparison, gh, self._aligned)
+        )
+
+
+def _directions(screws: FloatArray) -> FloatArray:
+    """``(n, 3)`` each screw's direction: ``w``, or ``v`` for a prismatic one."""
+    turning = np.any(screws[:, :3] != 0.0, axis=1, keepdims=True)
+    return np.where(turning, screws[:, :3], screws[:, 3:])
+
+
+def _turn_marker(kind: str, pitch: float, extent: float) -> FloatArray:
+    """``(N, 2, 3)`` segments around the z axis: a 3/4 circle with an arrowhead for the
+    positive turn (right-hand rule), a helix climbing ``pitch`` per radian for a pitched
+    screw, ticks across the axis for a prismatic one."""
+    r = 0.045 * extent
+    if kind == "prismatic":
+        z = np.linspace(0.03, 0.17, 5) * extent
+        a = np.stack(
+            [
+                np.stack([-r / 2 * np.ones_like(z), np.zeros_like(z), z], -1),
+                np.stack([r / 2 * np.ones_like(z), np.zeros_like(z), z], -1),
+            ],
+            1,
+        )
+        return a.astype(np.float64)
+    turns = 2.0 if kind == "pitched" else 0.75
+    t = np.linspace(0.0, 2 * math.pi * turns, int(48 * turns) + 1)
+    climb = np.clip(pitch, -0.1 * extent, 0.1 * extent) if kind == "pitched" else 0.0
+    pts = np.stack([r * np.cos(t), r * np.sin(t), 0.06 * extent + climb * t], -1)
+    segs = np.stack([pts[:-1], pts[1:]], axis=1)
+    tip, tangent = pts[-1], pts[-1] - pts[-2]
+    tangent /= np.linalg.norm(tangent)
+    radial = np.array([math.cos(t[-1]), math.sin(t[-1]), 0.0])
+    head = 0.35 * r
+    wings = np.array(
+        [
+            [tip, tip - head * tangent + 0.6 * head * radial],
+            [tip, tip - head * tangent - 0.6 * head * radial],
+        ]
+    )
+    return np.concatenate([segs, wings]).astype(np.float64)
+
+
+def _start_server(host: str, port: int | None) -> viser.ViserServer:
+    """A viser server on ``host:port``; port None: 8080 or the next free one.
+
+    Raises:
+        InputError: ``port`` was given and is in use (viser itself would take the next one).
+    """
+    requested = DEFAULT_PORT if port is None else port
+    if not 0 <= requested <= 65535:
+        raise InputError(f"--port must be in 0..65535, got {requested}")
+    with contextlib.redirect_stdout(io.StringIO()):
+        try:
+            server = viser.ViserServer(host=host, port=requested, verbose=False)
+        except OSError as exc:
+            raise InputError(f"cannot serve on {host}:{requested}: {exc.strerror or exc}") from None
+    if port not in (None, 0) and server.get_port() != port:
+        with contextlib.redirect_stdout(io.StringIO()):
+            server.stop()
+        raise InputError(
+            f"port {port} on {host} is in use; choose another with --port, or --port 0 for any "
+            "free port"
+        )
+    return server
+
+
+def _geometry_loader(shown: Shown) -> Callable[[Subject], Geometry]:
+    if shown.loaded is not None:
+        loaded = shown.loaded
+        return lambda s: mjcf_geometry(loaded, s)
+    if shown.urdf is not None:
+        urdf = shown.urdf
+        return lambda s: urdf_geometry(urdf, s)
+    why = "" if shown.subject.tree is None else "a Tree has no meshes: pass its model file"
+    return lambda s: stand_in(s, why)
+
+
+def _in_jupyter() -> bool:
+    try:
+        from IPython import get_ipython  # type: ignore[attr-defined]
+    except ImportError:
+        return False
+    shell = get_ipython()
+    return shell is not None and "IPKernelApp" in getattr(shell, "config", {})
+
+
+def view(
+    model: str | os.PathLike[str] | Tree | Chain | DHTable | Any = "universal_robots_ur5e",
+    *,
+    frame: str | None = None,
+    params: str | os.PathLike[str] | Chain | DHTable | None = None,
+    port: int | None = None,
+    host: str = "127.0.0.1",
+    open_browser: bool | None = None,
+) -> Viewer:
+    """Show a robot in the browser: sliders for its joints, its screw axes, ``T(q)``, its
+    Jacobian, the PoE step by step, DH frames, and a parameter set beside it.
+
+    Args:
+        model: a Menagerie robot name, an MJCF or URDF path, a loaded model, a :class:`Tree`,
+            or a bare :class:`Chain` / :class:`DHTable` (drawn as capsules).
+        frame: the end frame (a body or site); default: the model's only site, else the frame
+            with the most joints on its path (a dropdown on the page changes it).
+        params: your parameters (a file or named set, as ``poekin diagnose --params`` takes, or
+            a chain or table): drawn as an orange ghost driven by the same joint values, with
+            ``diagnose``'s findings and the live end-frame error.
+        port: the port; None: 8080, or the next free one. One that is in use is an error.
+        host: the interface to serve on; the default is reachable from this machine only.
+        open_browser: open the page in the web browser; None: yes, except in a Jupyter kernel,
+            where the handle shows the page inline.
+
+    Returns:
+        The :class:`Viewer`; ``viewer.q = ...`` poses the robot, ``viewer.close()`` stops it.
+
+    Raises:
+        PoekinError: an unknown robot, frame or parameter set, a port in use, and the like.
+    """
+    shown = load_shown(model, frame)
+    subject = shown.subject
+    comparison = load_params_comparison(subject, params)
+    viewer = Viewer(
+        subject, geometry=_geometry_loader(shown), comparison=comparison, host=host, port=port
+    )
+    if open_browser is None:
+        open_browser = not _in_jupyter()
+    if open_browser:
+        threading.Thread(target=webbrowser.open, args=(viewer.url,), daemon=True).start()
+    return viewer

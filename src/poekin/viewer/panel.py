@@ -1,0 +1,218 @@
+"""The viewer panel's texts, as Markdown: formatting of :mod:`poekin.viewer.scene` results only
+(no viser), so they are tested without a browser.
+
+Matrices are printed in fenced code blocks, one row a line, with a fixed number of decimals:
+``T(q)`` with :data:`POSE_DIGITS`, the Jacobian with :data:`JACOBIAN_DIGITS`.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from typing import Literal
+
+import numpy as np
+from numpy.typing import NDArray
+
+from poekin.dh import DHTable
+from poekin.viewer.scene import (
+    Comparison,
+    Form,
+    Ghost,
+    Snapshot,
+    Subject,
+    format_matrix,
+    pose_summary,
+    screw_kind,
+)
+
+__all__ = [
+    "JACOBIAN_DIGITS",
+    "POSE_DIGITS",
+    "compare_text",
+    "dh_text",
+    "jacobian_text",
+    "poe_text",
+    "pose_text",
+    "q_text",
+    "screws_text",
+]
+
+FloatArray = NDArray[np.float64]
+Unit = Literal["rad", "deg"]
+POSE_DIGITS = 6
+JACOBIAN_DIGITS = 4
+_SYMBOL = {"space": "S", "body": "B"}
+
+
+def _numbers(values: Sequence[float] | FloatArray, digits: int) -> str:
+    return ", ".join(f"{float(x) + 0.0:.{digits}f}" for x in values)
+
+
+def _block(lines: Sequence[str]) -> str:
+    return "```\n" + "\n".join(lines) + "\n```"
+
+
+def q_text(subject: Subject, q: FloatArray, unit: Unit = "rad") -> str:
+    """The chain's joint values, ``q1 .. qn``, hinges in ``unit``, slides in m."""
+    parts = []
+    for i, (kind, value) in enumerate(zip(subject.chain.joint_types, q, strict=True)):
+        shown = math.degrees(value) if kind == "revolute" and unit == "deg" else float(value)
+        parts.append(f"q{i + 1} = {shown + 0.0:.4f} {'m' if kind == 'prismatic' else unit}")
+    return ", ".join(parts) if parts else "no joints"
+
+
+def pose_text(T: FloatArray, frame: str, digits: int = POSE_DIGITS) -> str:
+    """``T(q)`` as a 4x4 block, then its position, quaternion ``wxyz`` and roll-pitch-yaw."""
+    s = pose_summary(T)
+    rpy = s["rpy"]
+    return "\n\n".join(
+        [
+            f"**T(q) = T_world_{frame}**",
+            _block(format_matrix(T, digits)),
+            f"position [m]: `{_numbers(s['position'], digits)}`",
+            f"quaternion wxyz: `{_numbers(s['quat_wxyz'], digits)}`",
+            f"roll, pitch, yaw [rad]: `{_numbers(rpy, digits)}` "
+            f"(deg: `{_numbers([math.degrees(a) for a in rpy], 3)}`; "
+            "R = Rz(yaw) Ry(pitch) Rx(roll))",
+        ]
+    )
+
+
+_CONVENTION_WORDS = {
+    "space": "J_s: the twist in the world frame, rows [w; v]",
+    "body": "J_b: the twist in the end frame, rows [w; v]",
+    "world": "rows [w; v_frame] in world coordinates: v_frame is the end frame origin's "
+    "velocity (mj_jacSite)",
+}
+
+
+def jacobian_text(
+    J: FloatArray,
+    columns: Sequence[str],
+    convention: str,
+    sigma: FloatArray,
+    manipulability: float,
+    digits: int = JACOBIAN_DIGITS,
+) -> str:
+    """The Jacobian as a block, its columns, singular values, manipulability and condition."""
+    cond = float(sigma[0] / sigma[-1]) if sigma.size and sigma[-1] > 0 else math.inf
+    return "\n\n".join(
+        [
+            f"**Jacobian ({convention})**, {J.shape[0]} x {J.shape[1]}: "
+            + _CONVENTION_WORDS[convention],
+            _block(format_matrix(J, digits)),
+            f"columns: {', '.join(columns)}",
+            f"singular values: `{_numbers(sigma, digits)}`",
+            f"manipulability (product of the singular values): `{manipulability:.{digits}g}`; "
+            f"condition number: `{cond:.4g}`",
+        ]
+    )
+
+
+def poe_text(subject: Subject, snap: Snapshot, k: int, form: Form, unit: Unit = "rad") -> str:
+    """The partial product ``T_k`` in the chosen form, the values of its factors, and ``T_k``'s
+    origin."""
+    n = subject.n_joints
+    symbol = _SYMBOL[form]
+    factors = [f"e^[{symbol}{i + 1}]q{i + 1}" for i in range(k)]
+    product = " · ".join([*factors, "M"] if form == "space" else ["M", *factors])
+    rest = (
+        f"joints {k + 1}..{n} held at 0"
+        if k < n - 1
+        else f"joint {n} held at 0"
+        if k == n - 1
+        else "all joints at q"
+    )
+    other = "M · e^[B1]q1 ..." if form == "space" else "e^[S1]q1 ... M"
+    origin = snap.partial[k][:3, 3]
+    base = "" if subject.base_body is None else "T_world_base · "
+    return "\n\n".join(
+        [
+            f"**PoE step k = {k} of {n}**: T{k} = {base}{product}",
+            f"({rest}; the same pose as {other}: "
+            f"{'T(q)' if k == n else 'M' if k == 0 else 'a partial product'})",
+            f"origin of T{k} [m]: `{_numbers(origin, 4)}`",
+            q_text(subject, snap.q, unit),
+        ]
+    )
+
+
+def screws_text(subject: Subject, snap: Snapshot, form: Form) -> str:
+    """Each joint's screw at the current q, ``S_i(q)`` (world) or ``B_i(q)`` (end frame)."""
+    symbol = _SYMBOL[form]
+    screws = snap.screws if form == "space" else snap.body_screws
+    where = (
+        "world coordinates: S_i(q) = Ad(T_{i-1}) S_i, column i of J_s(q)"
+        if form == "space"
+        else "end-frame coordinates: B_i(q), column i of J_b(q); B_i = Ad(M^-1) S_i at q = 0"
+    )
+    if subject.base_body is not None and form == "space":
+        where += " (T_{i-1} includes the floating base)"
+    rows = [
+        f"{symbol}(q) = [w; v] in {where}. One line in space per joint: the two forms differ "
+        "in coordinates only.",
+        "",
+    ]
+    rows += ["| | joint | w | v | kind |", "|---|---|---|---|---|"]
+    for i, (name, S) in enumerate(zip(subject.chain.joint_names, screws, strict=True)):
+        kind: str = screw_kind(S)
+        if kind == "pitched":
+            kind = f"pitch {float(S[:3] @ S[3:]):.4g} m/rad"
+        rows.append(
+            f"| {symbol}{i + 1} | {name} | {_numbers(S[:3], 3)} | {_numbers(S[3:], 3)} | {kind} |"
+        )
+    return "\n".join(rows)
+
+
+def dh_text(table: DHTable) -> str:
+    """The DH table as a Markdown table, with its convention and notes."""
+    std = table.convention == "standard"
+    head = (
+        "standard (Denavit-Hartenberg): Rz(theta) Tz(d) Tx(a) Rx(alpha)"
+        if std
+        else "modified (Craig): Rx(alpha_{i-1}) Tx(a_{i-1}) Rz(theta) Tz(d)"
+    )
+    a, al = ("a", "alpha") if std else ("a(i-1)", "alpha(i-1)")
+    rows = [
+        f"**{head}**",
+        "",
+        f"| i | joint | {a} [m] | {al} [rad] | d [m] | theta_off [rad] |",
+        "|---|---|---|---|---|---|",
+    ]
+    for i, row in enumerate(table.rows()):
+        values = [f"{row[k] + 0.0:.4f}" for k in ("a", "alpha", "d", "theta_offset")]
+        rows.append(
+            f"| {i + 1} | {row['joint']} ({row['joint_type'][0].upper()}) | "
+            + " | ".join(values)
+            + " |"
+        )
+    rows += ["", *(f"note: {n}" for n in table.notes)]
+    return "\n".join(rows)
+
+
+def compare_text(comparison: Comparison, ghost: Ghost, aligned: bool) -> str:
+    """The live end-frame error, the verdict and :func:`~poekin.diagnose.diagnose`'s findings."""
+    d = comparison.diagnosis
+    verdict = "MATCH" if d.matches else "MISMATCH"
+    placed = (
+        "after aligning your base to the model's"
+        if aligned
+        else "as given, on the model's base frame"
+    )
+    lines = [
+        f"**{comparison.name}** vs **{d.model.robot or 'the model'}** / `{d.model.frame}`: "
+        f"**{verdict}**",
+        f"your arm ({placed}) at this q: end frame off by **{ghost.pos_err:.4g} m** and "
+        f"**{ghost.ori_err:.4g} rad** ({math.degrees(ghost.ori_err):.3g} deg)",
+        f"over {d.samples} random q: max {d.max_pos_err_m:.3g} m, {d.max_ori_err_rad:.3g} rad; "
+        f"after aligning the base: {d.aligned_max_pos_err_m:.3g} m, "
+        f"{d.aligned_max_ori_err_rad:.3g} rad",
+    ]
+    if d.findings:
+        lines.append("**differences** (joints in red in the scene):")
+        lines += [f"- {f.message}" for f in d.findings]
+    if d.symptoms:
+        lines.append("**what the errors point to:**")
+        lines += [f"- {s}" for s in d.symptoms]
+    return "\n\n".join(lines)

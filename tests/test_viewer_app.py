@@ -1,0 +1,318 @@
+"""The viewer through its Python handle: set q, read back every scene node's pose as sent to
+the page, and compare it with the tree's FK and Jacobian at 1e-12."""
+
+from __future__ import annotations
+
+import math
+import socket
+import subprocess
+import sys
+import textwrap
+from collections.abc import Iterator
+
+import numpy as np
+import pytest
+from helpers import assert_close, load_quiet
+
+import poekin
+from poekin import lie
+from poekin.errors import InputError
+
+pytest.importorskip("viser")
+
+from poekin.viewer.app import Viewer, is_loopback, view
+
+TOL = 1e-12
+
+
+@pytest.fixture(scope="module")
+def ur5e() -> Iterator[Viewer]:
+    v = view("universal_robots_ur5e", port=0, open_browser=False)
+    yield v
+    v.close()
+
+
+@pytest.fixture(scope="module")
+def go2() -> Iterator[Viewer]:
+    v = view(load_quiet("unitree_go2"), port=0, open_browser=False)
+    yield v
+    v.close()
+
+
+def _z_line(T: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """A node's local z axis and origin in the world: how a screw axis is drawn."""
+    return T[:3, 2], T[:3, 3]
+
+
+def _check_scene(v: Viewer, qpos: np.ndarray) -> None:
+    tree = v.subject.tree
+    assert tree is not None
+    v.q = qpos
+    assert_close("q", v.q, qpos, 0.0)
+    T_all = tree.fk(qpos)
+    bodies = v.node_poses("body")
+    assert len(bodies) == len(tree.body_names)
+    for b in range(len(tree.body_names)):
+        assert_close(f"body {tree.body_names[b]}", bodies[f"/robot/b{b}"], T_all[b], TOL)
+    index = tree.frame_index(v.frame)
+    assert_close("end frame", v.node_poses("end")["/end"], T_all[index], TOL)
+    J = tree.jacobian(qpos, v.frame, "space")
+    screws = v.node_poses("screw")
+    assert len(screws) == v.subject.n_joints
+    for i, name in enumerate(v.subject.chain.joint_names):
+        S = J[:, tree.dof_names().index(name)]
+        z, p = _z_line(screws[f"/screws/s{i}"])
+        if np.any(S[:3]):
+            assert_close(f"axis {i + 1}", z, S[:3], TOL)
+            assert_close(f"line {i + 1}", -np.cross(z, p), S[3:], TOL)
+        else:
+            assert_close(f"slide {i + 1}", z, S[3:], TOL)
+    # every node of a part hangs on its body: parts follow their body exactly
+    for name, T in v.node_poses("part").items():
+        body = int(name.split("/")[2][1:])
+        local = v.node(name)
+        assert_close("part on its body", T, T_all[body] @ _local(local), TOL)
+
+
+def _local(handle: object) -> np.ndarray:
+    T = np.eye(4)
+    T[:3, :3] = lie.quat_to_rotation(handle.wxyz)  # type: ignore[attr-defined]
+    T[:3, 3] = handle.position  # type: ignore[attr-defined]
+    return T
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_ur5e_nodes_against_the_tree(ur5e: Viewer, seed: int) -> None:
+    ur5e.wait_geometry()
+    tree = ur5e.subject.tree
+    assert tree is not None
+    _check_scene(ur5e, poekin.sample_qpos(tree, 1, seed=seed)[0])
+    chain = ur5e.subject.chain
+    assert_close("home M", ur5e.node_poses("home")["/home"], chain.home, TOL)
+
+
+def test_go2_floating_base_nodes_against_the_tree(go2: Viewer) -> None:
+    tree = go2.subject.tree
+    assert tree is not None
+    assert go2.subject.base_body == 0 and go2.frame == "FL_calf"
+    _check_scene(go2, poekin.sample_qpos(tree, 1, seed=4)[0])
+    geometry = go2.wait_geometry()
+    assert geometry.stand_in and "missing mesh files" in geometry.note
+    assert "stand-in" in go2.node("/robot/b0/part0").name or go2.node_names("part")
+
+
+def test_ur5e_geometry_is_the_models_meshes(ur5e: Viewer) -> None:
+    geometry = ur5e.wait_geometry()
+    assert not geometry.stand_in and geometry.note.startswith("the model's 20 meshes")
+    assert len(ur5e.node_names("part")) == len(geometry.parts) == 20
+    # one mesh node per part, sent once, hanging on the part's body node
+    for k, part in enumerate(geometry.parts):
+        handle = ur5e.node(f"/robot/b{part.body}/part{k}")
+        assert handle.vertices.shape == part.vertices.shape
+
+
+def test_poe_steps_dh_frames_and_all_frames(ur5e: Viewer) -> None:
+    tree = ur5e.subject.tree
+    assert tree is not None
+    qpos = poekin.sample_qpos(tree, 1, seed=9)[0]
+    ur5e.q = qpos
+    index = tree.frame_index(ur5e.frame)
+    for k in range(7):
+        ur5e.step = k
+        drawn = ur5e.node_poses("partial")
+        for j in range(k + 1 if k < 6 else 0):  # T_0 .. T_k are shown while stepping
+            zeroed = qpos.copy()
+            zeroed[j:] = 0.0  # the UR5e's qpos is its chain's q
+            assert_close(f"T_{j}", drawn[f"/poe/t{j}"], tree.fk(zeroed)[index], TOL)
+        assert ur5e.node("/poe/t0").visible == (k < 6)
+        assert ur5e.node("/poe/t6").visible is False
+        assert f"PoE step k = {k} of 6" in ur5e.texts()["poe"]
+    for convention in ("standard", "modified"):
+        ur5e.set_option("convention", convention)
+        ur5e.set_option("DH frames", True)
+        frames = ur5e.node_poses("dh")
+        assert len(frames) == 8 and ur5e.node("/dh/f0").visible
+        assert_close("DH end", frames["/dh/f7"], tree.fk(qpos)[index], TOL)
+        assert convention in ur5e.texts()["dh"]
+    ur5e.set_option("DH frames", False)
+    assert not ur5e.node("/dh/f0").visible
+    ur5e.set_option("all frames", True)
+    frames = ur5e.node_poses("frame")
+    for f, name in enumerate(tree.frame_names):
+        assert_close(name, frames[f"/frames/f{f}"], tree.fk(qpos)[f], TOL)
+    ur5e.set_option("all frames", False)
+    with pytest.raises(InputError, match="did you mean 'DH frames'"):
+        ur5e.set_option("DH frame", True)
+    with pytest.raises(InputError, match=r"in 0\.\.6"):
+        ur5e.step = 7
+
+
+def test_form_switch_relabels_the_screws_and_moment_arms(ur5e: Viewer) -> None:
+    ur5e.q = [0.3, -1.0, 1.1, 0.2, 0.5, -0.7]
+    ur5e.form = "body"
+    assert ur5e.form == "body" and ur5e.node("/screws/s0/label").text == "B1"
+    assert "| B1 |" in ur5e.texts()["screws"]
+    ur5e.set_option("moment arms (v = -w x r)", True)
+    arms = np.asarray(ur5e.node("/levers").points, dtype=np.float64)
+    snap = ur5e.snapshot()
+    # body form: from the end frame's origin to the nearest point of each axis, at right angles
+    assert_close("arm start", arms[:, 0], np.tile(snap.T[:3, 3], (6, 1)), 1e-6)
+    for S, (a, b) in zip(snap.screws, arms, strict=True):
+        assert abs(float(S[:3] @ (b - a))) < 1e-6
+    ur5e.form = "space"
+    assert ur5e.node("/screws/s5/label").text == "S6"
+    assert_close("arm start", np.asarray(ur5e.node("/levers").points)[:, 0], np.zeros((6, 3)), 0.0)
+    ur5e.set_option("moment arms (v = -w x r)", False)
+
+
+def test_readouts_follow_q(ur5e: Viewer) -> None:
+    q = np.array([0.1, -1.2, 1.3, 0.4, -0.5, 2.0])
+    ur5e.q = q
+    texts = ur5e.texts()
+    rows = texts["pose"].split("```")[1].strip().splitlines()
+    printed = np.array([[float(x) for x in row.split()] for row in rows])
+    assert_close("T(q) printed", printed, ur5e.subject.chain.fk(q), 5e-7)
+    ur5e.set_option("Jacobian", "world")
+    assert "Jacobian (world)" in ur5e.texts()["jacobian"]
+    ur5e.set_option("Jacobian", "space")
+    assert texts["q"] == "0.1 -1.2 1.3 0.4 -0.5 2"
+
+
+def test_controls_units_buttons_and_qpos_box(ur5e: Viewer) -> None:
+    ur5e.q = [0.5, 0, 0, 0, 0, 0]
+    ur5e.set_option("angles", "deg")
+    slider = ur5e._sliders[0][2]
+    upper = ur5e.subject.chain.limits[0, 1]  # type: ignore[index]
+    assert math.isclose(slider.value, math.degrees(0.5)) and slider.max == math.degrees(upper)
+    slider.value = 90.0  # as the page would send it
+    assert math.isclose(ur5e.q[0], math.pi / 2)
+    ur5e.set_option("angles", "rad")
+    assert math.isclose(slider.value, math.pi / 2)
+    ur5e._zero_button.value = True  # a click
+    ur5e._on_button("zero")
+    assert_close("zero", ur5e.q, np.zeros(6), 0.0)
+    ur5e._on_button("home")
+    assert_close("home keyframe", ur5e.q, ur5e.subject.keyframes["home"], 0.0)
+    ur5e._on_button("random")
+    lower, upper = ur5e.subject.chain.limits.T  # type: ignore[union-attr]
+    assert np.all(
+        (ur5e.q >= np.maximum(lower, -2 * np.pi)) & (ur5e.q <= np.minimum(upper, 2 * np.pi))
+    )
+    ur5e._q_input.value = "[0.1, 0.2, 0.3, 0.4, 0.5, 0.6]"
+    ur5e._on_set_q()
+    assert_close("typed q", ur5e.q, [0.1, 0.2, 0.3, 0.4, 0.5, 0.6], 0.0)
+    ur5e._q_input.value = "1 2"
+    ur5e._on_set_q()
+    assert "expected 6 qpos values" in ur5e._q_note.content
+    with pytest.raises(InputError, match="expected 6 qpos values"):
+        ur5e.q = [1.0, 2.0]
+
+
+def test_free_joint_sliders_set_position_and_orientation(go2: Viewer) -> None:
+    sliders = {key: s for c, key, s in go2._sliders if c.kind == "free"}
+    assert set(sliders) == {"x", "y", "z", "roll", "pitch", "yaw"}
+    sliders["z"].value = 0.5
+    sliders["roll"].value = 0.0
+    sliders["pitch"].value = 0.0
+    sliders["yaw"].value = 0.3
+    q = go2.q
+    assert q[2] == 0.5
+    assert_close("yaw", lie.quat_to_rotation(q[3:7]), lie.exp_so3([0.0, 0.0, 0.3]), 1e-15)
+    T_base = go2.node_poses("body")["/robot/b0"]
+    assert_close("base", T_base[:3, 3], [q[0], q[1], 0.5], 0.0)
+
+
+def test_end_frame_dropdown_rebuilds_the_chain(go2: Viewer) -> None:
+    go2.set_option("end frame", "RR_calf")
+    assert go2.frame == "RR_calf" and go2.subject.chain.joint_names[0] == "RR_hip_joint"
+    assert len(go2.node_poses("screw")) == 3 and len(go2.node_poses("partial")) == 4
+    tree = go2.subject.tree
+    assert tree is not None
+    _check_scene(go2, poekin.sample_qpos(tree, 1, seed=8)[0])
+    go2.set_option("end frame", "FL_calf")
+
+
+def test_parameters_as_a_ghost() -> None:
+    with view("universal_robots_ur5e", params="lynch-park-ur5", port=0, open_browser=False) as v:
+        q = np.array([0.2, -1.0, 1.4, -0.3, 0.6, 0.1])
+        v.q = q
+        lynch = poekin.lynch_park_ur5_chain()
+        assert_close("your end frame", v.node_poses("ghost_end")["/ghost/end"], lynch.fk(q), TOL)
+        J = lynch.jacobian_space(q)
+        for i, T in enumerate(v.node_poses("ghost_screw").values()):
+            z, p = _z_line(T)
+            assert_close(f"your axis {i + 1}", z, J[:3, i], TOL)
+            assert_close(f"your line {i + 1}", -np.cross(z, p), J[3:, i], TOL)
+        text = v.texts()["compare"]
+        assert "MISMATCH" in text and "base frame: yours is turned 180.0 deg" in text
+        pos = float(poekin.pose_errors(v.subject.chain.fk(q), lynch.fk(q))[0])
+        assert f"end frame off by **{pos:.4g} m**" in text
+        assert v.node("/ghost/s1/label").text.startswith("J2 offset")
+        v.set_option("align your base to the model's", True)
+        aligned = v.comparison.diagnosis.aligned  # type: ignore[union-attr]
+        assert_close("aligned", v.node_poses("ghost_end")["/ghost/end"], aligned.fk(q), TOL)
+        assert "after aligning your base" in v.texts()["compare"]
+
+
+def test_a_bare_parameter_set_and_a_pitched_screw() -> None:
+    screws = [[0, 0, 1, 0, 0, 0], [0, 0, 0, 1, 0, 0], [1, 0, 0, 0.02, 0.05, 0]]
+    home = np.eye(4)
+    home[:3, 3] = [0.5, 0.0, 0.2]
+    chain = poekin.Chain(("a", "b", "c"), ("revolute", "prismatic", "revolute"), screws, home)
+    with view(chain, port=0, open_browser=False) as v:
+        q = np.array([0.4, 0.1, -0.6])
+        v.q = q
+        assert_close("end", v.node_poses("end")["/end"], chain.fk(q), TOL)
+        links = v.node_poses("body")
+        product = np.eye(4)
+        for k in range(3):
+            assert_close(f"link {k}", links[f"/robot/b{k}"], product, TOL)
+            product = product @ lie.matrix_exp_se3(chain.screws[k], q[k])
+        assert "pitch 0.02 m/rad" in v.texts()["screws"]
+        assert v.wait_geometry().stand_in
+
+
+def test_port_in_use_is_an_error() -> None:
+    with socket.socket() as busy:
+        busy.bind(("127.0.0.1", 0))
+        busy.listen()
+        port = busy.getsockname()[1]
+        with pytest.raises(InputError, match=f"port {port} on 127.0.0.1 is in use"):
+            view(poekin.lynch_park_ur5_chain(), port=port, open_browser=False)
+
+
+def test_handle_url_repr_and_close() -> None:
+    v = view(poekin.lynch_park_ur5_chain(), port=0, open_browser=False)
+    assert v.url == f"http://127.0.0.1:{v.port}"
+    assert f'src="{v.url}"' in v._repr_html_()
+    assert "lynch-park-ur5" in repr(v)
+    v.close()
+    with socket.socket() as again:  # the port is free again
+        again.bind(("127.0.0.1", v.port))
+    assert is_loopback("127.0.0.1") and is_loopback("localhost") and is_loopback("::1")
+    assert not is_loopback("0.0.0.0") and not is_loopback("example.org")
+
+
+def test_import_poekin_imports_no_viewer() -> None:
+    code = textwrap.dedent(
+        """
+        import sys
+        import poekin
+        print(sorted(m for m in ("viser", "poekin.viewer", "trimesh") if m in sys.modules))
+        poekin.view
+        print("viser" in sys.modules, "trimesh" in sys.modules)
+        """
+    )
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert proc.stdout.splitlines() == ["[]", "True False"]
+
+
+def test_opacity_and_framing(ur5e: Viewer) -> None:
+    ur5e.wait_geometry()
+    ur5e.set_option("robot opacity", 0.5)
+    assert {ur5e.node(n).opacity for n in ur5e.node_names("part")} == {0.5}
+    ur5e.set_option("robot opacity", 1.0)
+    assert {ur5e.node(n).opacity for n in ur5e.node_names("part")} == {None}
+    ur5e.frame_view()  # no page open: nothing to point
+    position, look_at = ur5e._camera(ur5e.snapshot())
+    assert np.linalg.norm(position - look_at) > ur5e.subject.extent
