@@ -2,7 +2,7 @@
 
     python docs/screenshots.py       # writes docs/view_ur5e.png and docs/view_lynch_park.png
 
-Each is a 1100 x 680 page, quantised to 256 colours to stay small.
+Each is a 1280 x 720 page, quantised to 256 colours to stay small.
 """
 
 from __future__ import annotations
@@ -42,7 +42,7 @@ def main() -> None:
             executable_path=poekin.viewer.app.HEADLESS_CHROMIUM,
             args=list(poekin.viewer.app.HEADLESS_CHROMIUM_ARGS),
         )
-        page = browser.new_page(viewport={"width": 1100, "height": 680})
+        page = browser.new_page(viewport={"width": 1280, "height": 720})
         with poekin.view("universal_robots_ur5e", port=0, open_browser=False) as v:
             v.q = Q
             v.wait_geometry()

@@ -390,7 +390,7 @@ class Viewer:
             origins = np.vstack([origins, gh.points, gh.T[None, :3, 3]])
         lo, hi = origins.min(axis=0), origins.max(axis=0)
         centre, size = (lo + hi) / 2, max(float(np.linalg.norm(hi - lo)), 0.1)
-        position = centre + size * np.array([0.8, -1.1, 0.6])
+        position = centre + size * np.array([0.52, -0.72, 0.4])  # fills the view left of it
         forward = (centre - position) / np.linalg.norm(centre - position)
         right = np.cross(forward, [0.0, 0.0, 1.0])
         return position, centre + 0.3 * size * right / np.linalg.norm(right)
