@@ -61,9 +61,9 @@ def compiled_kernel() -> bool:
     return _kernel is not None
 
 
-#: How much slower the NumPy path is than the kernel on a batch (UR5e ``chain.fk``, 1e5
-#: configurations; measured: README "Install").
-NUMPY_PATH_SLOWDOWN = 136
+#: How much slower the NumPy path is than the kernel on a batch: 63x (UR5e ``chain.fk``) and 39x
+#: (go2 ``tree.fk``) against the kernel on one core, twice that against two (README "Install").
+NUMPY_PATH_SLOWDOWN = "40 to 130 times"
 _VECTOR_UNITS = {8: "AVX-512", 4: "AVX2", 2: "SSE2"}
 # A batch of at least this many configurations on the NumPy path gets a note, once a process.
 _SLOW_NOTE_BATCH = 10_000
@@ -78,8 +78,8 @@ def kernel_description() -> str:
     """The FK kernel in words: its vector unit and width, or the NumPy path's cost."""
     if _kernel is None:
         return (
-            "no compiled kernel: FK runs on the NumPy path, about "
-            f"{NUMPY_PATH_SLOWDOWN}x slower in batches; reinstall poekin with a C compiler"
+            f"no compiled kernel: FK runs on the NumPy path, {NUMPY_PATH_SLOWDOWN} slower in "
+            "batches; reinstall poekin with a C compiler"
         )
     width = int(_kernel.get_width())
     return f"compiled FK kernel, {_VECTOR_UNITS[width]}: {width} configurations per vector"
