@@ -248,6 +248,7 @@ BAD_INPUTS = [
     (["fk", "unitree_go2", "--relative-to", "bse", "--q", "0"], "did you mean 'base'"),
     (["fk", "--params", "ur5e-dh", "--tree", "--q", "0"], "not --params"),
     (["dh", "--params", "{deg_unit_typo}"], "'angle_unit' is 'degree'"),
+    (["fk", "--params", "ur5e-dh", "--frame", "flange", "--q", *"000000"], "its own end frame"),
     # issue #17: poekin view and poekin draw
     (
         ["draw", "universal_robots_ur5", "--out", "{tmp}/a.png"],

@@ -42,6 +42,8 @@ def params_or_chain(args: argparse.Namespace) -> Chain | DHTable:
 
     if args.params and args.source:
         raise InputError("give a model SOURCE or --params FILE|NAME, not both")
+    if args.params and args.frame:
+        raise InputError("--frame names a model's frame; a parameter set has its own end frame")
     return params(args.params) if args.params else load(model_source(args, None), args.frame)
 
 
