@@ -32,6 +32,7 @@ except ImportError:  # built without a C compiler: the NumPy path serves
 __all__ = [
     "Form",
     "TreeSpec",
+    "check_form",
     "compiled_kernel",
     "evaluate",
     "fast_method",
@@ -61,18 +62,23 @@ _Method = TypeVar("_Method", bound=Callable[..., Any])
 
 
 def fast_method(kernel_attr: str) -> Callable[[_Method], _Method]:
-    """Decorator for a method ``m(self, q, out=None, form="4x4")`` or ``m(self, q)``: a call
-    first runs ``getattr(self, kernel_attr).run(q, out, form)`` in C, and runs the decorated
-    function only when that attribute is None or the kernel answers None (arguments to
-    validate, convert or refuse). Without the compiled kernel the function is returned as it is.
+    """Decorator for a method ``m(self, q, out=None, form="4x4", params=None)`` or
+    ``m(self, q, params=None)``: a call ``obj.m(...)`` first runs
+    ``getattr(obj, kernel_attr).run(q, out, form)`` in C, and runs the decorated function only
+    when that attribute is None, the kernel answers None (arguments to validate, convert or
+    refuse, or not NumPy arrays) or ``params`` is given. Without the compiled kernel the
+    function is returned as it is.
 
-    A Python method around the kernel costs a frame per call: 8-15% of a single UR5e call.
+    Only the interpreter's method call goes to C: looked up as an attribute (``f = obj.m``,
+    ``getattr``, ``jax.vmap(obj.m)``, ``torch.compile`` tracing), the descriptor gives the
+    decorated function bound to ``obj``, so the function must try the kernel itself first.
+    A Python method around the kernel costs a frame per call: 8-18% of a single UR5e call.
     """
 
     def decorate(method: _Method) -> _Method:
         if _kernel is None:
             return method
-        names = tuple(inspect.signature(method).parameters)[1:]
+        names = tuple(n for n in inspect.signature(method).parameters if n != "params")[1:]
         fast = _kernel.FastMethod(kernel_attr, method, names)
         functools.update_wrapper(fast, method)
         return fast  # type: ignore[no-any-return]
@@ -376,10 +382,10 @@ def result_shape(batch: tuple[int, ...], frames: tuple[int, ...], form: str) -> 
     return (*batch, *frames, *_FORM_SHAPES[form])
 
 
-def _check_form(form: object) -> str:
+def check_form(form: object) -> Form:
     if not isinstance(form, str) or form not in _FORM_SHAPES:
         raise InputError(f"unknown form {form!r}: {did_you_mean(str(form), list(_FORM_SHAPES))}")
-    return form
+    return form  # type: ignore[return-value]
 
 
 def _check_out(out: object, shape: tuple[int, ...]) -> None:
@@ -427,7 +433,7 @@ def evaluate(
     NumPy path (``(..., n) -> (..., *frames, 4, 4)``); ``frames`` is the result's frame axis
     (``()`` for a chain, ``(n_frames,)`` for a tree).
     """
-    form = _check_form(form)
+    form = check_form(form)
     arr = np.require(validate(q), dtype=np.float64, requirements=["C", "A"])
     shape = result_shape(arr.shape[:-1], frames, form)
     if out is not None:

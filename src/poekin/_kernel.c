@@ -516,9 +516,16 @@ static PyTypeObject KernelType = {
 /* A method whose call `obj.m(q, out, form)` (or `obj.m(q)`) first runs `getattr(obj,
  * kernel_attr).run(q, out, form)` in C, and calls the Python function `fallback(obj, ...)` with
  * the arguments as given only when there is no kernel or it answers None (arguments that need
- * validating or converting, or errors to report). names: the fallback's parameter names after
- * self, for keywords: (q, out, form) or (q,). It saves a Python frame per call: a controller's
- * single calls are as fast as the kernel's own. */
+ * validating or converting, other array libraries, or errors to report). names: the fallback's
+ * parameter names after self that the kernel takes, for keywords: (q, out, form) or (q,); any
+ * other keyword goes to the fallback. It saves a Python frame per call: a controller's single
+ * calls are as fast as the kernel's own.
+ *
+ * Only the interpreter's method call (`obj.m(...)`: LOAD_METHOD, which Py_TPFLAGS_METHOD_DESCRIPTOR
+ * lets skip __get__) reaches this C call. As an attribute (`obj.m`, getattr) it is a data
+ * descriptor whose __get__ gives the Python fallback bound to obj: so torch.compile's Dynamo,
+ * which resolves a C data descriptor by calling it, traces the Python method (it cannot trace
+ * C), and the fallback tries the kernel itself for NumPy arrays. */
 typedef struct {
     PyObject_HEAD PyObject *attr; /* interned name of the instance attribute holding the Kernel */
     PyObject *fallback;
@@ -593,10 +600,17 @@ static int FastMethod_init(FastMethodObject *self, PyObject *args, PyObject *kwd
     return 0;
 }
 
-/* Accessed on an instance: a bound method (LOAD_METHOD calls skip this; see the flags). */
+/* Accessed on an instance: the Python fallback bound to it (LOAD_METHOD calls skip this; see
+ * the flags); on the class, the descriptor itself. */
 static PyObject *FastMethod_get(PyObject *self, PyObject *obj, PyObject *Py_UNUSED(type)) {
     if (obj == NULL || obj == Py_None) return Py_NewRef(self);
-    return PyMethod_New(self, obj);
+    return PyMethod_New(((FastMethodObject *)self)->fallback, obj);
+}
+
+/* A data descriptor (so that attribute lookups, Dynamo's included, call __get__), read-only. */
+static int FastMethod_set(PyObject *self, PyObject *Py_UNUSED(obj), PyObject *Py_UNUSED(value)) {
+    PyErr_Format(PyExc_AttributeError, "%R is a method; it cannot be set or deleted", self);
+    return -1;
 }
 
 static int FastMethod_traverse(FastMethodObject *self, visitproc visit, void *arg) {
@@ -643,6 +657,7 @@ static PyTypeObject FastMethodType = {
     .tp_traverse = (traverseproc)FastMethod_traverse,
     .tp_clear = (inquiry)FastMethod_clear,
     .tp_descr_get = FastMethod_get,
+    .tp_descr_set = FastMethod_set,
     .tp_getset = FastMethod_getset,
     .tp_dictoffset = offsetof(FastMethodObject, dict),
     .tp_init = (initproc)FastMethod_init,

@@ -13,6 +13,7 @@ __all__ = [
     "InputError",
     "MenagerieUnavailableError",
     "MetricsFileError",
+    "MissingExtraError",
     "ModelError",
     "PoekinError",
     "UnknownFrameError",
@@ -53,6 +54,10 @@ class MenagerieUnavailableError(ModelError):
 
 class MetricsFileError(PoekinError):
     """A metrics CSV cannot be written safely (bad path, or a header that does not match)."""
+
+
+class MissingExtraError(PoekinError, ImportError):
+    """An optional dependency is not installed; the message names the extra that brings it."""
 
 
 def nearest(name: str, valid: Iterable[str], *, cutoff: float = 0.6) -> str | None:
