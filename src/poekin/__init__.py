@@ -10,13 +10,14 @@ exactly what MuJoCo stores in ``qpos``.
 """
 
 from poekin._fast import Form, compiled_kernel, get_threads, set_threads
-from poekin.chain import Chain, JointType
+from poekin.chain import Chain, ChainParams, JointType
 from poekin.dh import DHTable, dh_from_chain
 from poekin.diagnose import Diagnosis, diagnose
 from poekin.errors import (
     InputError,
     MenagerieUnavailableError,
     MetricsFileError,
+    MissingExtraError,
     ModelError,
     PoekinError,
     UnknownFrameError,
@@ -60,7 +61,7 @@ from poekin.params import (
     ur5e_chain,
 )
 from poekin.sources import AssetsStrippedWarning, LoadedModel, load_model
-from poekin.tree import Mimic, Tree, TreeJointType
+from poekin.tree import Mimic, Tree, TreeJointType, TreeParams
 from poekin.verify import VerifyReport, pose_errors, sample_joint_values, sample_qpos, verify
 
 __version__ = "0.1.0"
@@ -73,6 +74,7 @@ __all__ = [
     "UR5_DH",
     "AssetsStrippedWarning",
     "Chain",
+    "ChainParams",
     "DHTable",
     "Diagnosis",
     "Form",
@@ -82,10 +84,12 @@ __all__ = [
     "MenagerieUnavailableError",
     "MetricsFileError",
     "Mimic",
+    "MissingExtraError",
     "ModelError",
     "PoekinError",
     "Tree",
     "TreeJointType",
+    "TreeParams",
     "UnknownFrameError",
     "UnknownParamsError",
     "UnknownRobotError",

@@ -21,6 +21,8 @@ from __future__ import annotations
 from collections.abc import Sequence
 from typing import Any, Literal
 
+import numpy as np
+
 __all__ = [
     "IDENTITY",
     "ORIGIN",
@@ -300,6 +302,8 @@ def pose_entries(pose: Pose, form: Form, xp: Any) -> tuple[list[Entry], tuple[in
     """A pose's entries in ``form``, and that form's trailing shape."""
     R, p = pose
     if form == "pos_quat":
+        if all(isinstance(e, float) for row in R for e in row):  # a constant frame
+            return [*p, *(float(e) for e in rotation_quat(R, np))], (7,)
         return [*p, *rotation_quat(R, xp)], (7,)
     rows = [e for i in range(3) for e in (*R[i], p[i])]
     if form == "3x4":

@@ -82,13 +82,22 @@ def namespace_of(values: Iterable[object], what: str = "arrays") -> tuple[Any, K
     return namespace(kind), kind
 
 
-def float_dtype(xp: Any, arrays: Iterable[Any]) -> Any:
-    """The floating dtype of a result computed from ``arrays``: their promoted floating dtype,
-    integers and booleans counting as the library's default float."""
+def float_dtype(xp: Any, values: Iterable[Any]) -> Any:
+    """The floating dtype (of ``xp``) of a result computed from ``values``: their promoted
+    floating dtype, integers and booleans counting as the library's default float. NumPy arrays
+    and lists among them count by their NumPy dtype."""
     default = xp.__array_namespace_info__().default_dtypes()["real floating"]
     dtypes = []
-    for a in arrays:
-        if xp.isdtype(a.dtype, "real floating"):
+    for a in values:
+        if kind_of(a) is None:
+            kind = np.asarray(a).dtype
+            if kind.kind == "f":
+                dtypes.append(getattr(xp, kind.name))
+            elif kind.kind in "biu":
+                dtypes.append(default)
+            else:
+                raise InputError(f"expected real numbers, got an array of dtype {kind}")
+        elif xp.isdtype(a.dtype, "real floating"):
             dtypes.append(a.dtype)
         elif xp.isdtype(a.dtype, ("integral", "bool")):
             dtypes.append(default)

@@ -20,7 +20,7 @@ Conventions
   ordinary and near-pi angles is handled correctly and emits no floating-point warnings.
   Both sides of every ``where`` are finite and every norm has a finite gradient at zero, so
   ``jax.grad`` and PyTorch's autograd give finite derivatives everywhere, at the identity and
-  at pi included (where ``log`` itself is discontinuous: its derivative there is one side's).
+  exactly at pi included (where ``log`` jumps, so its derivative there is finite but no side's).
 
 Numerical choices
 -----------------
