@@ -521,11 +521,11 @@ static PyTypeObject KernelType = {
  * other keyword goes to the fallback. It saves a Python frame per call: a controller's single
  * calls are as fast as the kernel's own.
  *
- * Only the interpreter's method call (`obj.m(...)`: LOAD_METHOD, which Py_TPFLAGS_METHOD_DESCRIPTOR
- * lets skip __get__) reaches this C call. As an attribute (`obj.m`, getattr) it is a data
- * descriptor whose __get__ gives the Python fallback bound to obj: so torch.compile's Dynamo,
- * which resolves a C data descriptor by calling it, traces the Python method (it cannot trace
- * C), and the fallback tries the kernel itself for NumPy arrays. */
+ * Tools that trace Python rather than run it (torch.compile's Dynamo) cannot enter this C call:
+ * for them the type's dict holds a __get__ written in Python (expose_get) that binds the Python
+ * fallback instead, which they trace. The interpreter never uses that entry (it calls the C
+ * slots), so calls keep their speed, and a non-data method descriptor keeps CPython's
+ * specialised method call. */
 typedef struct {
     PyObject_HEAD PyObject *attr; /* interned name of the instance attribute holding the Kernel */
     PyObject *fallback;
@@ -600,18 +600,12 @@ static int FastMethod_init(FastMethodObject *self, PyObject *args, PyObject *kwd
     return 0;
 }
 
-/* Accessed on an instance: the Python fallback bound to it (LOAD_METHOD calls skip this; see
- * the flags); on the class, the descriptor itself. */
+/* Accessed on an instance: a bound method (LOAD_METHOD calls skip this; see the flags). */
 static PyObject *FastMethod_get(PyObject *self, PyObject *obj, PyObject *Py_UNUSED(type)) {
     if (obj == NULL || obj == Py_None) return Py_NewRef(self);
-    return PyMethod_New(((FastMethodObject *)self)->fallback, obj);
+    return PyMethod_New(self, obj);
 }
 
-/* A data descriptor (so that attribute lookups, Dynamo's included, call __get__), read-only. */
-static int FastMethod_set(PyObject *self, PyObject *Py_UNUSED(obj), PyObject *Py_UNUSED(value)) {
-    PyErr_Format(PyExc_AttributeError, "%R is a method; it cannot be set or deleted", self);
-    return -1;
-}
 
 static int FastMethod_traverse(FastMethodObject *self, visitproc visit, void *arg) {
     Py_VISIT(self->attr);
@@ -657,12 +651,24 @@ static PyTypeObject FastMethodType = {
     .tp_traverse = (traverseproc)FastMethod_traverse,
     .tp_clear = (inquiry)FastMethod_clear,
     .tp_descr_get = FastMethod_get,
-    .tp_descr_set = FastMethod_set,
     .tp_getset = FastMethod_getset,
     .tp_dictoffset = offsetof(FastMethodObject, dict),
     .tp_init = (initproc)FastMethod_init,
     .tp_new = PyType_GenericNew,
 };
+
+/* expose_get(func): FastMethod.__get__ as Python code sees it (the type's dict), for tools that
+ * trace Python and not C (torch.compile's Dynamo traces a descriptor whose type has a Python
+ * __get__): func binds the Python fallback. The interpreter keeps calling the C slot. */
+static PyObject *expose_get(PyObject *Py_UNUSED(mod), PyObject *func) {
+    if (!PyCallable_Check(func)) {
+        PyErr_SetString(PyExc_TypeError, "expose_get(func): func must be callable");
+        return NULL;
+    }
+    if (PyDict_SetItemString(FastMethodType.tp_dict, "__get__", func) < 0) return NULL;
+    PyType_Modified(&FastMethodType);
+    Py_RETURN_NONE;
+}
 
 static PyObject *set_threads(PyObject *Py_UNUSED(mod), PyObject *arg) {
     long n = PyLong_AsLong(arg);
@@ -699,6 +705,7 @@ static PyMethodDef module_methods[] = {
     {"get_threads", get_threads, METH_NOARGS, "get_threads() -> int"},
     {"set_width", set_width, METH_O, "set_width(n): 2, 4, 8 lanes, or 0 for the widest"},
     {"get_width", get_width, METH_NOARGS, "get_width() -> configurations per block"},
+    {"expose_get", expose_get, METH_O, "expose_get(func): FastMethod.__get__ for Python tools"},
     {NULL, NULL, 0, NULL},
 };
 

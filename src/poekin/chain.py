@@ -544,14 +544,9 @@ class Chain:
     def _fk(
         self, form_of_poe: str, q: ArrayLike, out: Any, form: Any, params: ChainParams | None
     ) -> Any:
-        """fk or fk_body for arguments the kernel has not taken as they are: a bound method's
-        NumPy call (the kernel then runs here), JAX or PyTorch arrays or ``params`` (the generic
-        path), or NumPy input to validate and convert."""
+        """fk or fk_body for arguments the kernel has not taken as they are: JAX or PyTorch
+        arrays or ``params`` (the generic path), or NumPy input to validate and convert."""
         kernel = self._space_kernel if form_of_poe == "space" else self._body_kernel
-        if params is None and type(q) is np.ndarray and kernel is not None:
-            done: FloatArray | None = kernel.run(q, out, form)
-            if done is not None:
-                return done
         if params is not None or arrays.kind_of(q) is not None:
             return self._fk_generic(form_of_poe, q, out, form, params)
         reference = self._fk_numpy if form_of_poe == "space" else self._fk_body_numpy

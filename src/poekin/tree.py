@@ -653,10 +653,6 @@ class Tree:
             inf (see :mod:`poekin.arrays`).
         """
         # the kernel has run already where it takes the arguments as they are (fast_method)
-        if params is None and type(qpos) is np.ndarray and self._kernel is not None:
-            done: FloatArray | None = self._kernel.run(qpos, out, form)  # a bound method's call
-            if done is not None:
-                return done
         if params is not None or arrays.kind_of(qpos) is not None:
             form = _fast.check_form(form)
             xp, q, like, model = self._inputs(qpos, out, params)
