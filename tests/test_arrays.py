@@ -314,6 +314,13 @@ def test_parameters_round_trip(lib: Lib, ur5e: Chain, features: Tree) -> None:
         got = lib.numpy(getattr(ur5e, method)(lib.asarray(q), params=params))
         assert_close(method, got, getattr(ur5e, method)(q), PARAM_TOL)
     assert_close("NumPy params", ur5e.fk(q, params=ur5e.parameters()), ur5e.fk(q), PARAM_TOL)
+    # a batch of models: leading axes of the parameters broadcast against q's
+    S = np.stack([ur5e.screws, ur5e.screws[[1, 0, 2, 3, 4, 5]]])
+    stacked = ChainParams(lib.asarray(S), lib.asarray(np.stack([ur5e.home] * 2)))
+    got = lib.numpy(ur5e.fk(lib.asarray(q[:2]), params=stacked))
+    for k in range(2):
+        expected = ur5e.fk(q[k], params=ChainParams(S[k], ur5e.home))
+        assert_close(f"model {k} of a batch", got[k], expected, PARAM_TOL)
     rebuilt = ur5e.with_parameters(params)
     assert np.array_equal(rebuilt.screws, ur5e.screws) and rebuilt.joint_names == ur5e.joint_names
     qpos = sample_qpos(features, 5, seed=16)
