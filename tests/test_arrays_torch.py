@@ -97,6 +97,8 @@ def test_compile_fullgraph_has_no_graph_break(torch: Any, ur5e: Chain, go2: Tree
         return go2.fk(qpos, form="pos_quat"), go2.jacobian(qpos, "FL_calf")
 
     got = torch.compile(tree, fullgraph=True, backend="eager")(qpos)
+    bound = torch.compile(go2.fk, fullgraph=True, backend="eager")  # a bound method itself
+    assert_close("compiled go2.fk", bound(qpos).numpy(), go2.fk(qpos.numpy()), LIB_TOL)
     assert_close("tree.fk", got[0].numpy(), go2.fk(qpos.numpy(), form="pos_quat"), LIB_TOL)
     assert_close("tree.jacobian", got[1].numpy(), go2.jacobian(qpos.numpy(), "FL_calf"), LIB_TOL)
 

@@ -501,9 +501,10 @@ def test_a_kernel_refuses_operations_out_of_range() -> None:
         _fast._kernel.Kernel(ops, np.zeros(1), 0, 1, 1, False)
 
 
-def test_python_sees_a_get_that_binds_the_python_method(ur5e: Chain) -> None:
-    """Tools that trace Python (torch.compile) read FastMethod.__get__ from the type: it binds
-    the Python method, which gives the kernel's results; the interpreter keeps the C slot."""
+def test_python_sees_a_get_and_call_of_the_python_method(ur5e: Chain) -> None:
+    """Tools that trace Python (torch.compile) read FastMethod.__get__ and __call__ from the
+    type: they bind and call the Python method, which gives the kernel's results; the
+    interpreter keeps the C slots."""
     if not poekin.compiled_kernel():
         pytest.skip("no compiled kernel")
     q = np.random.default_rng(18).uniform(-6, 6, (3, 6))
@@ -513,4 +514,5 @@ def test_python_sees_a_get_that_binds_the_python_method(ur5e: Chain) -> None:
         assert python.__func__ is method.__wrapped__ and python.__self__ is ur5e
         assert type(method).__get__(method, None, Chain) is method
         assert np.array_equal(python(q), getattr(ur5e, name)(q))
+        assert np.array_equal(type(method).__call__(method, ur5e, q), python(q))
         assert isinstance(getattr(ur5e, name).__func__, poekin._kernel.FastMethod)

@@ -70,8 +70,9 @@ def fast_method(kernel_attr: str) -> Callable[[_Method], _Method]:
     function is returned as it is.
 
     A Python method around the kernel costs a frame per call: 8-18% of a single UR5e call.
-    torch.compile traces Python, not C: it sees the Python ``__get__`` that :func:`_traceable_get`
-    puts in the descriptor's type, and traces the decorated function. (Making the descriptor a
+    torch.compile traces Python, not C: it sees the Python ``__get__`` and ``__call__``
+    (:func:`_traceable_get`, :func:`_traceable_call`) put in the descriptor's type, and traces
+    the decorated function. (Making the descriptor a
     data descriptor, which Dynamo resolves by calling it, cost ~7% of every single call
     instead: CPython does not specialise a data descriptor's method call.)
     """
@@ -96,8 +97,14 @@ def _traceable_get(method: Any, obj: object, owner: type | None = None) -> Any:
     return method.__wrapped__.__get__(obj, owner)
 
 
+def _traceable_call(method: Any, *args: Any, **kwargs: Any) -> Any:
+    """``FastMethod.__call__`` as Python code sees it (``torch.compile(obj.m)`` traces the call
+    of the bound C descriptor): the decorated function, called as given."""
+    return method.__wrapped__(*args, **kwargs)
+
+
 if _kernel is not None:
-    _kernel.expose_get(_traceable_get)
+    _kernel.expose_python(_traceable_get, _traceable_call)
 
 
 def _default_threads() -> int:

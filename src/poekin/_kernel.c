@@ -522,8 +522,8 @@ static PyTypeObject KernelType = {
  * calls are as fast as the kernel's own.
  *
  * Tools that trace Python rather than run it (torch.compile's Dynamo) cannot enter this C call:
- * for them the type's dict holds a __get__ written in Python (expose_get) that binds the Python
- * fallback instead, which they trace. The interpreter never uses that entry (it calls the C
+ * for them the type's dict holds a __get__ and a __call__ written in Python (expose_python) that
+ * bind and call the Python fallback instead, which they trace. The interpreter never uses that entry (it calls the C
  * slots), so calls keep their speed, and a non-data method descriptor keeps CPython's
  * specialised method call. */
 typedef struct {
@@ -657,15 +657,20 @@ static PyTypeObject FastMethodType = {
     .tp_new = PyType_GenericNew,
 };
 
-/* expose_get(func): FastMethod.__get__ as Python code sees it (the type's dict), for tools that
- * trace Python and not C (torch.compile's Dynamo traces a descriptor whose type has a Python
- * __get__): func binds the Python fallback. The interpreter keeps calling the C slot. */
-static PyObject *expose_get(PyObject *Py_UNUSED(mod), PyObject *func) {
-    if (!PyCallable_Check(func)) {
-        PyErr_SetString(PyExc_TypeError, "expose_get(func): func must be callable");
+/* expose_python(get, call): FastMethod's __get__ and __call__ as Python code sees them (the
+ * type's dict), for tools that trace Python and not C: torch.compile's Dynamo traces a descriptor
+ * whose type has a Python __get__, and a callable whose type has a Python __call__. get binds the
+ * Python fallback, call calls it. The interpreter keeps calling the C slots. */
+static PyObject *expose_python(PyObject *Py_UNUSED(mod), PyObject *args) {
+    PyObject *get, *call;
+    if (!PyArg_ParseTuple(args, "OO:expose_python", &get, &call)) return NULL;
+    if (!PyCallable_Check(get) || !PyCallable_Check(call)) {
+        PyErr_SetString(PyExc_TypeError, "expose_python(get, call): both must be callable");
         return NULL;
     }
-    if (PyDict_SetItemString(FastMethodType.tp_dict, "__get__", func) < 0) return NULL;
+    if (PyDict_SetItemString(FastMethodType.tp_dict, "__get__", get) < 0 ||
+        PyDict_SetItemString(FastMethodType.tp_dict, "__call__", call) < 0)
+        return NULL;
     PyType_Modified(&FastMethodType);
     Py_RETURN_NONE;
 }
@@ -705,7 +710,8 @@ static PyMethodDef module_methods[] = {
     {"get_threads", get_threads, METH_NOARGS, "get_threads() -> int"},
     {"set_width", set_width, METH_O, "set_width(n): 2, 4, 8 lanes, or 0 for the widest"},
     {"get_width", get_width, METH_NOARGS, "get_width() -> configurations per block"},
-    {"expose_get", expose_get, METH_O, "expose_get(func): FastMethod.__get__ for Python tools"},
+    {"expose_python", expose_python, METH_VARARGS,
+     "expose_python(get, call): FastMethod's __get__ and __call__ for tools that trace Python"},
     {NULL, NULL, 0, NULL},
 };
 
