@@ -113,8 +113,8 @@ def convert(x: Any, xp: Any, dtype: Any, like: Any) -> Any:
         return x if x.dtype == dtype else xp.astype(x, dtype)
     if xp is np:
         return np.asarray(x, dtype=dtype)
-    if hasattr(like, "device") and kind_of(like) == "torch":
-        return xp.asarray(np.asarray(x), dtype=dtype, device=like.device)
+    if kind_of(like) == "torch":  # a copy: torch would warn of a read-only array's view
+        return xp.asarray(np.asarray(x), dtype=dtype, device=like.device, copy=True)
     return xp.asarray(np.asarray(x), dtype=dtype)
 
 
