@@ -2,10 +2,14 @@
 
 from __future__ import annotations
 
+import importlib
+import os
 import warnings
+from typing import Any
 
 import mujoco
 import numpy as np
+import pytest
 from numpy.typing import ArrayLike
 
 import poekin
@@ -68,3 +72,12 @@ def mj_frame_pose(model: mujoco.MjModel, data: mujoco.MjData, kind: str, fid: in
         T[:3, :3] = data.xmat[fid].reshape(3, 3)
         T[:3, 3] = data.xpos[fid]
     return T
+
+
+def import_extra(module: str) -> Any:
+    """``module`` (JAX, PyTorch, array-api-compat), or skip the test without it; with
+    ``POEKIN_REQUIRE_EXTRAS=1`` (CI) a missing one fails instead, so the array-library tests
+    cannot silently not run."""
+    if os.environ.get("POEKIN_REQUIRE_EXTRAS") == "1":
+        return importlib.import_module(module)
+    return pytest.importorskip(module)

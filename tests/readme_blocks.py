@@ -95,6 +95,16 @@ def commands(block: Block) -> list[tuple[str, list[str]]]:
 # --- running -----------------------------------------------------------------------------------
 
 
+def scratch(folder: pathlib.Path) -> pathlib.Path:
+    """``folder`` set up as a reader's checkout for README's commands: ``examples/`` and
+    ``benchmarks/`` link to this checkout's, and what the commands write stays in ``folder``."""
+    for name in ("examples", "benchmarks"):
+        link = folder / name
+        if not link.exists():
+            link.symlink_to(REPO / name, target_is_directory=True)
+    return folder
+
+
 @contextlib.contextmanager
 def environment(offline: bool, scratch: pathlib.Path) -> Iterator[None]:
     """Variables for a block: offline (no MENAGERIE_ROOT, no cache, nowhere to download from)."""
@@ -227,5 +237,5 @@ if __name__ == "__main__":
     import conftest  # noqa: F401  MENAGERIE_ROOT as the tests set it
 
     with tempfile.TemporaryDirectory() as folder:
-        README.write_text(update(pathlib.Path(folder)))
+        README.write_text(update(scratch(pathlib.Path(folder))))
     print(f"updated {README}")

@@ -533,3 +533,20 @@ def test_a_kernel_refuses_operations_out_of_range() -> None:
     ops = np.array([[_fast._LOAD, 0, 0, 5]], dtype=np.int32)  # slot 5 of 1
     with pytest.raises(ValueError, match="operation 0 is out of range"):
         _fast._kernel.Kernel(ops, np.zeros(1), 0, 1, 1, False)
+
+
+def test_python_sees_a_get_and_call_of_the_python_method(ur5e: Chain) -> None:
+    """Tools that trace Python (torch.compile) read FastMethod.__get__ and __call__ from the
+    type: they bind and call the Python method, which gives the kernel's results; the
+    interpreter keeps the C slots."""
+    if not poekin.compiled_kernel():
+        pytest.skip("no compiled kernel")
+    q = np.random.default_rng(18).uniform(-6, 6, (3, 6))
+    for name in ("fk", "fk_body", "jacobian_world"):
+        method = getattr(Chain, name)
+        python = type(method).__get__(method, ur5e, Chain)
+        assert python.__func__ is method.__wrapped__ and python.__self__ is ur5e
+        assert type(method).__get__(method, None, Chain) is method
+        assert np.array_equal(python(q), getattr(ur5e, name)(q))
+        assert np.array_equal(type(method).__call__(method, ur5e, q), python(q))
+        assert isinstance(getattr(ur5e, name).__func__, poekin._kernel.FastMethod)

@@ -5,22 +5,28 @@ A hypothesis strategy writes models nobody planned for: 1-4 branches of 1-12 bod
 branch hung off the world or off a body already made; hinge, slide, ball and free joints with
 random (non-unit) axes, anchors and refs; body frames as pos with quat, euler (any sequence),
 axisangle, xyaxes or zaxis, in radians or degrees; default classes with childclass; sites.
-``POEKIN_FUZZ_EXAMPLES`` sets how many (200 by default; issue #6's slow run used 5,000). A model
-that fails is written to ``POEKIN_FUZZ_FAILURES`` (default: a ``poekin-fuzz-failures`` folder in
-the system's temporary directory) and the assertion names the file.
+Each model is also evaluated with a randomly drawn array library (NumPy, JAX or PyTorch, those
+installed; all three where ``POEKIN_REQUIRE_EXTRAS=1``), whose float64 results must equal the
+NumPy path's to 1e-15 per metre of reach. ``POEKIN_FUZZ_EXAMPLES`` sets how many (200 by
+default; issue #6's slow run used 5,000). A model that fails is written to
+``POEKIN_FUZZ_FAILURES`` (default: a ``poekin-fuzz-failures`` folder in the system's temporary
+directory) and the assertion names the file.
 """
 
 from __future__ import annotations
 
 import hashlib
+import importlib.util
 import os
 import pathlib
 import tempfile
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
+from typing import Any
 
 import mujoco
 import numpy as np
 import pytest
+from array_libs import load
 from helpers import assert_close
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
@@ -36,6 +42,13 @@ from poekin.verify import sample_qpos
 FUZZ_TOL = 1e-12
 EXAMPLES = int(os.environ.get("POEKIN_FUZZ_EXAMPLES", "200"))
 QPOS_PER_MODEL = 16
+# JAX / PyTorch vs the NumPy path: as tests/test_arrays.py, per metre the frames reach.
+LIB_TOL = 1e-15
+LIBRARIES = ["numpy"] + [
+    name
+    for name in ("jax", "torch")
+    if os.environ.get("POEKIN_REQUIRE_EXTRAS") == "1" or importlib.util.find_spec(name) is not None
+]
 FAILURES = pathlib.Path(
     os.environ.get(
         "POEKIN_FUZZ_FAILURES", pathlib.Path(tempfile.gettempdir()) / "poekin-fuzz-failures"
@@ -168,12 +181,24 @@ def _save(xml: str, folder: pathlib.Path = FAILURES) -> pathlib.Path:
     return path
 
 
-def _check(xml: str, seed: int) -> None:
+def _in(library: str) -> tuple[Callable[[np.ndarray], Any], Callable[[Any], np.ndarray]]:
+    """To and from ``library``'s float64 arrays (identity for NumPy)."""
+    if library == "numpy":
+        return (lambda x: x), np.asarray
+    lib = load(library)
+    return lib.asarray, lib.numpy
+
+
+def _check(xml: str, seed: int, library: str = "numpy") -> None:
     model = mujoco.MjModel.from_xml_string(xml)
     tree = tree_from_model(model)
     qpos = sample_qpos(tree, QPOS_PER_MODEL, seed=seed)
     expected = mj_frames(model, qpos)
     got = tree.fk(qpos)
+    to, back = _in(library)
+    tol = LIB_TOL * max(1.0, float(np.abs(got[..., :3, 3]).max()))
+    if library != "numpy":
+        assert_close(f"{library} tree.fk", back(tree.fk(to(qpos))), got, tol)
     for f, name in enumerate(tree.frame_names):
         assert_close(f"tree.fk {name}", got[:, f], expected[:, f], FUZZ_TOL)
         try:
@@ -181,8 +206,12 @@ def _check(xml: str, seed: int) -> None:
         except ModelError:  # a ball or free joint on the path: no PoE chain
             continue
         q = qpos[:, list(chain.qpos_indices or ())]
-        assert_close(f"chain.fk {name}", chain.fk(q), expected[:, f], FUZZ_TOL)
-        assert_close(f"chain.fk_body {name}", chain.fk_body(q), expected[:, f], FUZZ_TOL)
+        for method in ("fk", "fk_body"):
+            T = getattr(chain, method)(q)
+            assert_close(f"chain.{method} {name}", T, expected[:, f], FUZZ_TOL)
+            if library != "numpy":
+                got_lib = back(getattr(chain, method)(to(q)))
+                assert_close(f"{library} chain.{method} {name}", got_lib, T, 2 * tol)
 
 
 @settings(
@@ -190,12 +219,13 @@ def _check(xml: str, seed: int) -> None:
     deadline=None,
     suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large],
 )
-@given(xml=mjcf_trees(), seed=st.integers(0, 2**32 - 1))
-def test_random_models_match_mj_kinematics(xml: str, seed: int) -> None:
+@given(xml=mjcf_trees(), seed=st.integers(0, 2**32 - 1), library=st.sampled_from(LIBRARIES))
+def test_random_models_match_mj_kinematics(xml: str, seed: int, library: str) -> None:
     try:
-        _check(xml, seed)
+        _check(xml, seed, library)
     except AssertionError as e:
-        raise AssertionError(f"{e}\nthe model is saved in {_save(xml)} (qpos seed {seed})") from e
+        where = f"{_save(xml)} (qpos seed {seed}, {library})"
+        raise AssertionError(f"{e}\nthe model is saved in {where}") from e
 
 
 def test_a_failing_model_is_saved(tmp_path: pathlib.Path) -> None:

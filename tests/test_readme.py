@@ -65,6 +65,7 @@ def test_python_blocks_run() -> None:
 
 def test_console_and_bash_blocks_print_what_readme_shows(tmp_path: pathlib.Path) -> None:
     """Run in README's order in one folder, as a reader following along would."""
+    rb.scratch(tmp_path)
     failures = []
     for block in ALL:
         if block.kind not in ("console", "bash") or block.directive in ("ci", "not run"):

@@ -15,7 +15,7 @@ scene as a matplotlib figure) are imported when first used, so ``import poekin``
 from typing import TYPE_CHECKING, Any
 
 from poekin._fast import Form, SlowPathWarning, compiled_kernel, get_threads, set_threads
-from poekin.chain import Chain, JointType
+from poekin.chain import Chain, ChainParams, JointType
 from poekin.dh import DHTable, dh_from_chain
 from poekin.diagnose import Diagnosis, diagnose
 from poekin.errors import (
@@ -68,7 +68,7 @@ from poekin.params import (
     ur5e_chain,
 )
 from poekin.sources import AssetsStrippedWarning, LoadedModel, MuJoCoWarning, load_model
-from poekin.tree import Mimic, Tree, TreeJointType
+from poekin.tree import Mimic, Tree, TreeJointType, TreeParams
 from poekin.verify import VerifyReport, pose_errors, sample_joint_values, sample_qpos, verify
 
 if TYPE_CHECKING:
@@ -85,6 +85,7 @@ __all__ = [
     "UR5_DH",
     "AssetsStrippedWarning",
     "Chain",
+    "ChainParams",
     "DHTable",
     "Diagnosis",
     "Form",
@@ -101,6 +102,7 @@ __all__ = [
     "SlowPathWarning",
     "Tree",
     "TreeJointType",
+    "TreeParams",
     "URDFError",
     "URDFLimitsWarning",
     "UnitWarning",

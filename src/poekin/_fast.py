@@ -35,6 +35,7 @@ __all__ = [
     "Form",
     "SlowPathWarning",
     "TreeSpec",
+    "check_form",
     "compiled_kernel",
     "evaluate",
     "fast_method",
@@ -98,23 +99,49 @@ _Method = TypeVar("_Method", bound=Callable[..., Any])
 
 
 def fast_method(kernel_attr: str) -> Callable[[_Method], _Method]:
-    """Decorator for a method ``m(self, q, out=None, form="4x4")`` or ``m(self, q)``: a call
-    first runs ``getattr(self, kernel_attr).run(q, out, form)`` in C, and runs the decorated
-    function only when that attribute is None or the kernel answers None (arguments to
-    validate, convert or refuse). Without the compiled kernel the function is returned as it is.
+    """Decorator for a method ``m(self, q, out=None, form="4x4", params=None)`` or
+    ``m(self, q, params=None)``: a call ``obj.m(...)`` first runs
+    ``getattr(obj, kernel_attr).run(q, out, form)`` in C, and runs the decorated function only
+    when that attribute is None, the kernel answers None (arguments to validate, convert or
+    refuse, or not NumPy arrays) or ``params`` is given. Without the compiled kernel the
+    function is returned as it is.
 
-    A Python method around the kernel costs a frame per call: 8-15% of a single UR5e call.
+    A Python method around the kernel costs a frame per call: 8-18% of a single UR5e call.
+    torch.compile traces Python, not C: it sees the Python ``__get__`` and ``__call__``
+    (:func:`_traceable_get`, :func:`_traceable_call`) put in the descriptor's type, and traces
+    the decorated function. (Making the descriptor a
+    data descriptor, which Dynamo resolves by calling it, cost ~7% of every single call
+    instead: CPython does not specialise a data descriptor's method call.)
     """
 
     def decorate(method: _Method) -> _Method:
         if _kernel is None:
             return method
-        names = tuple(inspect.signature(method).parameters)[1:]
+        names = tuple(n for n in inspect.signature(method).parameters if n != "params")[1:]
         fast = _kernel.FastMethod(kernel_attr, method, names)
         functools.update_wrapper(fast, method)
         return fast  # type: ignore[no-any-return]
 
     return decorate
+
+
+def _traceable_get(method: Any, obj: object, owner: type | None = None) -> Any:
+    """``FastMethod.__get__`` as Python code sees it, for tools that trace Python only
+    (torch.compile): the decorated function bound to ``obj``. (The interpreter uses the C
+    descriptor, which binds itself.)"""
+    if obj is None:
+        return method
+    return method.__wrapped__.__get__(obj, owner)
+
+
+def _traceable_call(method: Any, *args: Any, **kwargs: Any) -> Any:
+    """``FastMethod.__call__`` as Python code sees it (``torch.compile(obj.m)`` traces the call
+    of the bound C descriptor): the decorated function, called as given."""
+    return method.__wrapped__(*args, **kwargs)
+
+
+if _kernel is not None:
+    _kernel.expose_python(_traceable_get, _traceable_call)
 
 
 def _default_threads() -> int:
@@ -413,10 +440,10 @@ def result_shape(batch: tuple[int, ...], frames: tuple[int, ...], form: str) -> 
     return (*batch, *frames, *_FORM_SHAPES[form])
 
 
-def _check_form(form: object) -> str:
+def check_form(form: object) -> Form:
     if not isinstance(form, str) or form not in _FORM_SHAPES:
         raise InputError(f"unknown form {form!r}: {did_you_mean(str(form), list(_FORM_SHAPES))}")
-    return form
+    return form  # type: ignore[return-value]
 
 
 def _check_out(out: object, shape: tuple[int, ...]) -> None:
@@ -464,7 +491,7 @@ def evaluate(
     NumPy path (``(..., n) -> (..., *frames, 4, 4)``); ``frames`` is the result's frame axis
     (``()`` for a chain, ``(n_frames,)`` for a tree).
     """
-    form = _check_form(form)
+    form = check_form(form)
     arr = np.require(validate(q), dtype=np.float64, requirements=["C", "A"])
     shape = result_shape(arr.shape[:-1], frames, form)
     if out is not None:

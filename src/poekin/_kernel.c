@@ -516,9 +516,16 @@ static PyTypeObject KernelType = {
 /* A method whose call `obj.m(q, out, form)` (or `obj.m(q)`) first runs `getattr(obj,
  * kernel_attr).run(q, out, form)` in C, and calls the Python function `fallback(obj, ...)` with
  * the arguments as given only when there is no kernel or it answers None (arguments that need
- * validating or converting, or errors to report). names: the fallback's parameter names after
- * self, for keywords: (q, out, form) or (q,). It saves a Python frame per call: a controller's
- * single calls are as fast as the kernel's own. */
+ * validating or converting, other array libraries, or errors to report). names: the fallback's
+ * parameter names after self that the kernel takes, for keywords: (q, out, form) or (q,); any
+ * other keyword goes to the fallback. It saves a Python frame per call: a controller's single
+ * calls are as fast as the kernel's own.
+ *
+ * Tools that trace Python rather than run it (torch.compile's Dynamo) cannot enter this C call:
+ * for them the type's dict holds a __get__ and a __call__ written in Python (expose_python) that
+ * bind and call the Python fallback instead, which they trace. The interpreter never uses that entry (it calls the C
+ * slots), so calls keep their speed, and a non-data method descriptor keeps CPython's
+ * specialised method call. */
 typedef struct {
     PyObject_HEAD PyObject *attr; /* interned name of the instance attribute holding the Kernel */
     PyObject *fallback;
@@ -599,6 +606,7 @@ static PyObject *FastMethod_get(PyObject *self, PyObject *obj, PyObject *Py_UNUS
     return PyMethod_New(self, obj);
 }
 
+
 static int FastMethod_traverse(FastMethodObject *self, visitproc visit, void *arg) {
     Py_VISIT(self->attr);
     Py_VISIT(self->fallback);
@@ -649,6 +657,24 @@ static PyTypeObject FastMethodType = {
     .tp_new = PyType_GenericNew,
 };
 
+/* expose_python(get, call): FastMethod's __get__ and __call__ as Python code sees them (the
+ * type's dict), for tools that trace Python and not C: torch.compile's Dynamo traces a descriptor
+ * whose type has a Python __get__, and a callable whose type has a Python __call__. get binds the
+ * Python fallback, call calls it. The interpreter keeps calling the C slots. */
+static PyObject *expose_python(PyObject *Py_UNUSED(mod), PyObject *args) {
+    PyObject *get, *call;
+    if (!PyArg_ParseTuple(args, "OO:expose_python", &get, &call)) return NULL;
+    if (!PyCallable_Check(get) || !PyCallable_Check(call)) {
+        PyErr_SetString(PyExc_TypeError, "expose_python(get, call): both must be callable");
+        return NULL;
+    }
+    if (PyDict_SetItemString(FastMethodType.tp_dict, "__get__", get) < 0 ||
+        PyDict_SetItemString(FastMethodType.tp_dict, "__call__", call) < 0)
+        return NULL;
+    PyType_Modified(&FastMethodType);
+    Py_RETURN_NONE;
+}
+
 static PyObject *set_threads(PyObject *Py_UNUSED(mod), PyObject *arg) {
     long n = PyLong_AsLong(arg);
     if (n == -1 && PyErr_Occurred()) return NULL;
@@ -684,6 +710,8 @@ static PyMethodDef module_methods[] = {
     {"get_threads", get_threads, METH_NOARGS, "get_threads() -> int"},
     {"set_width", set_width, METH_O, "set_width(n): 2, 4, 8 lanes, or 0 for the widest"},
     {"get_width", get_width, METH_NOARGS, "get_width() -> configurations per block"},
+    {"expose_python", expose_python, METH_VARARGS,
+     "expose_python(get, call): FastMethod's __get__ and __call__ for tools that trace Python"},
     {NULL, NULL, 0, NULL},
 };
 

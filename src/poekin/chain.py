@@ -16,18 +16,20 @@ from __future__ import annotations
 
 import dataclasses
 import functools
-from typing import Any, Literal
+from collections.abc import Sequence
+from typing import Any, Literal, NamedTuple
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from poekin import _fast, lie
+from poekin import _fast, _pose, arrays, lie
 from poekin._fast import Form
 from poekin.errors import InputError, did_you_mean
 
 __all__ = [
     "JACOBIAN_CONVENTIONS",
     "Chain",
+    "ChainParams",
     "JacobianConvention",
     "JointType",
     "as_joint_values",
@@ -93,8 +95,8 @@ class _ScrewTerms:
     """Per-joint constants of ``exp([S] q)`` for unit screws ``S = [w; v]``, computed once.
 
     With ``|w| = 1`` (or ``w = 0, |v| = 1``), the rotation needs no small-angle branch
-    (:func:`poekin.lie.axis_rotation`: exact ``cos``/``sin`` entries about a coordinate axis, else
-    Rodrigues) and neither does the Murray-Li-Sastry form of the translation::
+    (exact ``cos``/``sin`` entries about a coordinate axis, else Rodrigues) and neither does the
+    Murray-Li-Sastry form of the translation::
 
         R = I + sin(q) W + (1 - cos q) W^2
         p = (r - R r) + q u,   r = w x v,   u = (w . v) w  (u = v if w = 0)
@@ -115,60 +117,190 @@ class _ScrewTerms:
         u = np.where(revolute, np.sum(w * v, axis=-1, keepdims=True) * w, v)
         return cls(w, np.cross(w, v), u)
 
+    def joints(self) -> tuple[_Screw, ...]:
+        """The screws as the reference path applies them, constants as Python floats: a joint
+        about a coordinate axis (:func:`poekin.lie.coordinate_axis`) turns by ``cos`` and
+        ``+-sin`` entries, as the kernel's AXIS operations do."""
+        out = []
+        for w, r, u in zip(self.w, self.r, self.u, strict=True):
+            W = lie.hat_so3(w)
+            out.append(
+                _Screw(
+                    axis=lie.coordinate_axis(w),
+                    prismatic=not w.any(),
+                    W=_floats(W),
+                    W2=_floats(lie.rotate_compose(W, W)),
+                    r=tuple(float(x) for x in r),  # type: ignore[arg-type]
+                    u=tuple(float(x) for x in u),  # type: ignore[arg-type]
+                )
+            )
+        return tuple(out)
 
-def _joint_factors(terms: _ScrewTerms, q: FloatArray) -> tuple[FloatArray, FloatArray]:
-    """``exp([S_i] q_i)`` of every joint as ``R (..., n, 3, 3)`` and ``p (..., n, 3)``."""
-    R_i = np.empty((*q.shape, 3, 3))
-    for i, w in enumerate(terms.w):
-        R_i[..., i, :, :] = lie.axis_rotation(w, q[..., i]) if w.any() else np.eye(3)
-    p_i = (terms.r - lie.rotate(R_i, terms.r)) + q[..., None] * terms.u
-    return R_i, p_i
+
+def _floats(M: NDArray[np.floating[Any]]) -> _pose.Mat:
+    return tuple(tuple(float(x) for x in row) for row in M)  # type: ignore[return-value]
 
 
-def space_jacobian(terms: _ScrewTerms, screws: FloatArray, q: FloatArray) -> FloatArray:
-    """``(..., 6, n)`` space Jacobian: column ``i`` is ``Ad(T_{i-1}) S_i`` with
-    ``T_{i-1} = exp([S_1] q_1) ... exp([S_{i-1}] q_{i-1})``, rows ``[w; v]``.
+@dataclasses.dataclass(frozen=True)
+class _Screw:
+    """One joint's ``exp([S] q)`` as the reference path applies it (see :class:`_ScrewTerms`).
 
-    ``Ad((R, p)) [w; v] = [R w; p x R w + R v]``; the partial products use the same joint
-    factors as :func:`poe`.
+    ``axis``: ``(k, sign)`` if ``w = sign e_k`` and the constants are the model's own (then
+    ``cos``/``sin`` entries), None for Rodrigues with ``W = [w]`` and ``W2 = W W``. Entries
+    are Python floats for a model's constants, arrays for differentiable parameters.
     """
-    R_i, p_i = _joint_factors(terms, q)
-    batch, n = q.shape[:-1], screws.shape[0]
-    J = np.empty((*batch, 6, n))
-    R: FloatArray = np.broadcast_to(np.eye(3), (*batch, 3, 3))
-    p = np.zeros((*batch, 3))
-    for i in range(n):
-        w = lie.rotate(R, screws[i, :3])
-        J[..., :3, i] = w
-        J[..., 3:, i] = np.cross(p, w) + lie.rotate(R, screws[i, 3:])
-        p = p + lie.rotate(R, p_i[..., i, :])
-        R = lie.rotate_compose(R, R_i[..., i, :, :]).astype(np.float64, copy=False)
-    return J
+
+    axis: tuple[int, float] | None
+    prismatic: bool
+    W: _pose.Mat
+    W2: _pose.Mat
+    r: _pose.Vec
+    u: _pose.Vec
+
+
+def _traced_screws(S: Sequence[Sequence[Any]], prismatic: Sequence[bool]) -> tuple[_Screw, ...]:
+    """The screws ``S`` (rows of six entries, arrays) as :class:`_Screw`, in the general form
+    only: no shortcut may depend on the values of parameters that are differentiated."""
+    out = []
+    for row, slide in zip(S, prismatic, strict=True):
+        w, v = tuple(row[:3]), tuple(row[3:])
+        W = _pose.hat(w)
+        if slide:
+            u = v
+        else:
+            wv = (w[0] * v[0] + w[1] * v[1]) + w[2] * v[2]
+            u = (wv * w[0], wv * w[1], wv * w[2])
+        out.append(_Screw(None, slide, W, _pose.mat_mat(W, W), _pose.cross(w, v), u))  # type: ignore[arg-type]
+    return tuple(out)
+
+
+def _turn(pose: _pose.Pose, screw: _Screw, th: Any, s: Any, c: Any) -> _pose.Pose:
+    """``pose exp([S] th)`` given ``s = sin th`` and ``c = cos th``: the kernel's SCREW, AXIS
+    or AXIS_PITCH operation."""
+    if screw.prismatic:  # R = I: only the point moves, by th u
+        R, p = pose
+        moved = _pose.mat_vec(R, (th * screw.u[0], th * screw.u[1], th * screw.u[2]))
+        return R, (p[0] + moved[0], p[1] + moved[1], p[2] + moved[2])
+    if screw.axis is not None:
+        k, sign = screw.axis
+        along = th * screw.u[k] if screw.u[k] != 0.0 else None  # a pitched screw advances
+        return _pose.axis_turn(pose, k, sign * s, c, screw.r, along)
+    R_j = _pose.rodrigues(screw.W, screw.W2, s, 1.0 - c)
+    t_j = _pose.about_point(R_j, screw.r)
+    t_j = (t_j[0] + th * screw.u[0], t_j[1] + th * screw.u[1], t_j[2] + th * screw.u[2])
+    return _pose.compose(pose, R_j, t_j)
+
+
+def _turns(
+    screws: Sequence[_Screw], q: Sequence[Any], xp: Any
+) -> list[tuple[_Screw, Any, Any, Any]]:
+    """Each screw with its angle, sine and cosine (computed once: :func:`_pose.sincos`)."""
+    turning = [i for i, screw in enumerate(screws) if not screw.prismatic]
+    sines, cosines = _pose.sincos([q[i] for i in turning], xp)
+    s: list[Any] = [None] * len(screws)
+    c: list[Any] = [None] * len(screws)
+    for i, si, ci in zip(turning, sines, cosines, strict=True):
+        s[i], c[i] = si, ci
+    return list(zip(screws, q, s, c, strict=True))
+
+
+def poe(
+    screws: Sequence[_Screw],
+    q: Sequence[Any],
+    xp: Any,
+    *,
+    left: _pose.Pose | None = None,
+    right: _pose.Pose | None = None,
+) -> _pose.Pose:
+    """``left exp([S_1] q_1) ... exp([S_n] q_n) right`` for unit screws, entry by entry.
+
+    The reference path for every array library; the compiled kernel does the same arithmetic
+    in the same order.
+
+    Args:
+        screws: the joints' constants, see :class:`_Screw`.
+        q: ``n`` entries, each joint's values (arrays of the batch shape).
+        xp: the arrays' namespace (``numpy`` for NumPy).
+        left, right: constant poses, or None for the identity.
+
+    Returns:
+        The pose as entries (:mod:`poekin._pose`).
+    """
+    pose: _pose.Pose = (_pose.IDENTITY, _pose.ORIGIN)
+    if left is not None:
+        pose = _pose.compose_const(pose, *left)
+    for screw, th, s, c in _turns(screws, q, xp):
+        pose = _turn(pose, screw, th, s, c)
+    if right is not None:
+        pose = _pose.compose_const(pose, *right)
+    return pose
+
+
+Column = tuple[Any, Any, Any, Any, Any, Any]
+
+
+def space_jacobian(
+    screws: Sequence[_Screw],
+    S: Sequence[Sequence[Any]],
+    q: Sequence[Any],
+    xp: Any,
+    home: _pose.Pose,
+) -> tuple[list[Column], _pose.Pose]:
+    """The space Jacobian's columns and the end pose ``T = exp([S_1] q_1) ... M``.
+
+    Column ``i`` is ``Ad(T_{i-1}) S_i = [R w; p x R w + R v]`` with ``T_{i-1} = (R, p) =
+    exp([S_1] q_1) ... exp([S_{i-1}] q_{i-1})``, rows ``[w; v]``; the partial products are
+    those of :func:`poe`.
+    """
+    pose: _pose.Pose = (_pose.IDENTITY, _pose.ORIGIN)
+    columns: list[Column] = []
+    for (screw, th, s, c), S_i in zip(_turns(screws, q, xp), S, strict=True):
+        R, p = pose
+        a = _pose.mat_vec(R, S_i[:3])
+        lever, Rv = _pose.cross(p, a), _pose.mat_vec(R, S_i[3:])
+        columns.append((*a, lever[0] + Rv[0], lever[1] + Rv[1], lever[2] + Rv[2]))
+        pose = _turn(pose, screw, th, s, c)
+    return columns, _pose.compose_const(pose, *home)
 
 
 JacobianConvention = Literal["space", "body", "world"]
 JACOBIAN_CONVENTIONS: tuple[JacobianConvention, ...] = ("space", "body", "world")
 
 
-def _columns_cross(J_w: FloatArray, p: FloatArray) -> FloatArray:
-    """``w_i x p`` for every column ``w_i`` of ``J_w (..., 3, n)`` and one ``p (..., 3)``."""
-    return np.swapaxes(np.cross(np.swapaxes(J_w, -1, -2), p[..., None, :]), -1, -2)
+def world_columns(columns: Sequence[Column], p: _pose.Vec) -> list[Column]:
+    """Space columns ``[w; v]`` as world columns ``[w; v + w x p]`` for the frame at ``p``."""
+    out = []
+    for c in columns:
+        wp = _pose.cross(c[:3], p)
+        out.append((c[0], c[1], c[2], c[3] + wp[0], c[4] + wp[1], c[5] + wp[2]))
+    return out
 
 
-def jacobian_from_world(J: FloatArray, T: FloatArray, convention: str) -> FloatArray:
-    """A world Jacobian ``J (..., 6, n)`` (rows ``[w; v_frame]``) of the frame at ``T (..., 4,
-    4)`` in ``convention``: ``"world"`` as it is, ``"space"`` ``[w; v_frame - w x p]`` (the
-    twist in the world frame), ``"body"`` both rows turned into the frame by ``R^T``."""
+def jacobian_from_world(
+    columns: Sequence[Column], pose: _pose.Pose, convention: str
+) -> list[Column]:
+    """World columns ``[w; v_frame]`` of the frame at ``pose = (R, p)`` in ``convention``:
+    ``"world"`` as they are, ``"space"`` ``[w; v_frame - w x p]`` (the twist in the world
+    frame), ``"body"`` both halves turned into the frame by ``R^T``."""
     check_jacobian_convention(convention)
     if convention == "world":
-        return J
-    if convention == "space":
-        out: FloatArray = J.copy()
-        out[..., 3:, :] = J[..., 3:, :] - _columns_cross(J[..., :3, :], T[..., :3, 3])
-        return out
-    R_t = np.swapaxes(T[..., :3, :3], -1, -2)
-    body: FloatArray = np.concatenate([R_t @ J[..., :3, :], R_t @ J[..., 3:, :]], axis=-2)
-    return body
+        return list(columns)
+    R, p = pose
+    out = []
+    for c in columns:
+        if convention == "space":
+            wp = _pose.cross(c[:3], p)
+            out.append((c[0], c[1], c[2], c[3] - wp[0], c[4] - wp[1], c[5] - wp[2]))
+        else:
+            R_t = _pose.transpose(R)
+            out.append((*_pose.mat_vec(R_t, c[:3]), *_pose.mat_vec(R_t, c[3:])))
+    return out
+
+
+def jacobian_array(columns: Sequence[Column], xp: Any, like: Any) -> Any:
+    """``(..., 6, n)`` from ``n`` columns of six entries."""
+    entries = [c[r] for r in range(6) for c in columns]
+    return _pose.stack(entries, (6, len(columns)), xp, like)
 
 
 def check_jacobian_convention(convention: object) -> None:
@@ -181,39 +313,89 @@ def check_jacobian_convention(convention: object) -> None:
         )
 
 
-def poe(
-    terms: _ScrewTerms, q: FloatArray, *, left: FloatArray | None, right: FloatArray | None
-) -> FloatArray:
-    """``left @ exp([S_1] q_1) ... exp([S_n] q_n) @ right`` for unit screws.
+def pose_of(T: Any) -> _pose.Pose:
+    """The pose entries of a ``(..., 4, 4)`` array, or of a constant ``(4, 4)`` NumPy array as
+    Python floats."""
+    if isinstance(T, np.ndarray) and T.ndim == 2:
+        T = T.tolist()
+        return (tuple(tuple(row[:3]) for row in T[:3]), tuple(row[3] for row in T[:3]))  # type: ignore[return-value]
+    return (
+        tuple(tuple(T[..., i, j] for j in range(3)) for i in range(3)),  # type: ignore[return-value]
+        tuple(T[..., i, 3] for i in range(3)),
+    )
 
-    The pure-NumPy reference path; the compiled kernel does the same arithmetic in the same
-    order.
 
-    Args:
-        terms: the screws' constants, see :class:`_ScrewTerms`.
-        q: ``(..., n)`` joint values.
-        left, right: ``(4, 4)`` constant poses, or None for the identity.
+class _Model(NamedTuple):
+    """A chain's constants as the reference path uses them."""
 
-    Returns:
-        ``(..., 4, 4)`` poses.
+    screws: tuple[_Screw, ...]  # space screws
+    rows: Sequence[Sequence[Any]]  # the space screws' six entries each (Jacobian columns)
+    home: _pose.Pose
+    body: tuple[_Screw, ...]  # body screws
+
+
+def check_shape(a: Any, trailing: tuple[int, ...], name: str) -> None:
+    """:class:`InputError` unless ``a``'s trailing axes are ``trailing``."""
+    shape = tuple(a.shape)
+    if len(shape) < len(trailing) or shape[len(shape) - len(trailing) :] != trailing:
+        expected = ", ".join(map(str, trailing))
+        raise InputError(f"{name} must have shape (..., {expected}), got {shape}")
+
+
+def zeros_like_batch(q: Any, xp: Any) -> Any:
+    """Zeros of ``q``'s batch shape (all axes but the last), dtype and device."""
+    return xp.zeros_like(q[..., 0]) if q.shape[-1] else xp.sum(q, axis=-1)
+
+
+def generic_inputs(
+    q: Any, n: int, leaves: Sequence[Any], out: Any, *, what: str = "joint values", layout: str = ""
+) -> tuple[Any, Any, Any]:
+    """The generic path's inputs: the namespace of ``q`` and the parameter ``leaves`` (JAX,
+    PyTorch, or NumPy if neither), ``q`` as an ``(..., n)`` array of it in the result's float
+    dtype (:mod:`poekin.arrays`), and zeros of the batch shape in that dtype, on that device.
+
+    NumPy values are validated as :func:`as_joint_values` does; JAX and PyTorch values only by
+    their shape (NaN and inf pass: see :mod:`poekin.arrays`).
     """
-    batch = q.shape[:-1]
-    R_i, p_i = _joint_factors(terms, q)
-    R = np.broadcast_to(np.eye(3), (*batch, 3, 3))
-    p = np.zeros((*batch, 3))
-    factors = [(R_i[..., i, :, :], p_i[..., i, :]) for i in range(terms.r.shape[0])]
-    if left is not None:
-        factors.insert(0, (left[:3, :3], left[:3, 3]))
-    if right is not None:
-        factors.append((right[:3, :3], right[:3, 3]))
-    for R_f, p_f in factors:
-        p = p + lie.rotate(R, p_f)
-        R = lie.rotate_compose(R, R_f).astype(np.float64, copy=False)
-    T = np.zeros((*batch, 4, 4))
-    T[..., :3, :3] = R
-    T[..., :3, 3] = p
-    T[..., 3, 3] = 1.0
-    return T
+    xp, kind = arrays.namespace_of([q, *leaves], "q and params")
+    if out is not None:
+        raise InputError("out= takes NumPy arrays only; JAX and PyTorch results are new arrays")
+    if kind is None:
+        for leaf in leaves:
+            if not np.all(np.isfinite(np.asarray(leaf, dtype=np.float64))):
+                raise InputError("params contain NaN or inf; every value must be finite")
+        checked = as_joint_values(q, n, what=what, layout=layout)
+        return np, checked, zeros_like_batch(checked, np)
+    anchor = next(a for a in (q, *leaves) if arrays.kind_of(a) is not None)
+    try:
+        dtype = arrays.float_dtype(xp, [q, *leaves])
+        arr = arrays.convert(q, xp, dtype, anchor)
+    except (TypeError, ValueError) as e:
+        if isinstance(e, InputError):
+            raise
+        raise InputError(f"{what} must be numbers, got {q!r:.60}") from e
+    if arr.ndim == 0 or arr.shape[-1] != n:
+        raise InputError(
+            f"expected {n} {what} (shape (..., {n})), got an array of shape {tuple(arr.shape)}"
+            + (f"; {layout}" if layout else "")
+        )
+    return xp, arr, zeros_like_batch(arr, xp)
+
+
+class ChainParams(NamedTuple):
+    """A chain's kinematic parameters as arrays of any library: leaves to differentiate.
+
+    A named tuple, so JAX (a pytree) and PyTorch (``torch.func``, ``torch.compile``,
+    ``torch.export``) take it as a container of two arrays with no registration. Leading batch
+    axes broadcast against those of ``q``.
+
+    Attributes:
+        screws: ``(..., n, 6)`` space-frame screws ``S_i = [w; v]`` at ``q = 0``.
+        home: ``(..., 4, 4)`` ``M = T_world_frame(q = 0)``.
+    """
+
+    screws: Any
+    home: Any
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
@@ -244,6 +426,7 @@ class Chain:
     body_screws: FloatArray = dataclasses.field(init=False, repr=False)
     _space: _ScrewTerms = dataclasses.field(init=False, repr=False)
     _body: _ScrewTerms = dataclasses.field(init=False, repr=False)
+    _constants: _Model = dataclasses.field(init=False, repr=False)
     _space_kernel: Any = dataclasses.field(init=False, repr=False)
     _body_kernel: Any = dataclasses.field(init=False, repr=False)
     _jacobian_space_kernel: Any = dataclasses.field(init=False, repr=False)
@@ -276,6 +459,8 @@ class Chain:
         space, body = _ScrewTerms.of(self.screws), _ScrewTerms.of(self.body_screws)
         set_(self, "_space", space)
         set_(self, "_body", body)
+        rows = [tuple(float(x) for x in row) for row in self.screws]
+        set_(self, "_constants", _Model(space.joints(), rows, pose_of(self.home), body.joints()))
         terms = dataclasses.astuple
         set_(self, "_space_kernel", _fast.chain_program(*terms(space), left=None, right=self.home))
         set_(self, "_body_kernel", _fast.chain_program(*terms(body), left=self.home, right=None))
@@ -309,62 +494,175 @@ class Chain:
         return len(self.joint_names)
 
     @_fast.fast_method("_space_kernel")
-    def fk(self, q: ArrayLike, out: FloatArray | None = None, form: Form = "4x4") -> FloatArray:
+    def fk(
+        self,
+        q: ArrayLike,
+        out: FloatArray | None = None,
+        form: Form = "4x4",
+        *,
+        params: ChainParams | None = None,
+    ) -> FloatArray:
         """Space-form PoE ``T_world_frame = exp([S_1] q_1) ... exp([S_n] q_n) M``.
 
         Args:
-            q: ``(..., n)`` joint values, as MuJoCo stores them in ``qpos`` (rad, m).
+            q: ``(..., n)`` joint values, as MuJoCo stores them in ``qpos`` (rad, m): a NumPy
+                array (or anything NumPy converts), a JAX array or a PyTorch tensor.
             out: a C-contiguous float64 array of the result's shape to write into (returned);
-                if an error is raised its contents are unspecified.
+                if an error is raised its contents are unspecified. NumPy only.
             form: ``"4x4"`` homogeneous matrices ``(..., 4, 4)``; ``"3x4"`` their top three
                 rows ``[R | p]`` ``(..., 3, 4)``; ``"pos_quat"`` ``(..., 7)`` position then
                 quaternion ``wxyz`` with ``w >= 0``.
+            params: screws and home pose to use instead of the chain's own
+                (:meth:`parameters`), e.g. JAX arrays or tensors with ``requires_grad`` to
+                differentiate with respect to them; the joint types stay the chain's.
 
         Returns:
-            The pose of ``frame`` in the world (base) frame, for each configuration.
+            The pose of ``frame`` in the world (base) frame, for each configuration: a NumPy
+            float64 array for NumPy input, else an array of ``q``'s (or ``params``') library,
+            device and float dtype (:mod:`poekin.arrays`). JAX and PyTorch values are not
+            checked for NaN or inf (that would branch on traced values or wait for a device).
         """
         # the kernel has run already where it takes the arguments as they are (fast_method)
-        kernel = self._space_kernel
-        return _fast.evaluate(kernel, q, out, form, self._joint_values, self._fk_numpy)
+        return self._fk("space", q, out, form, params)  # type: ignore[no-any-return]
 
     @_fast.fast_method("_body_kernel")
     def fk_body(
-        self, q: ArrayLike, out: FloatArray | None = None, form: Form = "4x4"
+        self,
+        q: ArrayLike,
+        out: FloatArray | None = None,
+        form: Form = "4x4",
+        *,
+        params: ChainParams | None = None,
     ) -> FloatArray:
         """Body-form PoE ``T_world_frame = M exp([B_1] q_1) ... exp([B_n] q_n)``.
 
-        Same arguments and result as :meth:`fk`; equal to it to float precision.
+        Same arguments and result as :meth:`fk`; equal to it to float precision. With
+        ``params``, ``B_i = Ad(M^-1) S_i`` of the given screws and home pose.
         """
-        kernel = self._body_kernel  # as in fk
-        return _fast.evaluate(kernel, q, out, form, self._joint_values, self._fk_body_numpy)
+        return self._fk("body", q, out, form, params)  # type: ignore[no-any-return]  # as in fk
+
+    def _fk(
+        self, form_of_poe: str, q: ArrayLike, out: Any, form: Any, params: ChainParams | None
+    ) -> Any:
+        """fk or fk_body for arguments the kernel has not taken as they are: JAX or PyTorch
+        arrays or ``params`` (the generic path), or NumPy input to validate and convert."""
+        kernel = self._space_kernel if form_of_poe == "space" else self._body_kernel
+        if params is not None or arrays.kind_of(q) is not None:
+            return self._fk_generic(form_of_poe, q, out, form, params)
+        reference = self._fk_numpy if form_of_poe == "space" else self._fk_body_numpy
+        return _fast.evaluate(kernel, q, out, form, self._joint_values, reference)
+
+    def _fk_generic(
+        self, form_of_poe: str, q: Any, out: Any, form: Any, params: ChainParams | None
+    ) -> Any:
+        form = _fast.check_form(form)
+        xp, q, like = self._inputs(q, out, params)
+        model = self._model(xp, q, params, body=form_of_poe == "body")
+        th = [q[..., i] for i in range(self.n_joints)]
+        if form_of_poe == "space":
+            pose = poe(model.screws, th, xp, right=model.home)
+        else:
+            pose = poe(model.body, th, xp, left=model.home)
+        return _pose.to_array(pose, form, xp, like)
+
+    def _inputs(self, q: Any, out: Any, params: ChainParams | None) -> tuple[Any, Any, Any]:
+        """The generic path's namespace, ``q`` as its array, and a zero array of the batch
+        shape in the result's dtype and on its device."""
+        if params is not None and not isinstance(params, ChainParams):
+            got = type(params).__name__
+            raise InputError(f"params must be a ChainParams (see chain.parameters()), got {got}")
+        leaves = () if params is None else tuple(params)
+        return generic_inputs(q, self.n_joints, leaves, out)
+
+    def _model(self, xp: Any, q: Any, params: ChainParams | None, *, body: bool) -> _Model:
+        """The chain's own constants (Python floats; coordinate-axis shortcuts), or those of
+        ``params`` converted to ``q``'s library and dtype (general formulas only, so that
+        derivatives with respect to them are right); body screws only if ``body``."""
+        if params is None:
+            return self._constants
+        n = self.n_joints
+        S = arrays.convert(params.screws, xp, q.dtype, q)
+        M = arrays.convert(params.home, xp, q.dtype, q)
+        check_shape(S, (n, 6), "params.screws")
+        check_shape(M, (4, 4), "params.home")
+        rows = [[S[..., i, j] for j in range(6)] for i in range(n)]
+        prismatic = [t == "prismatic" for t in self.joint_types]
+        home = pose_of(M)
+        body_screws: tuple[_Screw, ...] = ()
+        if body:  # B_i = Ad(M^-1) S_i = [R^T w; R^T (v + w x p)]
+            R_t = _pose.transpose(home[0])
+            B = []
+            for row in rows:
+                w, v = row[:3], row[3:]
+                wp = _pose.cross(w, home[1])
+                moved = (v[0] + wp[0], v[1] + wp[1], v[2] + wp[2])
+                B.append([*_pose.mat_vec(R_t, w), *_pose.mat_vec(R_t, moved)])
+            body_screws = _traced_screws(B, prismatic)
+        return _Model(_traced_screws(rows, prismatic), rows, home, body_screws)
+
+    def parameters(self, like: Any = None) -> ChainParams:
+        """The screws and home pose as :class:`ChainParams`: read-only NumPy arrays, or, with
+        ``like`` (a JAX array or PyTorch tensor), new arrays of its library, float dtype and
+        device, ready to differentiate (``jax.grad``; ``requires_grad_()``) and to pass to
+        :meth:`fk`, :meth:`fk_body` or the Jacobians as ``params``."""
+        if like is None:
+            return ChainParams(self.screws, self.home)
+        xp, _ = arrays.namespace_of([like])
+        dtype = arrays.float_dtype(xp, [like])
+        return ChainParams(*(arrays.convert(a, xp, dtype, like) for a in (self.screws, self.home)))
+
+    def with_parameters(self, params: ChainParams) -> Chain:
+        """A new chain with the screws and home pose of ``params`` (arrays of any library,
+        copied to NumPy float64), the rest (names, types, limits, frame) this chain's. It is
+        validated as any chain is: unit screw axes, a rigid home pose.
+
+        Raises:
+            InputError: invalid parameters, or traced values (inside ``jit``, ``grad``...).
+        """
+        if not isinstance(params, ChainParams):
+            raise InputError(f"params must be a ChainParams, got {type(params).__name__}")
+        return dataclasses.replace(
+            self,
+            screws=arrays.as_numpy(params.screws, "params.screws"),
+            home=arrays.as_numpy(params.home, "params.home"),
+        )
 
     @_fast.fast_method("_jacobian_space_kernel")
-    def jacobian_space(self, q: ArrayLike) -> FloatArray:
+    def jacobian_space(self, q: ArrayLike, *, params: ChainParams | None = None) -> FloatArray:
         """Space Jacobian ``J_s(q)``, ``(..., 6, n)``, rows ``[w; v]``: ``J_s q_dot`` is the end
         frame's twist in the world frame (Modern Robotics' ``JacobianSpace``; column ``i`` is
         ``Ad(T_{i-1}) S_i``). ``v`` is the velocity of the point at the world origin moving with
         the end frame, not of the frame's origin: see :meth:`jacobian_world` for that.
+
+        ``q`` and ``params`` as for :meth:`fk`; the result in ``q``'s library, as there.
         """
-        return self._jacobian("space", q)
+        return self._jacobian("space", q, params)
 
     @_fast.fast_method("_jacobian_body_kernel")
-    def jacobian_body(self, q: ArrayLike) -> FloatArray:
+    def jacobian_body(self, q: ArrayLike, *, params: ChainParams | None = None) -> FloatArray:
         """Body Jacobian ``J_b(q) = Ad(T^-1) J_s(q)``, ``(..., 6, n)``, rows ``[w; v]``: the end
         frame's twist in the end frame itself (Modern Robotics' ``JacobianBody``). It is
         :meth:`jacobian_world` with both rows turned into the end frame, ``R^T``."""
-        return self._jacobian("body", q)
+        return self._jacobian("body", q, params)
 
     @_fast.fast_method("_jacobian_world_kernel")
-    def jacobian_world(self, q: ArrayLike) -> FloatArray:
+    def jacobian_world(self, q: ArrayLike, *, params: ChainParams | None = None) -> FloatArray:
         """World Jacobian, ``(..., 6, n)``, rows ``[w; v_frame]``, both in world coordinates:
         ``v_frame = v + w x p`` is the velocity of the end frame's origin ``p``. This is what
         MuJoCo's ``mj_jacSite``/``mj_jacBody`` return (as ``jacr``, ``jacp``) and Pinocchio's
         ``LOCAL_WORLD_ALIGNED`` (with its rows in the other order, ``[v; w]``)."""
-        return self._jacobian("world", q)
+        return self._jacobian("world", q, params)
 
-    def _jacobian(self, convention: str, q: ArrayLike) -> FloatArray:
+    def _jacobian(self, convention: str, q: ArrayLike, params: ChainParams | None) -> FloatArray:
         """The compiled kernel's Jacobian for ``q`` to validate or convert first (the methods
-        have tried the kernel on ``q`` as it is: fast_method), or the NumPy reference's."""
+        have tried the kernel on ``q`` as it is: fast_method), the generic path's for JAX and
+        PyTorch arrays or ``params``, or the NumPy reference's without a kernel."""
+        if params is not None or arrays.kind_of(q) is not None:
+            xp, q, like = self._inputs(q, None, params)
+            columns = self._jacobian_columns(
+                convention, self._model(xp, q, params, body=False), q, xp
+            )
+            return jacobian_array(columns, xp, like)  # type: ignore[no-any-return]
         kernel = getattr(self, f"_jacobian_{convention}_kernel")
         return _fast.run_checked(
             kernel,
@@ -373,26 +671,33 @@ class Chain:
             functools.partial(self._jacobian_numpy, convention),
         )
 
-    def _jacobian_numpy(self, convention: str, q: FloatArray) -> FloatArray:
-        """The Jacobians' pure-NumPy reference path, for validated float64 ``q``."""
-        J = space_jacobian(self._space, self.screws, q)
+    def _jacobian_columns(self, convention: str, model: _Model, q: Any, xp: Any) -> list[Column]:
+        th = [q[..., i] for i in range(self.n_joints)]
+        columns, end = space_jacobian(model.screws, model.rows, th, xp, model.home)
         if convention == "space":
-            return J
-        T = self._fk_numpy(q)
-        J[..., 3:, :] = J[..., 3:, :] + _columns_cross(J[..., :3, :], T[..., :3, 3])
-        return jacobian_from_world(J, T, convention)
+            return columns
+        return jacobian_from_world(world_columns(columns, end[1]), end, convention)
+
+    def _jacobian_numpy(self, convention: str, q: FloatArray) -> FloatArray:
+        """The Jacobians on the reference path with NumPy, for validated float64 ``q``."""
+        columns = self._jacobian_columns(convention, self._constants, q, np)
+        return jacobian_array(columns, np, zeros_like_batch(q, np))  # type: ignore[no-any-return]
 
     def _joint_values(self, q: ArrayLike) -> FloatArray:
         return as_joint_values(q, self.n_joints)
 
     def _fk_numpy(self, q: FloatArray) -> FloatArray:
-        """:meth:`fk` on the pure-NumPy reference path (the compiled kernel's specification),
+        """:meth:`fk` on the reference path with NumPy (the compiled kernel's specification),
         for float64 ``q`` of shape ``(..., n)`` that :meth:`fk` has validated."""
-        return poe(self._space, q, left=None, right=self.home)
+        th = [q[..., i] for i in range(self.n_joints)]
+        pose = poe(self._constants.screws, th, np, right=self._constants.home)
+        return _pose.to_array(pose, "4x4", np, zeros_like_batch(q, np))  # type: ignore[no-any-return]
 
     def _fk_body_numpy(self, q: FloatArray) -> FloatArray:
-        """:meth:`fk_body` on the pure-NumPy reference path (``q`` as for :meth:`_fk_numpy`)."""
-        return poe(self._body, q, left=self.home, right=None)
+        """:meth:`fk_body` on the reference path with NumPy (``q`` as for :meth:`_fk_numpy`)."""
+        th = [q[..., i] for i in range(self.n_joints)]
+        pose = poe(self._constants.body, th, np, left=self._constants.home)
+        return _pose.to_array(pose, "4x4", np, zeros_like_batch(q, np))  # type: ignore[no-any-return]
 
     def __repr__(self) -> str:
         joints = ", ".join(

@@ -9,10 +9,18 @@ Conventions
 * Every function accepts leading batch axes: vectors are ``(..., 3)`` or ``(..., 6)``,
   matrices ``(..., 3, 3)`` or ``(..., 4, 4)``; the batch axes pass through unchanged.
 * A floating input keeps its dtype (float32 in, float32 out); integer or boolean input is
-  promoted to float64. A wrong trailing shape raises :class:`~poekin.errors.InputError`.
+  promoted to float64 (NumPy) or the library's default float. A wrong trailing shape raises
+  :class:`~poekin.errors.InputError`.
+* NumPy arrays, JAX arrays and PyTorch tensors are all taken, and the result is of the
+  input's library, on its device (:mod:`poekin.arrays`): one implementation, written entry
+  by entry (:mod:`poekin._pose`) with the library's array-API namespace. NumPy input is
+  checked for NaN and inf; JAX and PyTorch input is not (no check on traced values).
 * Everything is vectorised. Branches (small angle, near pi) are chosen element-wise with
-  ``np.where`` and every division has a safe denominator, so a batch that mixes tiny,
+  ``where`` and every division has a safe denominator, so a batch that mixes tiny,
   ordinary and near-pi angles is handled correctly and emits no floating-point warnings.
+  Both sides of every ``where`` are finite and every norm has a finite gradient at zero, so
+  ``jax.grad`` and PyTorch's autograd give finite derivatives everywhere, at the identity and
+  exactly at pi included (where ``log`` jumps, so its derivative there is finite but no side's).
 
 Numerical choices
 -----------------
@@ -36,6 +44,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from poekin import _pose, arrays
 from poekin.errors import InputError
 
 __all__ = [
@@ -80,82 +89,115 @@ _SERIES_ANGLE = 0.3
 
 
 def _as_float_array(x: ArrayLike, trailing: tuple[int, ...], func: str, name: str) -> Array:
-    """``x`` as a finite floating array whose trailing shape is ``trailing``; else
-    ``InputError``."""
-    arr = np.asarray(x)
-    if arr.dtype.kind in "biu":
-        arr = arr.astype(np.float64)
-    elif arr.dtype.kind != "f":
-        raise InputError(f"{func}: {name} must be a real numeric array, got dtype {arr.dtype}")
+    """``x`` as a floating array whose trailing shape is ``trailing``; else ``InputError``.
+
+    NumPy (and anything NumPy converts) must be finite; a JAX array or PyTorch tensor stays
+    one, cast to its library's default float if it holds integers, its values unchecked."""
+    kind = arrays.kind_of(x)
+    if kind is not None:
+        xp = arrays.namespace(kind)
+        try:
+            dtype = arrays.float_dtype(xp, [x])
+        except InputError:
+            raise InputError(
+                f"{func}: {name} must be a real numeric array, got dtype {x.dtype}"  # type: ignore[union-attr]
+            ) from None
+        arr: Any = arrays.convert(x, xp, dtype, x)
+    else:
+        arr = np.asarray(x)
+        if arr.dtype.kind in "biu":
+            arr = arr.astype(np.float64)
+        elif arr.dtype.kind != "f":
+            raise InputError(f"{func}: {name} must be a real numeric array, got dtype {arr.dtype}")
     k = len(trailing)
-    if arr.ndim < k or arr.shape[arr.ndim - k :] != trailing:
+    shape = tuple(arr.shape)
+    if len(shape) < k or shape[len(shape) - k :] != trailing:
         expected = "(..., " + ", ".join(str(n) for n in trailing) + ")"
-        raise InputError(f"{func}: expected {name} of shape {expected}, got shape {arr.shape}")
-    if not np.all(np.isfinite(arr)):
+        raise InputError(f"{func}: expected {name} of shape {expected}, got shape {shape}")
+    if kind is None and not np.all(np.isfinite(arr)):
         raise InputError(f"{func}: {name} contains NaN or inf; every value must be finite")
-    return arr
+    return arr  # type: ignore[no-any-return]
 
 
-def _eye(n: int, like: Array) -> Array:
-    """``(n, n)`` identity in the dtype of ``like`` (broadcasts against batches)."""
-    return np.eye(n, dtype=like.dtype)
+def _ns(a: Any) -> Any:
+    """The namespace of an array that :func:`_as_float_array` returned."""
+    kind = arrays.kind_of(a)
+    return np if kind is None else arrays.namespace(kind)
 
 
-def _transpose(M: Array) -> Array:
-    """Swap the last two axes."""
-    return np.swapaxes(M, -1, -2)
+def _vec(v: Any) -> _pose.Vec:
+    return (v[..., 0], v[..., 1], v[..., 2])
 
 
-def _matvec(M: Array, x: Array) -> Array:
-    """Batched ``M @ x`` for ``M (..., m, n)`` and ``x (..., n)``."""
-    return (M @ x[..., None])[..., 0]
+def _mat(M: Any) -> _pose.Mat:
+    return tuple(tuple(M[..., i, j] for j in range(3)) for i in range(3))  # type: ignore[return-value]
 
 
-def _homogeneous(R: Array, p: Array) -> Array:
-    """Poses ``[[R, p], [0, 1]]`` ``(..., 4, 4)`` from ``R (..., 3, 3)`` and ``p (..., 3)``."""
-    batch = np.broadcast_shapes(R.shape[:-2], p.shape[:-1])
-    T = np.zeros((*batch, 4, 4), dtype=np.result_type(R, p))
-    T[..., :3, :3] = R
-    T[..., :3, 3] = p
-    T[..., 3, 3] = 1
-    return T
+def _zeros(entry: Any, xp: Any) -> Any:
+    """Zeros of an entry's shape, dtype and device."""
+    return xp.zeros_like(entry)
+
+
+def _vec_array(v: _pose.Vec, xp: Any, like: Any) -> Array:
+    return _pose.stack(v, (3,), xp, like)  # type: ignore[no-any-return]
+
+
+def _mat_array(R: _pose.Mat, xp: Any, like: Any) -> Array:
+    return _pose.stack([e for row in R for e in row], (3, 3), xp, like)  # type: ignore[no-any-return]
+
+
+def _atan2(xp: Any) -> Any:
+    return getattr(xp, "atan2", None) or xp.arctan2
+
+
+def _homogeneous(R: _pose.Mat, p: _pose.Vec, xp: Any, like: Any) -> Array:
+    """Poses ``[[R, p], [0, 1]]`` ``(..., 4, 4)`` from entries."""
+    return _pose.to_array((R, p), "4x4", xp, like)  # type: ignore[no-any-return]
 
 
 def homogeneous(R: ArrayLike, p: ArrayLike) -> Array:
     """Poses ``[[R, p], [0, 1]]``: ``R (..., 3, 3)``, ``p (..., 3) -> (..., 4, 4)``."""
-    return _homogeneous(
-        _as_float_array(R, (3, 3), "homogeneous", "R"), _as_float_array(p, (3,), "homogeneous", "p")
-    )
+    M = _as_float_array(R, (3, 3), "homogeneous", "R")
+    v = _as_float_array(p, (3,), "homogeneous", "p")
+    xp, _ = arrays.namespace_of([M, v], "homogeneous: R and p")
+    if xp is not np:
+        dtype = arrays.float_dtype(xp, [M, v])
+        anchor = M if arrays.kind_of(M) else v
+        M, v = arrays.convert(M, xp, dtype, anchor), arrays.convert(v, xp, dtype, anchor)
+    else:
+        dtype = np.result_type(M, v)
+        M, v = M.astype(dtype, copy=False), v.astype(dtype, copy=False)
+    return _homogeneous(_mat(M), _vec(v), xp, _zeros(M[..., 0, 0], xp))
 
 
 # --------------------------------------------------------------------------------------------
 # scalar coefficients (element-wise over t >= 0)
 
 
-def _sin_over_t(t: Array) -> Array:
+def _sin_over_t(t: Any, xp: Any = np) -> Any:
     """``sin(t)/t``."""
     small = t < _SMALL_ANGLE
     t2 = t * t
     series = 1 - t2 / 6 * (1 - t2 / 20)
-    return np.where(small, series, np.sin(t) / np.where(small, 1, t))
+    return xp.where(small, series, xp.sin(t) / xp.where(small, 1.0, t))
 
 
-def _one_minus_cos_over_t2(t: Array) -> Array:
+def _one_minus_cos_over_t2(t: Any, xp: Any = np) -> Any:
     """``(1 - cos t)/t^2``, computed as ``0.5 (sin(t/2)/(t/2))^2`` (no cancellation)."""
-    half = _sin_over_t(t / 2)
+    half = _sin_over_t(t / 2, xp)
     return half * half / 2
 
 
-def _t_minus_sin_over_t3(t: Array) -> Array:
+def _t_minus_sin_over_t3(t: Any, xp: Any = np) -> Any:
     """``(t - sin t)/t^3``."""
     small = t < _SERIES_ANGLE
     t2 = t * t
     series = 1 / 6 - t2 / 120 * (1 - t2 / 42 * (1 - t2 / 72 * (1 - t2 / 110)))
-    safe_t = np.where(small, 1, t)
-    return np.where(small, series, (safe_t - np.sin(safe_t)) / safe_t**3)
+    safe_t = xp.where(small, 1.0, t)
+    return xp.where(small, series, (safe_t - xp.sin(safe_t)) / safe_t**3)
 
 
-def _inverse_v_coefficient(t: Array) -> Array:
+def _inverse_v_coefficient(t: Any, xp: Any = np) -> Any:
     """``(1 - (t/2) cot(t/2))/t^2``: the ``W^2`` coefficient of ``V^{-1}``; 1/pi^2 at t = pi."""
     small = t < _SERIES_ANGLE
     t2 = t * t
@@ -164,19 +206,29 @@ def _inverse_v_coefficient(t: Array) -> Array:
         1 / 720
         + t2 * (1 / 30240 + t2 * (1 / 1209600 + t2 * (1 / 47900160 + t2 * 691 / 1307674368000)))
     )
-    safe_t = np.where(small, 1, t)
+    safe_t = xp.where(small, 1.0, t)
     half = safe_t / 2
-    direct = (1 - half * np.cos(half) / np.sin(half)) / (safe_t * safe_t)
-    return np.where(small, series, direct)
+    direct = (1 - half * xp.cos(half) / xp.sin(half)) / (safe_t * safe_t)
+    return xp.where(small, series, direct)
 
 
-def _t_over_sin_t(t: Array, sin_t: Array) -> Array:
+def _t_over_sin_t(t: Any, sin_t: Any, xp: Any = np) -> Any:
     """``t/sin(t)`` given both ``t`` and (a computed) ``sin t``; Taylor series near 0."""
     small = t < _SMALL_ANGLE
     t2 = t * t
     series = 1 + t2 / 6 * (1 + t2 * 7 / 60)
     # sin t is exactly 0 at t = pi; log_so3 takes the symmetric-part branch there.
-    return np.where(small, series, t / np.where(small | (sin_t == 0), 1, sin_t))
+    return xp.where(small, series, t / xp.where(small | (sin_t == 0), 1.0, sin_t))
+
+
+def _scaled(M: _pose.Mat, a: Any) -> _pose.Mat:
+    return tuple(tuple(a * e for e in row) for row in M)  # type: ignore[return-value]
+
+
+def _plus(A: _pose.Mat, B: _pose.Mat) -> _pose.Mat:
+    return tuple(
+        tuple(x + y for x, y in zip(ra, rb, strict=True)) for ra, rb in zip(A, B, strict=True)
+    )  # type: ignore[return-value]
 
 
 # --------------------------------------------------------------------------------------------
@@ -189,14 +241,12 @@ def hat_so3(omega: ArrayLike) -> Array:
     Shapes: ``omega (..., 3) -> (..., 3, 3)``.
     """
     w = _as_float_array(omega, (3,), "hat_so3", "omega")
-    x, y, z = w[..., 0], w[..., 1], w[..., 2]
-    zero = np.zeros_like(x)
-    rows = [
-        np.stack([zero, -z, y], axis=-1),
-        np.stack([z, zero, -x], axis=-1),
-        np.stack([-y, x, zero], axis=-1),
-    ]
-    return np.stack(rows, axis=-2)
+    xp = _ns(w)
+    return _mat_array(_pose.hat(_vec(w)), xp, _zeros(w[..., 0], xp))
+
+
+def _vee(M: _pose.Mat) -> _pose.Vec:
+    return ((M[2][1] - M[1][2]) / 2, (M[0][2] - M[2][0]) / 2, (M[1][0] - M[0][1]) / 2)
 
 
 def vee_so3(Omega: ArrayLike) -> Array:
@@ -205,10 +255,8 @@ def vee_so3(Omega: ArrayLike) -> Array:
     Shapes: ``Omega (..., 3, 3) -> (..., 3)``. Exact for exactly skew-symmetric input.
     """
     M = _as_float_array(Omega, (3, 3), "vee_so3", "Omega")
-    x = (M[..., 2, 1] - M[..., 1, 2]) / 2
-    y = (M[..., 0, 2] - M[..., 2, 0]) / 2
-    z = (M[..., 1, 0] - M[..., 0, 1]) / 2
-    return np.stack([x, y, z], axis=-1)
+    xp = _ns(M)
+    return _vec_array(_vee(_mat(M)), xp, _zeros(M[..., 0, 0], xp))
 
 
 def hat_se3(xi: ArrayLike) -> Array:
@@ -217,10 +265,10 @@ def hat_se3(xi: ArrayLike) -> Array:
     Shapes: ``xi (..., 6) -> (..., 4, 4)``.
     """
     x = _as_float_array(xi, (6,), "hat_se3", "xi")
-    Xi = np.zeros((*x.shape[:-1], 4, 4), dtype=x.dtype)
-    Xi[..., :3, :3] = hat_so3(x[..., :3])
-    Xi[..., :3, 3] = x[..., 3:]
-    return Xi
+    xp = _ns(x)
+    W = _pose.hat((x[..., 0], x[..., 1], x[..., 2]))
+    entries = [e for i in range(3) for e in (*W[i], x[..., 3 + i])] + [0.0] * 4
+    return _pose.stack(entries, (4, 4), xp, _zeros(x[..., 0], xp))  # type: ignore[no-any-return]
 
 
 def vee_se3(Xi: ArrayLike) -> Array:
@@ -230,11 +278,25 @@ def vee_se3(Xi: ArrayLike) -> Array:
     the upper-left block, the bottom row is ignored.
     """
     M = _as_float_array(Xi, (4, 4), "vee_se3", "Xi")
-    return np.concatenate([vee_so3(M[..., :3, :3]), M[..., :3, 3]], axis=-1)
+    xp = _ns(M)
+    entries = [*_vee(_mat(M[..., :3, :3])), M[..., 0, 3], M[..., 1, 3], M[..., 2, 3]]
+    return _pose.stack(entries, (6,), xp, _zeros(M[..., 0, 0], xp))  # type: ignore[no-any-return]
 
 
 # --------------------------------------------------------------------------------------------
 # SO(3)
+
+
+def _exp_so3(w: _pose.Vec, xp: Any) -> tuple[_pose.Mat, Any, _pose.Mat, _pose.Mat]:
+    """Rodrigues' ``R``, with ``t = |w|``, ``W`` and ``W^2`` for :func:`exp_se3`."""
+    t = _pose.norm(w, xp)
+    W = _pose.hat(w)
+    W2 = _pose.mat_mat(W, W)
+    R = _plus(
+        _plus(_pose.IDENTITY, _scaled(W, _sin_over_t(t, xp))),
+        _scaled(W2, _one_minus_cos_over_t2(t, xp)),
+    )
+    return R, t, W, W2
 
 
 def exp_so3(omega: ArrayLike) -> Array:
@@ -244,9 +306,12 @@ def exp_so3(omega: ArrayLike) -> Array:
     Shapes: ``omega (..., 3) -> (..., 3, 3)``.
     """
     w = _as_float_array(omega, (3,), "exp_so3", "omega")
-    t = np.linalg.norm(w, axis=-1)[..., None, None]
-    W = hat_so3(w)
-    return _eye(3, w) + _sin_over_t(t) * W + _one_minus_cos_over_t2(t) * (W @ W)
+    xp = _ns(w)
+    return _mat_array(_exp_so3(_vec(w), xp)[0], xp, _zeros(w[..., 0], xp))
+
+
+def _trace(M: _pose.Mat) -> Any:
+    return M[0][0] + M[1][1] + M[2][2]
 
 
 def rotation_angle(R: ArrayLike) -> Array:
@@ -257,10 +322,45 @@ def rotation_angle(R: ArrayLike) -> Array:
     Shapes: ``R (..., 3, 3) -> (...)``.
     """
     M = _as_float_array(R, (3, 3), "rotation_angle", "R")
-    sin_t = np.linalg.norm(vee_so3(M), axis=-1)
-    cos_t = (np.trace(M, axis1=-2, axis2=-1) - 1) / 2
-    angle: Array = np.arctan2(sin_t, cos_t)
+    xp = _ns(M)
+    entries = _mat(M)
+    sin_t = _pose.norm(_vee(entries), xp)
+    cos_t = (_trace(entries) - 1) / 2
+    angle: Array = _atan2(xp)(sin_t, cos_t)
     return angle
+
+
+def _log_so3(M: _pose.Mat, xp: Any) -> _pose.Vec:
+    u = _vee(M)  # sin(t) a
+    sin_t = _pose.norm(u, xp)
+    cos_t = (_trace(M) - 1) / 2
+    t = _atan2(xp)(sin_t, cos_t)
+
+    # ordinary and small angles: omega = (t / sin t) u
+    coefficient = _t_over_sin_t(t, sin_t, xp)
+    from_antisymmetric = tuple(coefficient * e for e in u)
+
+    # large angles: axis from the symmetric part, its column with the largest diagonal entry
+    B = tuple(
+        tuple((M[i][j] + M[j][i]) / 2 - (cos_t if i == j else 0.0) for j in range(3))
+        for i in range(3)
+    )
+    d = (B[0][0], B[1][1], B[2][2])
+    first = ((d[0] >= d[1]) & (d[0] >= d[2]), (d[1] > d[0]) & (d[1] >= d[2]))
+    column = tuple(
+        xp.where(first[0], B[i][0], xp.where(first[1], B[i][1], B[i][2])) for i in range(3)
+    )
+    length = _pose.norm(column, xp)
+    safe = xp.where(length > 0, length, 1.0)
+    axis = tuple(e / safe for e in column)
+    dot = (axis[0] * u[0] + axis[1] * u[1]) + axis[2] * u[2]
+    signed_t = xp.where(dot < 0, -t, t)
+    from_symmetric = tuple(signed_t * e for e in axis)
+
+    large = cos_t < 0
+    return tuple(
+        xp.where(large, s, a) for s, a in zip(from_symmetric, from_antisymmetric, strict=True)
+    )  # type: ignore[return-value]
 
 
 def log_so3(R: ArrayLike) -> Array:
@@ -273,25 +373,8 @@ def log_so3(R: ArrayLike) -> Array:
     pi). Shapes: ``R (..., 3, 3) -> (..., 3)``.
     """
     M = _as_float_array(R, (3, 3), "log_so3", "R")
-    u = vee_so3(M)  # sin(t) a
-    sin_t = np.linalg.norm(u, axis=-1)
-    cos_t = (np.trace(M, axis1=-2, axis2=-1) - 1) / 2
-    t = np.arctan2(sin_t, cos_t)
-
-    # ordinary and small angles: omega = (t / sin t) u
-    from_antisymmetric = _t_over_sin_t(t, sin_t)[..., None] * u
-
-    # large angles: axis from the symmetric part
-    B = (M + _transpose(M)) / 2 - cos_t[..., None, None] * _eye(3, M)
-    k = np.argmax(np.diagonal(B, axis1=-2, axis2=-1), axis=-1)
-    column = np.take_along_axis(B, k[..., None, None], axis=-1)[..., 0]  # B[..., :, k]
-    norm = np.linalg.norm(column, axis=-1, keepdims=True)
-    axis = column / np.where(norm > 0, norm, 1)
-    sign = np.where(np.sum(axis * u, axis=-1, keepdims=True) < 0, -1, 1).astype(M.dtype)
-    from_symmetric = (sign * t[..., None]) * axis
-
-    result: Array = np.where((cos_t < 0)[..., None], from_symmetric, from_antisymmetric)
-    return result
+    xp = _ns(M)
+    return _vec_array(_log_so3(_mat(M), xp), xp, _zeros(M[..., 0, 0], xp))
 
 
 # --------------------------------------------------------------------------------------------
@@ -306,15 +389,12 @@ def exp_se3(xi: ArrayLike) -> Array:
     Shapes: ``xi (..., 6) -> (..., 4, 4)``.
     """
     x = _as_float_array(xi, (6,), "exp_se3", "xi")
-    w, v = x[..., :3], x[..., 3:]
-    t = np.linalg.norm(w, axis=-1)[..., None, None]
-    W = hat_so3(w)
-    W2 = W @ W
-    b = _one_minus_cos_over_t2(t)
-    I3 = _eye(3, x)
-    R = I3 + _sin_over_t(t) * W + b * W2
-    V = I3 + b * W + _t_minus_sin_over_t3(t) * W2
-    return _homogeneous(R, _matvec(V, v))
+    xp = _ns(x)
+    w, v = (x[..., 0], x[..., 1], x[..., 2]), (x[..., 3], x[..., 4], x[..., 5])
+    R, t, W, W2 = _exp_so3(w, xp)
+    b = _one_minus_cos_over_t2(t, xp)
+    V = _plus(_plus(_pose.IDENTITY, _scaled(W, b)), _scaled(W2, _t_minus_sin_over_t3(t, xp)))
+    return _homogeneous(R, _pose.mat_vec(V, v), xp, _zeros(x[..., 0], xp))
 
 
 def log_se3(T: ArrayLike) -> Array:
@@ -325,11 +405,16 @@ def log_se3(T: ArrayLike) -> Array:
     Shapes: ``T (..., 4, 4) -> (..., 6)``.
     """
     M = _as_float_array(T, (4, 4), "log_se3", "T")
-    w = log_so3(M[..., :3, :3])
-    t = np.linalg.norm(w, axis=-1)[..., None, None]
-    W = hat_so3(w)
-    V_inv = _eye(3, M) - W / 2 + _inverse_v_coefficient(t) * (W @ W)
-    return np.concatenate([w, _matvec(V_inv, M[..., :3, 3])], axis=-1)
+    xp = _ns(M)
+    w = _log_so3(_mat(M[..., :3, :3]), xp)
+    t = _pose.norm(w, xp)
+    W = _pose.hat(w)
+    V_inv = _plus(
+        _plus(_pose.IDENTITY, _scaled(W, -0.5)),
+        _scaled(_pose.mat_mat(W, W), _inverse_v_coefficient(t, xp)),
+    )
+    v = _pose.mat_vec(V_inv, (M[..., 0, 3], M[..., 1, 3], M[..., 2, 3]))
+    return _pose.stack([*w, *v], (6,), xp, _zeros(M[..., 0, 0], xp))  # type: ignore[no-any-return]
 
 
 def adjoint(T: ArrayLike) -> Array:
@@ -338,26 +423,28 @@ def adjoint(T: ArrayLike) -> Array:
     ``T exp(xi) T^{-1} = exp(Ad(T) xi)``. Shapes: ``T (..., 4, 4) -> (..., 6, 6)``.
     """
     M = _as_float_array(T, (4, 4), "adjoint", "T")
-    R = M[..., :3, :3]
-    Ad = np.zeros((*M.shape[:-2], 6, 6), dtype=M.dtype)
-    Ad[..., :3, :3] = R
-    Ad[..., 3:, 3:] = R
-    Ad[..., 3:, :3] = hat_so3(M[..., :3, 3]) @ R
-    return Ad
+    xp = _ns(M)
+    R = _mat(M[..., :3, :3])
+    pR = _pose.mat_mat(_pose.hat((M[..., 0, 3], M[..., 1, 3], M[..., 2, 3])), R)
+    rows = [(*R[i], 0.0, 0.0, 0.0) for i in range(3)] + [(*pR[i], *R[i]) for i in range(3)]
+    return _pose.stack([e for row in rows for e in row], (6, 6), xp, _zeros(M[..., 0, 0], xp))  # type: ignore[no-any-return]
 
 
 def inverse(T: ArrayLike) -> Array:
     """Inverse ``[[R^T, -R^T p], [0, 1]]`` of a pose. Shapes: ``T (..., 4, 4) -> (..., 4, 4)``."""
     M = _as_float_array(T, (4, 4), "inverse", "T")
-    R_t = _transpose(M[..., :3, :3])
-    return _homogeneous(R_t, -_matvec(R_t, M[..., :3, 3]))
+    xp = _ns(M)
+    R_t = _pose.transpose(_mat(M[..., :3, :3]))
+    p = _pose.mat_vec(R_t, (M[..., 0, 3], M[..., 1, 3], M[..., 2, 3]))
+    return _homogeneous(R_t, (-p[0], -p[1], -p[2]), xp, _zeros(M[..., 0, 0], xp))
 
 
 # --------------------------------------------------------------------------------------------
 # unit quaternions, wxyz (MuJoCo's order)
 
-# MuJoCo's mjMINVAL: a quaternion shorter than this normalises to the identity.
-_QUAT_MIN_NORM = 1e-15
+
+def _quat(q: Any) -> tuple[Any, Any, Any, Any]:
+    return (q[..., 0], q[..., 1], q[..., 2], q[..., 3])
 
 
 def quat_normalize(quat: ArrayLike) -> Array:
@@ -369,13 +456,9 @@ def quat_normalize(quat: ArrayLike) -> Array:
     rotation in poekin and in ``mj_forward``. Shapes: ``(..., 4) -> (..., 4)``.
     """
     qt = _as_float_array(quat, (4,), "quat_normalize", "quat")
-    w, x, y, z = (qt[..., k : k + 1] for k in range(4))
-    norm = np.sqrt(w * w + x * x + y * y + z * z)  # summed in MuJoCo's order
-    tiny = norm < _QUAT_MIN_NORM
-    unchanged = np.abs(norm - 1) <= _QUAT_MIN_NORM
-    scaled = qt * (1 / np.where(tiny | unchanged, 1, norm))  # as MuJoCo: times 1/norm
-    identity = np.array([1, 0, 0, 0], dtype=qt.dtype)
-    return np.where(tiny, identity, scaled)
+    xp = _ns(qt)
+    unit = _pose.quat_normalize(_quat(qt), xp)
+    return _pose.stack(unit, (4,), xp, _zeros(qt[..., 0], xp))  # type: ignore[no-any-return]
 
 
 def quat_to_rotation(quat: ArrayLike) -> Array:
@@ -385,15 +468,8 @@ def quat_to_rotation(quat: ArrayLike) -> Array:
     Shapes: ``(..., 4) -> (..., 3, 3)``.
     """
     qt = _as_float_array(quat, (4,), "quat_to_rotation", "quat")
-    w, x, y, z = (qt[..., k] for k in range(4))
-    ww, xx, yy, zz = w * w, x * x, y * y, z * z
-    wx, wy, wz, xy, xz, yz = w * x, w * y, w * z, x * y, x * z, y * z
-    rows = [
-        np.stack([ww + xx - yy - zz, 2 * (xy - wz), 2 * (xz + wy)], axis=-1),
-        np.stack([2 * (xy + wz), ww - xx + yy - zz, 2 * (yz - wx)], axis=-1),
-        np.stack([2 * (xz - wy), 2 * (yz + wx), ww - xx - yy + zz], axis=-1),
-    ]
-    return np.stack(rows, axis=-2)
+    xp = _ns(qt)
+    return _mat_array(_pose.quat_matrix(_quat(qt)), xp, _zeros(qt[..., 0], xp))
 
 
 def rotation_to_quat(R: ArrayLike) -> Array:
@@ -404,49 +480,29 @@ def rotation_to_quat(R: ArrayLike) -> Array:
     Shapes: ``(..., 3, 3) -> (..., 4)``.
     """
     M = _as_float_array(R, (3, 3), "rotation_to_quat", "R")
-    d0, d1, d2 = M[..., 0, 0], M[..., 1, 1], M[..., 2, 2]
-    a = M[..., 2, 1] - M[..., 1, 2]  # 4 w x
-    b = M[..., 0, 2] - M[..., 2, 0]  # 4 w y
-    c = M[..., 1, 0] - M[..., 0, 1]  # 4 w z
-    xy = M[..., 0, 1] + M[..., 1, 0]  # 4 x y
-    xz = M[..., 0, 2] + M[..., 2, 0]  # 4 x z
-    yz = M[..., 1, 2] + M[..., 2, 1]  # 4 y z
-    diag = np.stack([1 + d0 + d1 + d2, 1 + d0 - d1 - d2, 1 - d0 + d1 - d2, 1 - d0 - d1 + d2], -1)
-    big = np.sqrt(np.maximum(diag, 0.25)) * 2  # 4 * (the chosen component); >= 1 where chosen
-    cases = np.stack(
-        [
-            np.stack([big[..., 0] / 4, a / big[..., 0], b / big[..., 0], c / big[..., 0]], -1),
-            np.stack([a / big[..., 1], big[..., 1] / 4, xy / big[..., 1], xz / big[..., 1]], -1),
-            np.stack([b / big[..., 2], xy / big[..., 2], big[..., 2] / 4, yz / big[..., 2]], -1),
-            np.stack([c / big[..., 3], xz / big[..., 3], yz / big[..., 3], big[..., 3] / 4], -1),
-        ],
-        axis=-2,
-    )
-    k = np.argmax(diag, axis=-1)[..., None, None]
-    quat = np.take_along_axis(cases, k, axis=-2)[..., 0, :]
-    out: Array = np.where(quat[..., :1] < 0, -quat, quat)
-    return out
+    xp = _ns(M)
+    quat = _pose.rotation_quat(_mat(M), xp)
+    return _pose.stack(quat, (4,), xp, _zeros(M[..., 0, 0], xp))  # type: ignore[no-any-return]
 
 
 def rotate(R: Array, v: Array) -> Array:
     """``R @ v`` for ``(..., 3, 3)`` and ``(..., 3)``, summed left to right.
 
-    The FK reference path multiplies with this and :func:`rotate_compose` rather than ``@``,
-    so its bits do not depend on the BLAS build, and the compiled kernel, which sums in the
-    same order, can be held to it. No validation: for internal use on float arrays.
+    The FK reference path multiplies with :mod:`poekin._pose`'s ``mat_vec`` and ``mat_mat``
+    rather than ``@``, so its bits do not depend on the BLAS build, and the compiled kernel,
+    which sums in the same order, can be held to it. No validation: for internal use on float
+    arrays.
     """
-    out: Array = (R[..., :, 0] * v[..., None, 0] + R[..., :, 1] * v[..., None, 1]) + R[
-        ..., :, 2
-    ] * v[..., None, 2]
-    return out
+    xp = _ns(R)
+    Rv = _pose.mat_vec(_mat(R), _vec(v))
+    return _vec_array(Rv, xp, _zeros(Rv[0], xp))
 
 
 def rotate_compose(A: Array, B: Array) -> Array:
     """``A @ B`` for ``(..., 3, 3)`` matrices, summed left to right (see :func:`rotate`)."""
-    out: Array = (
-        A[..., :, 0, None] * B[..., None, 0, :] + A[..., :, 1, None] * B[..., None, 1, :]
-    ) + A[..., :, 2, None] * B[..., None, 2, :]
-    return out
+    xp = _ns(A)
+    AB = _pose.mat_mat(_mat(A), _mat(B))
+    return _mat_array(AB, xp, _zeros(AB[0][0], xp))
 
 
 def coordinate_axis(axis: Array) -> tuple[int, float] | None:
@@ -455,7 +511,7 @@ def coordinate_axis(axis: Array) -> tuple[int, float] | None:
     Along means its other two entries are exactly zero, as MuJoCo's ``0 0 1`` or a screw
     derived from it is. Rotations about such an axis are written with ``cos`` and ``sin``
     directly (:func:`axis_rotation`) and cost the compiled kernel a third of the flops.
-    No validation: for internal use, like :func:`rotate`.
+    No validation: for internal use, like :func:`rotate`; NumPy constants only.
     """
     nonzero = np.flatnonzero(axis)
     if nonzero.size != 1:
@@ -465,29 +521,28 @@ def coordinate_axis(axis: Array) -> tuple[int, float] | None:
 
 
 def axis_rotation(axis: Array, angle: Array) -> Array:
-    """``(..., 3, 3)`` rotation by ``angle (...)`` about the unit ``axis (3,)``.
+    """``(..., 3, 3)`` rotation by ``angle (...)`` about the unit ``axis (3,)`` (a NumPy
+    constant; ``angle`` of any library).
 
     About a coordinate axis ``k`` (see :func:`coordinate_axis`) the matrix holds ``cos`` and
     ``+-sin`` exactly; about any other axis it is Rodrigues' ``I + sin W + (1 - cos) W^2``.
-    The FK reference paths build joint rotations with it; no validation.
+    No validation.
     """
+    xp = _ns(angle)
+    th = angle if xp is not np else np.asarray(angle, dtype=np.float64)
     along = coordinate_axis(axis)
     if along is None:
-        W = hat_so3(axis)
-        s = np.sin(angle)[..., None, None]
-        c = (1.0 - np.cos(angle))[..., None, None]
-        out: Array = (np.eye(3) + s * W) + c * rotate_compose(W, W)
-        return out
-    k, sign = along
-    a, b = (k + 1) % 3, (k + 2) % 3
-    s, c = sign * np.sin(angle), np.cos(angle)
-    out = np.zeros((*np.shape(angle), 3, 3))
-    out[..., k, k] = 1.0
-    out[..., a, a] = c
-    out[..., b, b] = c
-    out[..., a, b] = -s
-    out[..., b, a] = s
-    return out
+        W = _pose.hat(tuple(float(x) for x in axis))
+        R = _pose.rodrigues(W, _pose.mat_mat(W, W), xp.sin(th), 1.0 - xp.cos(th))
+    else:
+        k, sign = along
+        a, b = (k + 1) % 3, (k + 2) % 3
+        s, c = sign * xp.sin(th), xp.cos(th)
+        rows: list[list[Any]] = [[0.0] * 3 for _ in range(3)]
+        rows[k][k] = 1.0
+        rows[a][a], rows[b][b], rows[a][b], rows[b][a] = c, c, -s, s
+        R = tuple(tuple(row) for row in rows)  # type: ignore[assignment]
+    return _mat_array(R, xp, _zeros(th, xp))
 
 
 # --------------------------------------------------------------------------------------------
@@ -516,16 +571,25 @@ def matrix_exp_se3(twist: ArrayLike, theta: ArrayLike) -> Array:
     ``-> (..., 4, 4)``. A pure translation by ``v theta`` when ``w = 0``.
     """
     S = _as_float_array(twist, (6,), "matrix_exp_se3", "twist")
-    q = np.asarray(theta)
-    if q.dtype.kind not in "biuf":
-        raise InputError(f"matrix_exp_se3: theta must be a real numeric array, got {q.dtype}")
+    xp, kind = arrays.namespace_of([S, theta], "matrix_exp_se3: twist and theta")
+    if kind is None:
+        q = np.asarray(theta)
+        if q.dtype.kind not in "biuf":
+            raise InputError(f"matrix_exp_se3: theta must be a real numeric array, got {q.dtype}")
+        # a Python scalar theta must not promote a float32 twist (NEP 50 weak scalars)
+        dtype = np.result_type(S, theta if isinstance(theta, (int, float)) else q)
+        S, q = S.astype(dtype, copy=False), q.astype(dtype, copy=False)
+    else:
+        anchor = S if arrays.kind_of(S) else theta
+        weak = isinstance(theta, (int, float))
+        dtype = arrays.float_dtype(xp, [S] if weak else [S, theta])
+        S = arrays.convert(S, xp, dtype, anchor)
+        q = arrays.convert(theta, xp, dtype, anchor)
     try:
-        np.broadcast_shapes(S.shape[:-1], q.shape)
+        np.broadcast_shapes(tuple(S.shape[:-1]), tuple(q.shape))
     except ValueError:
         raise InputError(
-            f"matrix_exp_se3: expected theta broadcastable to shape {S.shape[:-1]}, "
-            f"got shape {q.shape}"
+            f"matrix_exp_se3: expected theta broadcastable to shape {tuple(S.shape[:-1])}, "
+            f"got shape {tuple(q.shape)}"
         ) from None
-    # a Python scalar theta must not promote a float32 twist (NEP 50 weak scalars)
-    dtype = np.result_type(S, theta if isinstance(theta, (int, float)) else q)
-    return exp_se3(S.astype(dtype, copy=False) * q.astype(dtype, copy=False)[..., None])
+    return exp_se3(S * q[..., None])

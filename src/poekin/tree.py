@@ -24,27 +24,31 @@ Frames: every body, then every site. A site sits at a fixed pose in its body (or
 from __future__ import annotations
 
 import dataclasses
-import functools
 from collections.abc import Sequence
-from typing import Any, Literal
+from typing import Any, Literal, NamedTuple
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from poekin import _fast, lie
+from poekin import _fast, _pose, arrays, lie
 from poekin._fast import Form
 from poekin.chain import (
     Chain,
+    Column,
     JacobianConvention,
     JointType,
     as_joint_values,
     check_jacobian_convention,
+    check_shape,
+    generic_inputs,
+    jacobian_array,
     jacobian_from_world,
     readonly_array,
+    zeros_like_batch,
 )
 from poekin.errors import InputError, ModelError, UnknownFrameError, did_you_mean
 
-__all__ = ["Mimic", "Tree", "TreeJointType"]
+__all__ = ["Mimic", "Tree", "TreeJointType", "TreeParams"]
 
 TreeJointType = Literal["revolute", "prismatic", "ball", "free"]
 FloatArray = NDArray[np.float64]
@@ -88,6 +92,137 @@ def _rotations(a: FloatArray, name: str, labels: Sequence[str]) -> None:
     for label, R in zip(labels, a, strict=True):
         if not np.allclose(R.T @ R, np.eye(3), atol=_UNIT_TOL) or np.linalg.det(R) < 0:
             raise InputError(f"{name} of {label!r} is not a rotation (orthonormal, det +1)")
+
+
+class TreeParams(NamedTuple):
+    """A tree's kinematic parameters as arrays of any library: leaves to differentiate.
+
+    A named tuple, so JAX (a pytree) and PyTorch (``torch.func``, ``torch.compile``) take it
+    with no registration. Leading batch axes broadcast against those of ``qpos``. Values are
+    used as given: a rotation that is not orthonormal or an axis that is not unit length gives
+    what the formulas make of it (:meth:`Tree.with_parameters` checks them).
+
+    Attributes:
+        body_pos: ``(..., nb, 3)`` body origins in their parents' frames (m).
+        body_rot: ``(..., nb, 3, 3)`` body orientations in their parents' frames.
+        joint_axes: ``(..., nj, 3)`` unit joint axes in their bodies' frames.
+        joint_anchors: ``(..., nj, 3)`` the points joints turn about, in their bodies' frames.
+        site_pos: ``(..., ns, 3)`` site positions in their bodies' frames.
+        site_rot: ``(..., ns, 3, 3)`` site orientations in their bodies' frames.
+    """
+
+    body_pos: Any
+    body_rot: Any
+    joint_axes: Any
+    joint_anchors: Any
+    site_pos: Any
+    site_rot: Any
+
+
+class _TreeJoint(NamedTuple):
+    """A joint as the reference path applies it; ``along``: ``(k, sign)`` for a hinge about
+    coordinate axis ``k`` of the model's own constants (turned by ``cos``/``sin`` entries)."""
+
+    kind: str
+    slot: int  # first expanded slot
+    ref: float
+    axis: _pose.Vec
+    anchor: _pose.Vec
+    along: tuple[int, float] | None
+    W: _pose.Mat  # [axis]
+    W2: _pose.Mat
+
+
+class _TreeBody(NamedTuple):
+    parent: int  # -1: the world
+    pos: _pose.Vec
+    rot: _pose.Mat
+    joints: tuple[int, ...]
+
+
+class _TreeLayout(NamedTuple):
+    """The tree's structure as Python ints and floats, for the reference path (so that tracers,
+    torch.compile's included, see constants rather than NumPy arrays)."""
+
+    slots: tuple[tuple[int, float, float], ...]  # expanded slot j: (qpos index, scale, offset)
+    dof: tuple[int, ...]  # each joint's first Jacobian column
+    scale: tuple[float, ...]  # each joint's column multiplier (a mimic's, else 1)
+    joint_body: tuple[int, ...]
+    paths: tuple[tuple[int, ...], ...]  # each frame's path joints, base to tip
+
+
+class _TreeModel(NamedTuple):
+    bodies: tuple[_TreeBody, ...]
+    joints: tuple[_TreeJoint, ...]
+    sites: tuple[tuple[int, _pose.Vec, _pose.Mat], ...]  # (body, pos, rot)
+
+
+def _floats_vec(v: FloatArray) -> _pose.Vec:
+    return (float(v[0]), float(v[1]), float(v[2]))
+
+
+def _floats_mat(R: FloatArray) -> _pose.Mat:
+    return (_floats_vec(R[0]), _floats_vec(R[1]), _floats_vec(R[2]))
+
+
+def _joint_turn(
+    pose: _pose.Pose, joint: _TreeJoint, x: Sequence[Any], axis_world: _pose.Vec, moved_by: Any
+) -> _pose.Pose:
+    """``pose`` moved by ``joint`` at expanded slots ``x`` (the kernel's HINGE, AXIS, SLIDE,
+    BALL and FREE operations). ``axis_world`` is the joint's axis in the world before it
+    moves; ``moved_by`` a hinge's ``(sin, cos)``, a ball or free joint's unit quaternion."""
+    a = joint.slot
+    if joint.kind == "free":
+        return _pose.quat_matrix(moved_by), (x[a], x[a + 1], x[a + 2])
+    if joint.kind == "ball":
+        R_j = _pose.quat_matrix(moved_by)
+        return _pose.compose(pose, R_j, _pose.about_point(R_j, joint.anchor))
+    if joint.kind == "prismatic":
+        th = x[a] - joint.ref
+        R, p = pose
+        return R, (p[0] + axis_world[0] * th, p[1] + axis_world[1] * th, p[2] + axis_world[2] * th)
+    s, c = moved_by
+    if joint.along is not None:
+        k, sign = joint.along
+        return _pose.axis_turn(pose, k, sign * s, c, joint.anchor, None)
+    R_j = _pose.rodrigues(joint.W, joint.W2, s, 1.0 - c)
+    return _pose.compose(pose, R_j, _pose.about_point(R_j, joint.anchor))
+
+
+def _joint_motions(model: _TreeModel, x: Sequence[Any], xp: Any) -> list[Any]:
+    """Each joint's ``moved_by`` for :func:`_joint_turn`, computed once (:func:`_pose.settle`):
+    a hinge's sine and cosine of ``x - ref``, a ball or free joint's quaternion normalised as
+    MuJoCo does (:func:`_pose.quat_normalize`), None for a slide."""
+    hinges = [k for k, j in enumerate(model.joints) if j.kind == "revolute"]
+    sines, cosines = _pose.sincos(
+        [x[model.joints[k].slot] - model.joints[k].ref for k in hinges], xp
+    )
+    quats = [k for k, j in enumerate(model.joints) if j.kind in ("ball", "free")]
+    unit: list[Any] = []
+    for k in quats:
+        a = model.joints[k].slot + (3 if model.joints[k].kind == "free" else 0)
+        unit.extend(_pose.quat_normalize(x[a : a + 4], xp))
+    unit = _pose.settle(unit, xp)
+    moved_by: list[Any] = [None] * len(model.joints)
+    for k, si, ci in zip(hinges, sines, cosines, strict=True):
+        moved_by[k] = (si, ci)
+    for n, k in enumerate(quats):
+        moved_by[k] = tuple(unit[4 * n : 4 * n + 4])
+    return moved_by
+
+
+def _vec_of(a: Any, i: int) -> _pose.Vec:
+    """Row ``i`` of ``(..., m, 3)`` ``a`` as entries."""
+    return (a[..., i, 0], a[..., i, 1], a[..., i, 2])
+
+
+def _mat_of(a: Any, i: int) -> _pose.Mat:
+    """Matrix ``i`` of ``(..., m, 3, 3)`` ``a`` as entries."""
+    return tuple(tuple(a[..., i, r, c] for c in range(3)) for r in range(3))  # type: ignore[return-value]
+
+
+def _add_column(column: Column, add: Sequence[Any], scale: float) -> Column:
+    return tuple(c + scale * a for c, a in zip(column, add, strict=True))  # type: ignore[return-value]
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
@@ -152,6 +287,9 @@ class Tree:
     _jacobian_kernels: dict[tuple[str, str], Any] = dataclasses.field(
         init=False, repr=False, compare=False
     )
+    _layout_text: str = dataclasses.field(init=False, repr=False, compare=False)
+    _constants: _TreeModel = dataclasses.field(init=False, repr=False, compare=False)
+    _static: _TreeLayout = dataclasses.field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         set_ = object.__setattr__
@@ -208,6 +346,20 @@ class Tree:
         set_(self, "_spec", spec)
         set_(self, "_kernel", _fast.tree_program(spec))
         set_(self, "_jacobian_kernels", {})
+        # computed now, not cached at first use: torch.compile cannot trace a cache's lock
+        set_(self, "_layout_text", self._layout_words())
+        set_(self, "_constants", self._model_constants())
+        layout = _TreeLayout(
+            slots=tuple(
+                (int(j), float(a), float(b))
+                for j, a, b in zip(self._slots, self._slot_scale, self._slot_offset, strict=True)
+            ),
+            dof=tuple(int(d) for d in self._dof_adr),
+            scale=tuple(1.0 if m is None else float(m.multiplier) for m in self.mimics),
+            joint_body=tuple(int(b) for b in self.joint_bodies),
+            paths=tuple(self.path_joints(f) for f in self.frame_names),
+        )
+        set_(self, "_static", layout)
 
     def _check_topology(self) -> None:
         if not self.body_names and not self.site_names:
@@ -361,8 +513,7 @@ class Tree:
         """The qpos layout in words: ``qpos = [base (free: x y z qw qx qy qz), j1, ...]``."""
         return self._layout_text
 
-    @functools.cached_property
-    def _layout_text(self) -> str:
+    def _layout_words(self) -> str:
         parts = [
             name if kind in ("revolute", "prismatic") else f"{name} ({kind}: {_QPOS_WORDS[kind]})"
             for name, kind, mimic in zip(
@@ -407,65 +558,129 @@ class Tree:
         """One set of slots per joint: mimic joints get ``multiplier * leader + offset``."""
         return qpos[..., self._slots] * self._slot_scale + self._slot_offset
 
-    def _body_poses(
-        self, x: FloatArray, joints_out: tuple[FloatArray, FloatArray] | None = None
-    ) -> tuple[FloatArray, FloatArray]:
-        """World ``R (..., nb + 1, 3, 3)`` and ``p (..., nb + 1, 3)`` from expanded slots ``x``.
+    def _slots_of(self, qpos: Any) -> list[Any]:
+        """:meth:`_expand` entry by entry, for any array library: slot ``j`` of ``(..., nq)``
+        ``qpos`` is ``qpos[..., slots[j]] * scale_j + offset_j``, as the kernel reads it."""
+        return [qpos[..., j] * scale + offset for j, scale, offset in self._static.slots]
 
-        Index 0 is the world, body ``b`` is at ``b + 1``. With ``joints_out = (axes, anchors)``
-        (each ``(..., nj, 3)``) the joints' world axes and anchors are written there, taken
-        before each joint moves, as MuJoCo's ``xaxis`` and ``xanchor``.
-        """
-        batch = x.shape[:-1]
-        nb = len(self.body_names)
-        R = np.empty((*batch, nb + 1, 3, 3))
-        p = np.empty((*batch, nb + 1, 3))
-        R[..., 0, :, :] = np.eye(3)
-        p[..., 0, :] = 0.0
-        slot = self._full_adr
-        rotate, compose = lie.rotate, lie.rotate_compose
-        for b in range(nb):
-            parent = self.body_parents[b] + 1
-            p_b = p[..., parent, :] + rotate(R[..., parent, :, :], self.body_pos[b])
-            R_b = compose(R[..., parent, :, :], self.body_rot[b])
-            for k in self._body_joints[b]:
-                kind, a = self.joint_types[k], slot[k]
-                axis, anchor = self.joint_axes[k], self.joint_anchors[k]
-                if joints_out is not None:
-                    joints_out[0][..., k, :] = rotate(R_b, axis)
-                    joints_out[1][..., k, :] = p_b + rotate(R_b, anchor)
-                if kind == "free":
-                    p_b = x[..., a : a + 3]
-                    R_b = lie.quat_to_rotation(lie.quat_normalize(x[..., a + 3 : a + 7]))
-                    continue
-                if kind == "prismatic":
-                    p_b = p_b + rotate(R_b, axis) * (x[..., a] - self.joint_refs[k])[..., None]
-                    continue
-                if kind == "ball":
-                    R_j = lie.quat_to_rotation(lie.quat_normalize(x[..., a : a + 4]))
-                else:
-                    R_j = lie.axis_rotation(axis, x[..., a] - self.joint_refs[k])
-                p_b = p_b + rotate(R_b, anchor - rotate(R_j, anchor))
-                R_b = compose(R_b, R_j)
-            R[..., b + 1, :, :] = R_b
-            p[..., b + 1, :] = p_b
-        return R, p
+    def _model_constants(self) -> _TreeModel:
+        """The tree's constants as Python floats, with the kernel's shortcuts (coordinate-axis
+        hinges, identity rotations)."""
+        return self._model_of(
+            [_floats_vec(v) for v in self.body_pos],
+            [_floats_mat(R) for R in self.body_rot],
+            [_floats_vec(v) for v in self.joint_axes],
+            [_floats_vec(v) for v in self.joint_anchors],
+            [_floats_vec(v) for v in self.site_pos],
+            [_floats_mat(R) for R in self.site_rot],
+            constants=True,
+        )
+
+    def _model_of(
+        self,
+        body_pos: Sequence[_pose.Vec],
+        body_rot: Sequence[_pose.Mat],
+        axes: Sequence[_pose.Vec],
+        anchors: Sequence[_pose.Vec],
+        site_pos: Sequence[_pose.Vec],
+        site_rot: Sequence[_pose.Mat],
+        *,
+        constants: bool,
+    ) -> _TreeModel:
+        """The reference path's view of the tree; ``constants``: the model's own values (so a
+        hinge about a coordinate axis may turn by ``cos``/``sin`` entries), else parameters to
+        differentiate (general formulas only)."""
+        joints = []
+        for k, kind in enumerate(self.joint_types):
+            along = lie.coordinate_axis(self.joint_axes[k]) if constants else None
+            W = _pose.hat(axes[k])
+            joints.append(
+                _TreeJoint(
+                    kind=kind,
+                    slot=int(self._full_adr[k]),
+                    ref=float(self.joint_refs[k]),
+                    axis=axes[k],
+                    anchor=anchors[k],
+                    along=along if kind == "revolute" else None,
+                    W=W,
+                    W2=_pose.mat_mat(W, W),
+                )
+            )
+        bodies = tuple(
+            _TreeBody(int(self.body_parents[b]), body_pos[b], body_rot[b], self._body_joints[b])
+            for b in range(len(self.body_names))
+        )
+        sites = tuple(
+            (int(self.site_bodies[s]), site_pos[s], site_rot[s])
+            for s in range(len(self.site_names))
+        )
+        return _TreeModel(bodies, tuple(joints), sites)
+
+    def _body_poses(
+        self, x: Sequence[Any], xp: Any, model: _TreeModel
+    ) -> tuple[list[_pose.Pose], list[_pose.Vec], list[_pose.Vec]]:
+        """World poses of every body from expanded slots ``x`` (:meth:`_slots_of`), and every
+        joint's world axis and anchor, taken before the joint moves (MuJoCo's ``xaxis`` and
+        ``xanchor``), entry by entry (:mod:`poekin._pose`)."""
+        world: _pose.Pose = (_pose.IDENTITY, _pose.ORIGIN)
+        poses: list[_pose.Pose] = []
+        axes: list[_pose.Vec] = [_pose.ORIGIN] * len(model.joints)
+        anchors: list[_pose.Vec] = [_pose.ORIGIN] * len(model.joints)
+        moved_by = _joint_motions(model, x, xp)
+        for body in model.bodies:
+            pose = world if body.parent < 0 else poses[body.parent]
+            pose = _pose.compose_const(pose, body.rot, body.pos)
+            for k in body.joints:
+                joint = model.joints[k]
+                R_b, p_b = pose
+                axes[k] = _pose.mat_vec(R_b, joint.axis)
+                turned = _pose.mat_vec(R_b, joint.anchor)
+                anchors[k] = (p_b[0] + turned[0], p_b[1] + turned[1], p_b[2] + turned[2])
+                pose = _joint_turn(pose, joint, x, axes[k], moved_by[k])
+            poses.append(pose)
+        return poses, axes, anchors
+
+    def _frames(self, bodies: Sequence[_pose.Pose], model: _TreeModel) -> list[_pose.Pose]:
+        """Body then site poses."""
+        world: _pose.Pose = (_pose.IDENTITY, _pose.ORIGIN)
+        sites = [
+            _pose.compose_const(world if parent < 0 else bodies[parent], rot, pos)
+            for parent, pos, rot in model.sites
+        ]
+        return [*bodies, *sites]
 
     @_fast.fast_method("_kernel")
-    def fk(self, qpos: ArrayLike, out: FloatArray | None = None, form: Form = "4x4") -> FloatArray:
+    def fk(
+        self,
+        qpos: ArrayLike,
+        out: FloatArray | None = None,
+        form: Form = "4x4",
+        *,
+        params: TreeParams | None = None,
+    ) -> FloatArray:
         """World poses of every frame (bodies, then sites) in one pass.
 
         Args:
-            qpos: ``(..., nq)`` in MuJoCo's qpos layout (rad, m, quaternions ``wxyz``).
+            qpos: ``(..., nq)`` in MuJoCo's qpos layout (rad, m, quaternions ``wxyz``): a NumPy
+                array (or anything NumPy converts), a JAX array or a PyTorch tensor.
             out: a C-contiguous float64 array of the result's shape to write into (returned);
-                if an error is raised its contents are unspecified.
+                if an error is raised its contents are unspecified. NumPy only.
             form: ``"4x4"``, ``"3x4"`` or ``"pos_quat"``, as for :meth:`Chain.fk`.
+            params: body offsets, joint axes and anchors, site offsets to use instead of the
+                tree's own (:meth:`parameters`), e.g. to differentiate with respect to them.
 
         Returns:
             ``(..., n_frames, 4, 4)`` (or ``(..., n_frames, 3, 4)``, ``(..., n_frames, 7)``):
-            ``T_world_frame`` for each of :attr:`frame_names`.
+            ``T_world_frame`` for each of :attr:`frame_names`; a NumPy float64 array for NumPy
+            input, else of ``qpos``'s library, device and float dtype, unchecked for NaN and
+            inf (see :mod:`poekin.arrays`).
         """
         # the kernel has run already where it takes the arguments as they are (fast_method)
+        if params is not None or arrays.kind_of(qpos) is not None:
+            form = _fast.check_form(form)
+            xp, q, like, model = self._inputs(qpos, out, params)
+            bodies, _, _ = self._body_poses(self._slots_of(q), xp, model)
+            return _pose.poses_to_array(self._frames(bodies, model), form, xp, like)  # type: ignore[no-any-return]
         frames = (self.n_frames,)
         return _fast.evaluate(self._kernel, qpos, out, form, self._as_qpos, self._fk_numpy, frames)
 
@@ -497,31 +712,95 @@ class Tree:
         return lie.inverse(T_ref) @ T_frame
 
     def _fk_numpy(self, qpos: FloatArray) -> FloatArray:
-        """:meth:`fk` on the pure-NumPy reference path (the compiled kernel's specification),
+        """:meth:`fk` on the reference path with NumPy (the compiled kernel's specification),
         for float64 ``qpos`` of shape ``(..., nq)`` that :meth:`fk` has validated."""
-        return self._frame_poses(*self._body_poses(self._expand(qpos)))
+        model = self._constants
+        bodies, _, _ = self._body_poses(self._slots_of(qpos), np, model)
+        frames = self._frames(bodies, model)
+        return _pose.poses_to_array(frames, "4x4", np, zeros_like_batch(qpos, np))  # type: ignore[no-any-return]
 
     def _as_qpos(self, qpos: ArrayLike) -> FloatArray:
         return as_joint_values(qpos, self.nq, what="qpos values", layout=self._layout_text)
 
-    def _frame_poses(self, R: FloatArray, p: FloatArray) -> FloatArray:
-        """``(..., n_frames, 4, 4)`` body then site poses from :meth:`_body_poses`' output."""
-        site_parent = self.site_bodies + 1
-        R_s = lie.rotate_compose(R[..., site_parent, :, :], self.site_rot)
-        p_s = p[..., site_parent, :] + lie.rotate(R[..., site_parent, :, :], self.site_pos)
-        T = np.zeros((*R.shape[:-3], self.n_frames, 4, 4))
-        nb = len(self.body_names)
-        T[..., :nb, :3, :3] = R[..., 1:, :, :]
-        T[..., :nb, :3, 3] = p[..., 1:, :]
-        T[..., nb:, :3, :3] = R_s
-        T[..., nb:, :3, 3] = p_s
-        T[..., 3, 3] = 1.0
-        return T
+    def _inputs(
+        self, qpos: Any, out: Any, params: TreeParams | None
+    ) -> tuple[Any, Any, Any, _TreeModel]:
+        """The generic path's namespace, ``qpos`` as its array, zeros of the batch shape (the
+        result's dtype and device) and the constants: the tree's, or ``params``'."""
+        if params is not None and not isinstance(params, TreeParams):
+            raise InputError(
+                f"params must be a TreeParams (see tree.parameters()), got {type(params).__name__}"
+            )
+        leaves = () if params is None else tuple(params)
+        xp, q, like = generic_inputs(
+            qpos, self.nq, leaves, out, what="qpos values", layout=self._layout_text
+        )
+        if params is None:
+            return xp, q, like, self._constants
+        nb, nj, ns = len(self.body_names), len(self.joint_names), len(self.site_names)
+        shapes = {
+            "body_pos": (nb, 3),
+            "body_rot": (nb, 3, 3),
+            "joint_axes": (nj, 3),
+            "joint_anchors": (nj, 3),
+            "site_pos": (ns, 3),
+            "site_rot": (ns, 3, 3),
+        }
+        values = {}
+        for name, shape in shapes.items():
+            a = arrays.convert(getattr(params, name), xp, q.dtype, q)
+            check_shape(a, shape, f"params.{name}")
+            values[name] = a
+        model = self._model_of(
+            [_vec_of(values["body_pos"], b) for b in range(nb)],
+            [_mat_of(values["body_rot"], b) for b in range(nb)],
+            [_vec_of(values["joint_axes"], k) for k in range(nj)],
+            [_vec_of(values["joint_anchors"], k) for k in range(nj)],
+            [_vec_of(values["site_pos"], s) for s in range(ns)],
+            [_mat_of(values["site_rot"], s) for s in range(ns)],
+            constants=False,
+        )
+        return xp, q, like, model
+
+    def parameters(self, like: Any = None) -> TreeParams:
+        """The body offsets, joint axes and anchors and site offsets as :class:`TreeParams`:
+        read-only NumPy arrays, or, with ``like`` (a JAX array or PyTorch tensor), new arrays of
+        its library, float dtype and device, ready to differentiate and to pass to :meth:`fk`
+        or :meth:`jacobian` as ``params``."""
+        values = [getattr(self, name) for name in TreeParams._fields]
+        if like is None:
+            return TreeParams(*values)
+        xp, _ = arrays.namespace_of([like])
+        dtype = arrays.float_dtype(xp, [like])
+        return TreeParams(*(arrays.convert(a, xp, dtype, like) for a in values))
+
+    def with_parameters(self, params: TreeParams) -> Tree:
+        """A new tree with the offsets, axes and anchors of ``params`` (arrays of any library,
+        copied to NumPy float64), the rest this tree's; validated as any tree is (rotations
+        orthonormal, hinge and slide axes of unit length).
+
+        Raises:
+            InputError: invalid parameters, or traced values (inside ``jit``, ``grad``...).
+        """
+        if not isinstance(params, TreeParams):
+            raise InputError(f"params must be a TreeParams, got {type(params).__name__}")
+        return dataclasses.replace(
+            self,
+            **{
+                name: arrays.as_numpy(getattr(params, name), f"params.{name}")
+                for name in TreeParams._fields
+            },
+        )
 
     # --- Jacobians ------------------------------------------------------------------------
 
     def jacobian(
-        self, qpos: ArrayLike, frame: str, convention: JacobianConvention = "world"
+        self,
+        qpos: ArrayLike,
+        frame: str,
+        convention: JacobianConvention = "world",
+        *,
+        params: TreeParams | None = None,
     ) -> FloatArray:
         """Jacobian of ``frame`` (a body or site name): ``(..., 6, nv)``.
 
@@ -533,7 +812,8 @@ class Tree:
         :meth:`Chain.jacobian_world` for a chain. A mimic joint adds its column, times its
         multiplier, to its leader's. ``convention="space"`` or ``"body"`` gives the rows of
         :meth:`Chain.jacobian_space` / :meth:`Chain.jacobian_body` instead
-        (:func:`poekin.chain.jacobian_from_world`).
+        (:func:`poekin.chain.jacobian_from_world`). ``qpos`` and ``params`` as for
+        :meth:`fk`, and the result in ``qpos``'s library, as there.
 
         Raises:
             UnknownFrameError: no such frame.
@@ -541,16 +821,21 @@ class Tree:
         """
         # the one-call fast path: a frame and convention seen before (so valid) and qpos the
         # kernel takes as it is
-        try:
-            kernel = self._jacobian_kernels.get((frame, convention))
-        except TypeError:  # unhashable: refused below
-            kernel = None
-        if kernel is not None:
-            J: FloatArray | None = kernel.run(qpos)
-            if J is not None:
-                return J
+        if params is None and type(qpos) is np.ndarray:
+            try:
+                kernel = self._jacobian_kernels.get((frame, convention))
+            except TypeError:  # unhashable: refused below
+                kernel = None
+            if kernel is not None:
+                J: FloatArray | None = kernel.run(qpos)
+                if J is not None:
+                    return J
         check_jacobian_convention(convention)
         index = self.frame_index(frame)
+        if params is not None or arrays.kind_of(qpos) is not None:
+            xp, q, like, model = self._inputs(qpos, None, params)
+            columns = self._jacobian_columns(q, xp, model, index, convention)
+            return jacobian_array(columns, xp, like)  # type: ignore[no-any-return]
         kernel = self._jacobian_kernel(frame, index, convention)
         return _fast.run_checked(
             kernel,
@@ -575,34 +860,45 @@ class Tree:
         return self._jacobian_kernels[key]
 
     def _jacobian_numpy(self, qpos: FloatArray, index: int, convention: str) -> FloatArray:
-        """:meth:`jacobian` on the pure-NumPy reference path, for validated ``qpos``."""
-        x = self._expand(qpos)
-        batch = x.shape[:-1]
-        axes = np.zeros((*batch, len(self.joint_names), 3))
-        anchors = np.zeros_like(axes)
-        R, p = self._body_poses(x, (axes, anchors))
-        T_frame = self._frame_poses(R, p)[..., index, :, :]
-        p_frame = T_frame[..., :3, 3]
-        J = np.zeros((*batch, 6, self.nv))
-        for k in self.path_joints(self.frame_names[index]):
-            kind, d, b = self.joint_types[k], int(self._dof_adr[k]), int(self.joint_bodies[k]) + 1
-            mimic = self.mimics[k]
-            scale = 1.0 if mimic is None else mimic.multiplier
+        """:meth:`jacobian` on the reference path with NumPy, for validated ``qpos``."""
+        columns = self._jacobian_columns(qpos, np, self._constants, index, convention)
+        return jacobian_array(columns, np, zeros_like_batch(qpos, np))  # type: ignore[no-any-return]
+
+    def _jacobian_columns(
+        self, qpos: Any, xp: Any, model: _TreeModel, index: int, convention: str
+    ) -> list[Column]:
+        """The ``nv`` columns of frame ``index``'s Jacobian in ``convention``, entry by entry:
+        each joint on the frame's path adds, times its mimic multiplier, its world axes
+        ``a`` and levers ``a x (p_frame - anchor)`` (a free joint: the world axes first)."""
+        bodies, axes, anchors = self._body_poses(self._slots_of(qpos), xp, model)
+        T_frame = self._frames(bodies, model)[index]
+        p_frame = T_frame[1]
+        zero: Column = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+        J: list[Column] = [zero] * self.nv
+        static = self._static
+        for k in static.paths[index]:
+            kind, d, b, scale = (
+                self.joint_types[k],
+                static.dof[k],
+                static.joint_body[k],
+                static.scale[k],
+            )
             if kind == "prismatic":
-                J[..., 3:, d] += scale * axes[..., k, :]
+                J[d] = _add_column(J[d], (0.0, 0.0, 0.0, *axes[k]), scale)
                 continue
             if kind == "revolute":
-                turning, about = axes[..., k, None, :], anchors[..., k, :]  # (..., 1, 3)
-            else:  # ball, free: about the body's own axes, the rows of R_b^T
-                turning = np.swapaxes(R[..., b, :, :], -1, -2)
-                about = anchors[..., k, :] if kind == "ball" else p[..., b, :]
+                turning, about = [axes[k]], anchors[k]
+            else:  # ball, free: about the body's own axes, the columns of R_b
+                R_b, p_b = bodies[b]
+                turning = [(R_b[0][j], R_b[1][j], R_b[2][j]) for j in range(3)]
+                about = anchors[k] if kind == "ball" else p_b
                 if kind == "free":
-                    J[..., 3:, d : d + 3] = np.eye(3)
+                    for e in range(3):
+                        J[d + e] = tuple(1.0 if r == 3 + e else 0.0 for r in range(6))  # type: ignore[assignment]
                     d += 3
-            lever = np.cross(turning, (p_frame - about)[..., None, :])
-            m = turning.shape[-2]
-            J[..., :3, d : d + m] += scale * np.swapaxes(turning, -1, -2)
-            J[..., 3:, d : d + m] += scale * np.swapaxes(lever, -1, -2)
+            reach = tuple(p_frame[i] - about[i] for i in range(3))
+            for m, a in enumerate(turning):
+                J[d + m] = _add_column(J[d + m], (*a, *_pose.cross(a, reach)), scale)
         return jacobian_from_world(J, T_frame, convention)
 
     def qpos_names(self) -> tuple[str, ...]:
@@ -670,9 +966,10 @@ class Tree:
                 )
         x = self._expand(self.qpos0)
         x[self._full_adr[list(joints)]] = 0.0  # every chain joint at position 0
-        axes = np.zeros((len(self.joint_names), 3))
-        anchors = np.zeros_like(axes)
-        home = self._frame_poses(*self._body_poses(x, (axes, anchors)))[index]
+        bodies, axes_w, anchors_w = self._body_poses(list(x), np, self._constants)
+        frame_pose = self._frames(bodies, self._constants)[index]
+        home = _pose.to_array(frame_pose, "4x4", np, np.zeros(()))
+        axes, anchors = np.array(axes_w, dtype=np.float64), np.array(anchors_w, dtype=np.float64)
         screws = np.zeros((len(joints), 6))
         types: list[JointType] = []
         for row, k in enumerate(joints):
