@@ -21,8 +21,8 @@ from test_chain import random_chain
 from test_tree import FEATURES_XML, MENAGERIE
 
 import poekin
-from poekin._extras import install_command
 from poekin import InputError, lie
+from poekin._extras import install_command
 from poekin.chain import Chain, ChainParams
 from poekin.import_mujoco import tree_from_model
 from poekin.tree import Tree, TreeParams
