@@ -50,8 +50,10 @@ def _cmd_view(args: argparse.Namespace, out: TextIO) -> int:
             file=out,
             flush=True,
         )
+        # short sleeps, not one long one: a Ctrl-C that lands between the interpreter's last
+        # check for signals and the start of the sleep is acted on only when the sleep ends
         while True:
-            time.sleep(3600)
+            time.sleep(0.2)
     finally:
         viewer.close()
 
