@@ -51,6 +51,7 @@ from bench_fk import (  # the FK benchmark's timing helpers and model loading
     fmt_count,
     fmt_ns,
     machine_info,
+    package_version,
     pytorch_kinematics_library,
     to_json,
 )
@@ -173,7 +174,7 @@ def mjx_row(loaded: poekin.LoadedModel, q: np.ndarray, sizes: Sizes, ref: Any) -
     pos, mat = f(x[: len(ref)])
     T = np.tile(np.eye(4), (len(ref), 1, 1))
     T[:, :3, :3], T[:, :3, 3] = np.asarray(mat).reshape(-1, 3, 3), np.asarray(pos)
-    row.note = f"whole model, batch {fmt_count(n)}, mujoco-mjx {machine_versions('mujoco-mjx')}"
+    row.note = f"whole model, batch {fmt_count(n)}, mujoco-mjx {package_version('mujoco-mjx')}"
     return agreement(row, T, ref)
 
 
@@ -231,30 +232,6 @@ def pytorch_kinematics_row(model: Model, q: np.ndarray, sizes: Sizes, ref: Any) 
 
 
 # --- the run --------------------------------------------------------------------------------------
-
-
-def machine_versions(dist: str) -> str | None:
-    import importlib.metadata
-
-    try:
-        return importlib.metadata.version(dist)
-    except importlib.metadata.PackageNotFoundError:
-        return None
-
-
-def vector_width() -> str:
-    """The widest vector unit this CPU has, for the figures' context."""
-    flags = ""
-    with __import__("contextlib").suppress(OSError):
-        for line in pathlib.Path("/proc/cpuinfo").read_text().splitlines():
-            if line.startswith("flags"):
-                flags = line
-                break
-    if " avx512f" in flags:
-        return "AVX-512 (8 float64 lanes)"
-    if " avx2" in flags:
-        return "AVX2 (4 float64 lanes)"
-    return "SSE2/NEON (2 float64 lanes)"
 
 
 def skipped(group: str, name: str, error: BaseException) -> Row:
@@ -451,11 +428,10 @@ def main(argv: list[str] | None = None) -> int:
     jax.config.update("jax_enable_x64", True)
     warnings.simplefilter("ignore", UserWarning)  # torch's read-only NumPy array notice
     machine = machine_info()
-    machine["vector_width"] = vector_width()
     machine["torch_threads"] = torch.get_num_threads()
     machine["jax_devices"] = [str(d) for d in jax.devices()]
     for dist in ("jax", "torch", "array-api-compat", "mujoco-mjx", "pytorch-kinematics"):
-        machine["versions"][dist] = machine_versions(dist)
+        machine["versions"][dist] = package_version(dist)
     cores, load = machine["usable_cores"], machine["load_average"]
     print(f"{machine['cpu']}, {machine['vector_width']}, {cores} cores, load {load}")
     print(f"batch {fmt_count(sizes.batch)}, medians and IQR over {sizes.repeats} repeats, float64")

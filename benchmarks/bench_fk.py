@@ -614,7 +614,8 @@ def command_timings(sizes: Sizes) -> dict[str, Timing]:
 # --- machine and versions -------------------------------------------------------------------
 
 
-def _version(dist: str) -> str | None:
+def package_version(dist: str) -> str | None:
+    """The installed version of the distribution ``dist`` (None if it is not installed)."""
     try:
         return importlib.metadata.version(dist)
     except importlib.metadata.PackageNotFoundError:
@@ -627,6 +628,21 @@ def _cpu_model() -> str:
             if line.startswith("model name"):
                 return line.split(":", 1)[1].strip()
     return platform.processor() or platform.machine()
+
+
+def vector_width() -> str:
+    """The widest vector unit this CPU has (the kernel's lanes), for the figures' context."""
+    flags = ""
+    with contextlib.suppress(OSError):
+        for line in pathlib.Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("flags"):
+                flags = line
+                break
+    if " avx512f" in flags:
+        return "AVX-512 (8 float64 lanes)"
+    if " avx2" in flags:
+        return "AVX2 (4 float64 lanes)"
+    return "SSE2/NEON (2 float64 lanes)"
 
 
 def _git_revision() -> str | None:
@@ -650,6 +666,7 @@ def machine_info() -> dict[str, Any]:
     return {
         "date": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
         "cpu": _cpu_model(),
+        "vector_width": vector_width(),
         "cores": os.cpu_count(),
         "usable_cores": len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else None,
         "load_average": os.getloadavg() if hasattr(os, "getloadavg") else None,
@@ -657,7 +674,8 @@ def machine_info() -> dict[str, Any]:
         "python": platform.python_version(),
         "git": _git_revision(),
         "versions": {
-            d: _version(d) for d in ("poekin", "numpy", "mujoco", "matplotlib", *BENCH_PACKAGES)
+            d: package_version(d)
+            for d in ("poekin", "numpy", "mujoco", "matplotlib", *BENCH_PACKAGES)
         },
         "poekin_threads": threads() if threads else None,
         "poekin_compiled_kernel": compiled() if compiled else None,
@@ -881,7 +899,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     args, sizes = parse_args(argv)
     t0 = time.perf_counter()
     machine = machine_info()
-    print(f"{machine['cpu']}, {machine['usable_cores']} cores, load {machine['load_average']}")
+    print(
+        f"{machine['cpu']}, {machine['vector_width']}, {machine['usable_cores']} cores, "
+        f"load {machine['load_average']}"
+    )
     print(
         f"{fmt_count(sizes.n)} q in [-2 pi, 2 pi]^6 (seed {args.seed}); medians and IQR over "
         f"{sizes.repeats} repeats; single calls: a loop over up to {fmt_count(sizes.single)} q"

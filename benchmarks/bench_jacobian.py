@@ -198,7 +198,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     sizes = QUICK if args.quick else FULL
     repeats = min(args.repeats, 3) if args.quick else args.repeats
     info = machine_info()
-    print(f"{info['cpu']}, {info['usable_cores']} cores; medians and IQR over {repeats} repeats")
+    print(
+        f"{info['cpu']}, {info['vector_width']}, {info['usable_cores']} cores; "
+        f"medians and IQR over {repeats} repeats"
+    )
     rows = run(sizes, repeats, args.seed)
     print_table(f"UR5e Jacobian of {SITE} (ratio = time / poekin jacobian_world's)", rows)
     trees = tree_rows(sizes, repeats, args.seed)

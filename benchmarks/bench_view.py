@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import argparse
 import os
+import pathlib
 import platform
 import socket
 import subprocess
@@ -26,6 +27,9 @@ import warnings
 from typing import Any
 
 import numpy as np
+
+sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent))
+from bench_fk import machine_info  # the CPU, its vector width, the cores
 
 import poekin
 from poekin.viewer.app import HEADLESS_CHROMIUM as CHROMIUM
@@ -129,8 +133,11 @@ def main() -> None:
     args = parser.parse_args()
     n_updates, n_starts = (20, 1) if args.quick else (300, 5)
     pw = None if args.no_browser else _browser()
-    machine = platform.processor() or platform.machine()
-    print(f"{machine}, {os.cpu_count()} cores, Python {platform.python_version()}")
+    info = machine_info()
+    print(
+        f"{info['cpu']}, {info['vector_width']}, {info['usable_cores']} cores, "
+        f"Python {platform.python_version()}"
+    )
     print("slider update, server-side (set q -> every update sent):")
     for robot in ("universal_robots_ur5e", "unitree_go2"):
         updates(robot, n_updates, pw)
