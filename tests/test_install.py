@@ -15,6 +15,7 @@ from importlib import metadata, resources
 import pytest
 
 import poekin
+from poekin import _extras
 
 REPO = pathlib.Path(__file__).resolve().parents[1]
 
@@ -93,3 +94,17 @@ def test_entry_points(argv: list[str]) -> None:
     assert proc.returncode == 0 and proc.stdout.startswith(f"poekin {poekin.__version__} (")
     proc = subprocess.run([*argv, "fk", "--q", "1"], capture_output=True, text=True, check=False)
     assert proc.returncode == 2 and "Traceback" not in proc.stderr
+
+
+def test_a_missing_extra_names_what_installs_it() -> None:
+    """Installed from a wheel (README's install, which no index repeats), the hint names the
+    extra's own packages as pyproject.toml lists them; from a checkout, the checkout."""
+    tomllib = pytest.importorskip("tomllib")  # Python >= 3.11
+
+    pyproject = tomllib.loads((REPO / "pyproject.toml").read_text())
+    view = pyproject["project"]["optional-dependencies"]["view"]
+    if os.environ.get("POEKIN_EXPECT_INSTALLED") == "1":
+        expected = "pip install " + " ".join(f'"{r.replace(" ", "")}"' for r in view)
+    else:
+        expected = f'pip install -e "{REPO}[view]"'
+    assert _extras.install_command("view") == expected

@@ -8,7 +8,7 @@ exactly what MuJoCo stores in ``qpos``.
 >>> chain = poekin.load("universal_robots_ur5e")        # screws and M from the model
 >>> T_world_ee = chain.fk([0.0, -1.57, 1.57, 0.0, 0.0, 0.0])
 
-``poekin.view`` (the browser viewer, ``pip install "poekin[view]"``) and ``poekin.draw`` (the same
+``poekin.view`` (the browser viewer, the extra ``view``) and ``poekin.draw`` (the same
 scene as a matplotlib figure) are imported when first used, so ``import poekin`` stays fast.
 """
 

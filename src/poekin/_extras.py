@@ -1,7 +1,9 @@
 """Optional features and the pip command that adds each, as true for how poekin was installed.
 
 An install from a checkout (``pip install -e .``) gets ``pip install -e "/path/to/checkout[urdf]"``;
-an install from an index or a wheel gets ``pip install "poekin[urdf]"``.
+one from a wheel, an sdist or a folder (README's install, which no index can repeat) gets the
+extra's own packages, ``pip install "yourdfpy>=0.0.56"``; one from an index gets
+``pip install "poekin[urdf]"``.
 """
 
 from __future__ import annotations
@@ -10,6 +12,7 @@ import functools
 import importlib
 import importlib.util
 import json
+import re
 import sys
 from importlib import metadata
 from types import ModuleType
@@ -21,26 +24,37 @@ __all__ = ["install_command", "require", "require_installed"]
 
 
 @functools.cache
-def _source_checkout() -> str | None:
-    """The folder poekin was installed from with ``pip install -e``, else None."""
+def _installed_from() -> tuple[str | None, tuple[str, ...]]:
+    """How poekin was installed: the checkout of ``pip install -e`` (else None), and, for an
+    install from a file, a folder or a URL (no index can install it again), its requirements."""
     try:
-        text = metadata.distribution("poekin").read_text("direct_url.json")
+        dist = metadata.distribution("poekin")
     except metadata.PackageNotFoundError:
-        return None
+        return None, ()
+    text = dist.read_text("direct_url.json")
     if not text:
-        return None
+        return None, ()  # from an index
     info = json.loads(text)
     url = urlparse(str(info.get("url", "")))
-    if url.scheme != "file" or not info.get("dir_info", {}).get("editable"):
-        return None
-    return unquote(url.path)
+    if url.scheme == "file" and info.get("dir_info", {}).get("editable"):
+        return unquote(url.path), ()
+    return None, tuple(dist.requires or ())
+
+
+def _extra_requirements(requires: tuple[str, ...], extra: str) -> list[str]:
+    """The requirements of ``extra`` in package metadata (``'viser>=1.1; extra == "view"'``)."""
+    marker = re.compile(rf"""\bextra\s*==\s*["']{re.escape(extra)}["']""")
+    return [r.split(";")[0].replace(" ", "") for r in requires if marker.search(r)]
 
 
 def install_command(extra: str) -> str:
     """``pip install ...`` that adds the extra ``extra`` to this installation of poekin."""
-    checkout = _source_checkout()
+    checkout, requires = _installed_from()
     if checkout is not None:
         return f'pip install -e "{checkout}[{extra}]"'
+    packages = _extra_requirements(requires, extra)
+    if packages:
+        return "pip install " + " ".join(f'"{p}"' for p in packages)
     return f'pip install "poekin[{extra}]"'
 
 

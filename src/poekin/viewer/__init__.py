@@ -7,7 +7,7 @@ draw``).
 * :mod:`poekin.viewer.geometry`: the robot's drawable parts (MuJoCo's compiled meshes and
   primitives, URDF meshes through trimesh, or capsule stand-ins between joint anchors);
 * :mod:`poekin.viewer.app`: the viser server, its panel and the :class:`~poekin.viewer.app.Viewer`
-  handle that :func:`poekin.view` returns (needs ``pip install "poekin[view]"``);
+  handle that :func:`poekin.view` returns (needs the extra ``view``);
 * :mod:`poekin.viewer.draw`: the same scene as a matplotlib figure (:func:`poekin.draw`).
 
 Importing this package imports none of them.

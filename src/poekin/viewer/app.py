@@ -6,7 +6,7 @@ module only puts it on the page. Each part of the robot is sent once, as a child
 scene node; a configuration change then sends poses and the panel's texts only. The model's
 meshes are read in a background thread, so the page is usable before they arrive.
 
-Needs viser (``pip install "poekin[view]"``).
+Needs viser (the extra ``view``).
 """
 
 from __future__ import annotations

@@ -11,7 +11,7 @@
   (:func:`poekin.viewer.scene.skeleton`).
 
 The viewer sends each part once and then only moves its body (:mod:`poekin.viewer.app`).
-Needs trimesh (``pip install "poekin[view]"``) for primitives and capsules.
+Needs trimesh (the extra ``view``) for primitives and capsules.
 """
 
 from __future__ import annotations
