@@ -108,3 +108,12 @@ def test_a_missing_extra_names_what_installs_it() -> None:
     else:
         expected = f'pip install -e "{REPO}[view]"'
     assert _extras.install_command("view") == expected
+
+
+def test_the_installed_kernel_is_compiled() -> None:
+    """A wheel whose C extension failed to build would fall back to NumPy silently."""
+    if os.environ.get("POEKIN_EXPECT_INSTALLED") != "1" and not os.environ.get(
+        "POEKIN_REQUIRE_COMPILED"
+    ):
+        pytest.skip("a checkout may be built without a compiler")
+    assert poekin.compiled_kernel(), "poekin._kernel was not built into this installation"
