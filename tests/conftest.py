@@ -1,10 +1,14 @@
-"""Test configuration: tests read the Menagerie models from ../shared/menagerie (never copied)."""
+"""Test configuration: tests read the Menagerie models from ../shared/menagerie (never copied),
+and the models many test modules share, loaded once."""
 
 from __future__ import annotations
 
 import os
 import pathlib
 import signal
+from typing import Any
+
+import pytest
 
 REPO = pathlib.Path(__file__).resolve().parents[1]
 os.environ.setdefault("MENAGERIE_ROOT", str(REPO.parent / "shared" / "menagerie"))
@@ -15,3 +19,23 @@ os.environ.setdefault("MENAGERIE_ROOT", str(REPO.parent / "shared" / "menagerie"
 # handler whatever the suite was started from.
 if signal.getsignal(signal.SIGINT) is signal.SIG_IGN:
     signal.signal(signal.SIGINT, signal.default_int_handler)
+
+
+@pytest.fixture(scope="session")
+def ur5e() -> Any:
+    """The Menagerie UR5e's chain to ``attachment_site`` (a Chain: immutable, so shared)."""
+    from helpers import load_quiet
+
+    import poekin
+
+    return poekin.load(load_quiet("universal_robots_ur5e"))
+
+
+@pytest.fixture(scope="session")
+def go2() -> Any:
+    """The Menagerie go2's whole tree (a Tree: immutable, so shared)."""
+    from helpers import load_quiet
+
+    import poekin
+
+    return poekin.load_tree(load_quiet("unitree_go2"))

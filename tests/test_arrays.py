@@ -64,11 +64,6 @@ def lib(request: pytest.FixtureRequest) -> Lib:
 
 
 @pytest.fixture(scope="module")
-def ur5e() -> Chain:
-    return poekin.load(load_quiet("universal_robots_ur5e"))
-
-
-@pytest.fixture(scope="module")
 def features() -> Tree:
     return tree_from_model(mujoco.MjModel.from_xml_string(FEATURES_XML))
 

@@ -13,9 +13,8 @@ from typing import Any
 import numpy as np
 import pytest
 from array_libs import load
-from helpers import assert_close, load_quiet
+from helpers import assert_close
 
-import poekin
 from poekin.chain import Chain, ChainParams
 from poekin.tree import Tree
 from poekin.verify import sample_qpos
@@ -27,16 +26,6 @@ REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 @pytest.fixture(scope="module")
 def jax() -> Any:
     return load("jax").module
-
-
-@pytest.fixture(scope="module")
-def ur5e() -> Chain:
-    return poekin.load(load_quiet("universal_robots_ur5e"))
-
-
-@pytest.fixture(scope="module")
-def go2() -> Tree:
-    return poekin.load_tree(load_quiet("unitree_go2"))
 
 
 def test_jit_vmap_and_their_compositions(jax: Any, ur5e: Chain, go2: Tree) -> None:

@@ -8,9 +8,8 @@ from typing import Any
 import numpy as np
 import pytest
 from array_libs import load
-from helpers import assert_close, load_quiet
+from helpers import assert_close
 
-import poekin
 from poekin.chain import Chain, ChainParams
 from poekin.tree import Tree
 from poekin.verify import sample_qpos
@@ -21,16 +20,6 @@ LIB_TOL = 1e-15  # as in test_arrays.py
 @pytest.fixture(scope="module")
 def torch() -> Any:
     return load("torch").module
-
-
-@pytest.fixture(scope="module")
-def ur5e() -> Chain:
-    return poekin.load(load_quiet("universal_robots_ur5e"))
-
-
-@pytest.fixture(scope="module")
-def go2() -> Tree:
-    return poekin.load_tree(load_quiet("unitree_go2"))
 
 
 def test_autograd_backward_equals_the_jacobian(torch: Any, ur5e: Chain) -> None:

@@ -28,11 +28,6 @@ def model(request: pytest.FixtureRequest) -> poekin.Chain:
         return poekin.load(*request.param)
 
 
-@pytest.fixture(scope="module")
-def ur5e() -> poekin.Chain:
-    return poekin.load("universal_robots_ur5e")
-
-
 def with_screws(chain: poekin.Chain, screws: np.ndarray, home: np.ndarray | None = None):
     return poekin.Chain(
         chain.joint_names,

@@ -265,11 +265,6 @@ DIAG_PIXELS = (840, 1680)  # 14 x 7 in at 120 dpi: (rows, columns)
 
 
 @pytest.fixture(scope="module")
-def ur5e() -> poekin.Chain:
-    return poekin.load("universal_robots_ur5e")
-
-
-@pytest.fixture(scope="module")
 def panda_finger() -> poekin.Chain:
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", poekin.AssetsStrippedWarning)
