@@ -37,6 +37,7 @@ __all__ = [
     "add_joint_values",
     "add_params",
     "add_precision",
+    "add_q",
     "add_sampling",
     "add_source",
     "import_mujoco_without_gl",
@@ -128,12 +129,15 @@ def _precision(text: str) -> int:
     return n
 
 
+def add_q(p: argparse.ArgumentParser, q_help: str) -> None:
+    """``--q`` for one configuration and ``--deg`` for its angles (:func:`read_joint_values`)."""
+    p.add_argument("--q", type=float, nargs="+", metavar="Q", help=q_help)
+    p.add_argument("--deg", action="store_true", help="revolute joint values are in degrees")
+
+
 def add_joint_values(p: argparse.ArgumentParser, output: str, saved: str) -> None:
     """``--q`` for one configuration, or ``--input``/``--output`` files for a batch."""
-    p.add_argument(
-        "--q", type=float, nargs="+", metavar="Q", help="joint values (rad and m; see --deg)"
-    )
-    p.add_argument("--deg", action="store_true", help="revolute joint values are in degrees")
+    add_q(p, "joint values (rad and m; see --deg)")
     p.add_argument(
         "--input", metavar="FILE", help="(N, n) joint values: a .npy, .npz, .csv or .txt file"
     )
@@ -241,7 +245,8 @@ def read_joint_values(args: argparse.Namespace, space: JointSpace) -> NDArray[np
     """
     from poekin.fileio import read_array
 
-    q = read_array(args.input) if args.input is not None else np.asarray(args.q, dtype=np.float64)
+    path = getattr(args, "input", None)  # commands without --input (draw) read --q only
+    q = read_array(path) if path is not None else np.asarray(args.q, dtype=np.float64)
     n = len(space.names)
     if q.ndim == 0 or q.shape[-1] != n or not np.all(np.isfinite(q)):
         return q

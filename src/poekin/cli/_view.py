@@ -11,6 +11,7 @@ from poekin.cli._args import (
     DEFAULT_ROBOT,
     JointSpace,
     add_params,
+    add_q,
     add_source,
     model_source,
     read_joint_values,
@@ -68,7 +69,6 @@ def _cmd_draw(args: argparse.Namespace, out: TextIO) -> int:
     source = model_source(args)
     qpos = None
     if args.q is not None:
-        args.input = None  # read_joint_values reads --q or --input
         qpos = read_joint_values(args, JointSpace.of_tree(load_tree(source)))
     draw(
         source,
@@ -123,10 +123,7 @@ def register(sub: Any, fmt: type[argparse.HelpFormatter]) -> None:
     )
     add_source(a, DEFAULT_ROBOT)
     add_params(a, "draw these parameters beside the model")
-    a.add_argument(
-        "--q", type=float, nargs="+", metavar="Q", help="qpos (rad, m; see --deg); default qpos0"
-    )
-    a.add_argument("--deg", action="store_true", help="revolute joint values are in degrees")
+    add_q(a, "qpos (rad, m; see --deg); default qpos0")
     a.add_argument("--out", metavar="PATH", required=True, help="image file: .png .pdf .svg .jpg")
     a.add_argument("--force", action="store_true", help="replace an existing --out file")
     a.add_argument("--form", choices=["space", "body"], default="space", help="label S_i or B_i")
