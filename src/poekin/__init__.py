@@ -155,10 +155,9 @@ __all__ = [
 def __getattr__(name: str) -> Any:
     """``poekin.view`` and ``poekin.draw``, imported at first use (viser, matplotlib)."""
     if name == "view":
-        from poekin._extras import require_installed
+        from poekin._extras import require_view
 
-        for module in ("viser", "trimesh"):
-            require_installed(module, "view", "poekin.view")
+        require_view("poekin.view")
         from poekin.viewer.app import view as view
 
         return view

@@ -20,7 +20,9 @@ from urllib.parse import unquote, urlparse
 
 from poekin.errors import MissingExtraError
 
-__all__ = ["install_command", "require", "require_installed"]
+VIEW_MODULES = ("viser", "trimesh")  # what the extra ``view`` installs and the viewer imports
+
+__all__ = ["VIEW_MODULES", "install_command", "require", "require_installed", "require_view"]
 
 
 @functools.cache
@@ -85,3 +87,10 @@ def require_installed(module: str, extra: str, purpose: str) -> None:
         raise MissingExtraError(
             f"{purpose} needs {module}, which is not installed: {install_command(extra)}"
         )
+
+
+def require_view(purpose: str) -> None:
+    """Raise :class:`MissingExtraError` unless every module of the extra ``view`` is installed
+    (``purpose``: ``"'poekin view'"``, ``"poekin.view"``), without importing them."""
+    for module in VIEW_MODULES:
+        require_installed(module, "view", purpose)

@@ -24,10 +24,9 @@ def _cmd_view(args: argparse.Namespace, out: TextIO) -> int:
     """Serve the viewer until Ctrl-C (which :func:`poekin.cli.main` reports as exit 130)."""
     import time
 
-    from poekin._extras import require_installed
+    from poekin._extras import require_view
 
-    for module in ("viser", "trimesh"):
-        require_installed(module, "view", "'poekin view'")
+    require_view("'poekin view'")
     from poekin.viewer.app import is_loopback, view
 
     source = model_source(args)
