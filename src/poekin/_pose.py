@@ -14,6 +14,12 @@ product with a structural zero (a coordinate-axis joint, an identity offset), an
 operations that need the library (``sin``, ``cos``, ``sqrt``, ``where``, ``stack``) take its
 namespace ``xp``. Every ``where`` has finite values on both sides and every ``sqrt`` a positive
 argument, so gradients are finite everywhere (JAX and PyTorch differentiate both sides).
+
+The ``*_stacked`` functions are the same formulas on stacked arrays: rotations
+``(m, 3, 3, ...)`` and points ``(m, 3, ...)``, ``m`` poses (the bodies of a tree's group,
+:mod:`poekin._levels`) first and the batch axes last, so that every operation runs over
+contiguous memory. Each entry is computed by the operations its entry-by-entry twin applies to
+it, in the same order (tested equal bit for bit), in a few operations on whole arrays.
 """
 
 from __future__ import annotations
@@ -31,24 +37,32 @@ __all__ = [
     "Pose",
     "Vec",
     "about_point",
+    "about_point_stacked",
     "axis_turn",
+    "axis_turn_stacked",
     "compose",
     "compose_const",
+    "compose_stacked",
     "cross",
     "hat",
     "is_identity",
     "mat_mat",
+    "mat_mat_stacked",
     "mat_vec",
+    "mat_vec_stacked",
     "norm",
     "quat_matrix",
     "quat_normalize",
     "rodrigues",
+    "rodrigues_stacked",
     "rotation_quat",
     "settle",
     "sincos",
     "stack",
+    "stack_mat",
     "to_array",
     "transpose",
+    "unstack",
 ]
 
 Entry = Any  # an array of the batch shape, or a Python float
@@ -325,3 +339,84 @@ def poses_to_array(poses: Sequence[Pose], form: Form, xp: Any, like: Any) -> Any
         some, shape = pose_entries(pose, form, xp)
         entries.extend(some)
     return stack(entries, (len(poses), *shape), xp, like)
+
+
+# --- stacked arrays ---------------------------------------------------------------------------
+
+
+def unstack(a: Any, axis: int, xp: Any) -> tuple[Any, ...]:
+    """``a``'s slices along ``axis``: the array API's ``unstack`` (PyTorch's ``unbind``,
+    whose derivative is one stack; a slice's allocates and zeroes all of ``a`` each), or
+    indexing where the library has none (NumPy before 2.1)."""
+    if hasattr(a, "unbind"):  # PyTorch (array-api-compat's unstack has no torch.func.vmap rule)
+        return tuple(a.unbind(axis))
+    if hasattr(xp, "unstack"):
+        return tuple(xp.unstack(a, axis=axis))
+    keys = [(*(slice(None),) * axis, i) for i in range(a.shape[axis])]
+    return tuple(a[key] for key in keys)
+
+
+def mat_vec_stacked(R: Any, v: Any, xp: Any) -> Any:
+    """:func:`mat_vec` of ``R (m, 3, 3, ...)`` and ``v (m, 3, ...)``: ``(m, 3, ...)``."""
+    c0, c1, c2 = unstack(R, 2, xp)  # columns, (m, 3, ...)
+    v0, v1, v2 = (e[:, None] for e in unstack(v, 1, xp))
+    return (c0 * v0 + c1 * v1) + c2 * v2
+
+
+def mat_mat_stacked(A: Any, B: Any, xp: Any) -> Any:
+    """:func:`mat_mat` of ``A (m, 3, 3, ...)`` and ``B (m, 3, 3, ...)``."""
+    a0, a1, a2 = (c[:, :, None] for c in unstack(A, 2, xp))  # columns (m, 3, 1, ...)
+    b0, b1, b2 = (r[:, None] for r in unstack(B, 1, xp))  # rows (m, 1, 3, ...)
+    return (a0 * b0 + a1 * b1) + a2 * b2
+
+
+def compose_stacked(R_cur: Any, p: Any, R: Any, t: Any, xp: Any) -> tuple[Any, Any]:
+    """:func:`compose` of the poses ``(R_cur, p)`` and ``(R, t)``: ``(R_cur R, p + R_cur t)``."""
+    return mat_mat_stacked(R_cur, R, xp), p + mat_vec_stacked(R_cur, t, xp)
+
+
+def about_point_stacked(R: Any, point: Any, xp: Any) -> Any:
+    """:func:`about_point`: ``point - R point``."""
+    return point - mat_vec_stacked(R, point, xp)
+
+
+def rodrigues_stacked(W: Any, W2: Any, s: Any, c1: Any, eye: Any) -> Any:
+    """:func:`rodrigues` of ``W``, ``W2 (m, 3, 3, ...)`` and ``s``, ``c1 (m, ...)``; ``eye``:
+    the identity, ``(1, 3, 3, 1, ...)`` in the result's library, dtype and device."""
+    return (eye + s[:, None, None] * W) + c1[:, None, None] * W2
+
+
+def axis_turn_stacked(
+    R: Any, p: Any, k: int, s: Any, c: Any, point: Any | None, xp: Any
+) -> tuple[Any, Any]:
+    """:func:`axis_turn` without a screw's advance, of the poses ``(R (m, 3, 3, ...),
+    p (m, 3, ...))`` by angles of sines ``s (m, ...)`` and cosines ``c (m, ...)`` about
+    coordinate axis ``k`` through ``point (m, 3, ...)``; ``point`` None: the origin, where the
+    translation is zero (and left out: the result differs from :func:`axis_turn`'s only in
+    signs of zero)."""
+    a, b = (k + 1) % 3, (k + 2) % 3
+    s, c = s[:, None], c[:, None]
+    cols = list(unstack(R, 2, xp))
+    Ra, Rb = cols[a], cols[b]
+    if point is not None:
+        r = unstack(point, 1, xp)
+        ra, rb = r[a][:, None], r[b][:, None]
+        ta = ra - (c * ra - s * rb)
+        tb = rb - (s * ra + c * rb)
+        p = p + (Ra * ta + Rb * tb)
+    cols[a] = c * Ra + s * Rb
+    cols[b] = c * Rb - s * Ra
+    if tuple(cols[k].shape) != tuple(cols[a].shape):
+        cols[k] = xp.broadcast_to(cols[k], tuple(cols[a].shape))
+    return xp.stack(cols, axis=2), p
+
+
+def stack_mat(M: Mat, xp: Any) -> Any:
+    """A matrix of entries (arrays of one shape ``(m, ...)``, or Python floats among them) as
+    one ``(m, 3, 3, ...)`` array."""
+    like = next(e for row in M for e in row if not isinstance(e, float))
+    rows = [
+        xp.stack([xp.full_like(like, e) if isinstance(e, float) else e for e in row], axis=1)
+        for row in M
+    ]
+    return xp.stack(rows, axis=1)

@@ -30,7 +30,7 @@ from typing import Any, Literal, NamedTuple
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from poekin import _fast, _pose, arrays, lie
+from poekin import _fast, _levels, _pose, arrays, lie
 from poekin._fast import Form
 from poekin.chain import (
     Chain,
@@ -119,106 +119,14 @@ class TreeParams(NamedTuple):
     site_rot: Any
 
 
-class _TreeJoint(NamedTuple):
-    """A joint as the reference path applies it; ``along``: ``(k, sign)`` for a hinge about
-    coordinate axis ``k`` of the model's own constants (turned by ``cos``/``sin`` entries)."""
-
-    kind: str
-    slot: int  # first expanded slot
-    ref: float
-    axis: _pose.Vec
-    anchor: _pose.Vec
-    along: tuple[int, float] | None
-    W: _pose.Mat  # [axis]
-    W2: _pose.Mat
-
-
-class _TreeBody(NamedTuple):
-    parent: int  # -1: the world
-    pos: _pose.Vec
-    rot: _pose.Mat
-    joints: tuple[int, ...]
-
-
 class _TreeLayout(NamedTuple):
-    """The tree's structure as Python ints and floats, for the reference path (so that tracers,
-    torch.compile's included, see constants rather than NumPy arrays)."""
+    """The tree's structure as Python ints and floats, for the reference path's Jacobians (so
+    that tracers, torch.compile's included, see constants rather than NumPy arrays)."""
 
-    slots: tuple[tuple[int, float, float], ...]  # expanded slot j: (qpos index, scale, offset)
     dof: tuple[int, ...]  # each joint's first Jacobian column
     scale: tuple[float, ...]  # each joint's column multiplier (a mimic's, else 1)
     joint_body: tuple[int, ...]
     paths: tuple[tuple[int, ...], ...]  # each frame's path joints, base to tip
-
-
-class _TreeModel(NamedTuple):
-    bodies: tuple[_TreeBody, ...]
-    joints: tuple[_TreeJoint, ...]
-    sites: tuple[tuple[int, _pose.Vec, _pose.Mat], ...]  # (body, pos, rot)
-
-
-def _floats_vec(v: FloatArray) -> _pose.Vec:
-    return (float(v[0]), float(v[1]), float(v[2]))
-
-
-def _floats_mat(R: FloatArray) -> _pose.Mat:
-    return (_floats_vec(R[0]), _floats_vec(R[1]), _floats_vec(R[2]))
-
-
-def _joint_turn(
-    pose: _pose.Pose, joint: _TreeJoint, x: Sequence[Any], axis_world: _pose.Vec, moved_by: Any
-) -> _pose.Pose:
-    """``pose`` moved by ``joint`` at expanded slots ``x`` (the kernel's HINGE, AXIS, SLIDE,
-    BALL and FREE operations). ``axis_world`` is the joint's axis in the world before it
-    moves; ``moved_by`` a hinge's ``(sin, cos)``, a ball or free joint's unit quaternion."""
-    a = joint.slot
-    if joint.kind == "free":
-        return _pose.quat_matrix(moved_by), (x[a], x[a + 1], x[a + 2])
-    if joint.kind == "ball":
-        R_j = _pose.quat_matrix(moved_by)
-        return _pose.compose(pose, R_j, _pose.about_point(R_j, joint.anchor))
-    if joint.kind == "prismatic":
-        th = x[a] - joint.ref
-        R, p = pose
-        return R, (p[0] + axis_world[0] * th, p[1] + axis_world[1] * th, p[2] + axis_world[2] * th)
-    s, c = moved_by
-    if joint.along is not None:
-        k, sign = joint.along
-        return _pose.axis_turn(pose, k, sign * s, c, joint.anchor, None)
-    R_j = _pose.rodrigues(joint.W, joint.W2, s, 1.0 - c)
-    return _pose.compose(pose, R_j, _pose.about_point(R_j, joint.anchor))
-
-
-def _joint_motions(model: _TreeModel, x: Sequence[Any], xp: Any) -> list[Any]:
-    """Each joint's ``moved_by`` for :func:`_joint_turn`, computed once (:func:`_pose.settle`):
-    a hinge's sine and cosine of ``x - ref``, a ball or free joint's quaternion normalised as
-    MuJoCo does (:func:`_pose.quat_normalize`), None for a slide."""
-    hinges = [k for k, j in enumerate(model.joints) if j.kind == "revolute"]
-    sines, cosines = _pose.sincos(
-        [x[model.joints[k].slot] - model.joints[k].ref for k in hinges], xp
-    )
-    quats = [k for k, j in enumerate(model.joints) if j.kind in ("ball", "free")]
-    unit: list[Any] = []
-    for k in quats:
-        a = model.joints[k].slot + (3 if model.joints[k].kind == "free" else 0)
-        unit.extend(_pose.quat_normalize(x[a : a + 4], xp))
-    unit = _pose.settle(unit, xp)
-    moved_by: list[Any] = [None] * len(model.joints)
-    for k, si, ci in zip(hinges, sines, cosines, strict=True):
-        moved_by[k] = (si, ci)
-    for n, k in enumerate(quats):
-        moved_by[k] = tuple(unit[4 * n : 4 * n + 4])
-    return moved_by
-
-
-def _vec_of(a: Any, i: int) -> _pose.Vec:
-    """Row ``i`` of ``(..., m, 3)`` ``a`` as entries."""
-    return (a[..., i, 0], a[..., i, 1], a[..., i, 2])
-
-
-def _mat_of(a: Any, i: int) -> _pose.Mat:
-    """Matrix ``i`` of ``(..., m, 3, 3)`` ``a`` as entries."""
-    return tuple(tuple(a[..., i, r, c] for c in range(3)) for r in range(3))  # type: ignore[return-value]
 
 
 def _add_column(column: Column, add: Sequence[Any], scale: float) -> Column:
@@ -288,7 +196,7 @@ class Tree:
         init=False, repr=False, compare=False
     )
     _layout_text: str = dataclasses.field(init=False, repr=False, compare=False)
-    _constants: _TreeModel = dataclasses.field(init=False, repr=False, compare=False)
+    _plan: _levels.Plan = dataclasses.field(init=False, repr=False, compare=False)
     _static: _TreeLayout = dataclasses.field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
@@ -348,12 +256,21 @@ class Tree:
         set_(self, "_jacobian_kernels", {})
         # computed now, not cached at first use: torch.compile cannot trace a cache's lock
         set_(self, "_layout_text", self._layout_words())
-        set_(self, "_constants", self._model_constants())
-        layout = _TreeLayout(
-            slots=tuple(
-                (int(j), float(a), float(b))
-                for j, a, b in zip(self._slots, self._slot_scale, self._slot_offset, strict=True)
+        set_(
+            self,
+            "_plan",
+            _levels.plan(
+                self.body_parents.tolist(),
+                self._body_joints,
+                self.joint_types,
+                self._full_adr.tolist(),
+                self.joint_refs.tolist(),
+                self.site_bodies.tolist(),
+                (self._slots.tolist(), self._slot_scale.tolist(), self._slot_offset.tolist()),
+                _levels.Constants(*(getattr(self, name) for name in TreeParams._fields)),
             ),
+        )
+        layout = _TreeLayout(
             dof=tuple(int(d) for d in self._dof_adr),
             scale=tuple(1.0 if m is None else float(m.multiplier) for m in self.mimics),
             joint_body=tuple(int(b) for b in self.joint_bodies),
@@ -558,96 +475,35 @@ class Tree:
         """One set of slots per joint: mimic joints get ``multiplier * leader + offset``."""
         return qpos[..., self._slots] * self._slot_scale + self._slot_offset
 
-    def _slots_of(self, qpos: Any) -> list[Any]:
-        """:meth:`_expand` entry by entry, for any array library: slot ``j`` of ``(..., nq)``
-        ``qpos`` is ``qpos[..., slots[j]] * scale_j + offset_j``, as the kernel reads it."""
-        return [qpos[..., j] * scale + offset for j, scale, offset in self._static.slots]
-
-    def _model_constants(self) -> _TreeModel:
-        """The tree's constants as Python floats, with the kernel's shortcuts (coordinate-axis
-        hinges, identity rotations)."""
-        return self._model_of(
-            [_floats_vec(v) for v in self.body_pos],
-            [_floats_mat(R) for R in self.body_rot],
-            [_floats_vec(v) for v in self.joint_axes],
-            [_floats_vec(v) for v in self.joint_anchors],
-            [_floats_vec(v) for v in self.site_pos],
-            [_floats_mat(R) for R in self.site_rot],
-            constants=True,
+    def _poses(
+        self, qpos: Any, xp: Any, like: Any, params: _levels.Constants | None, joints: bool
+    ) -> tuple[_levels.Poses, _levels.Lib]:
+        """Every body's and site's world pose for ``qpos (..., nq)`` (an array of ``xp``), and
+        with ``joints`` every joint's world axis and anchor before it moves (MuJoCo's
+        ``xaxis`` and ``xanchor``), group by group (:mod:`poekin._levels`), the batch axes
+        last; ``params``: offsets, axes and anchors to use instead of the tree's own."""
+        trailing = (2, 3, 2, 2, 2, 3)  # TreeParams: (n, 3) or (n, 3, 3) each
+        ranks = (
+            [] if params is None else [a.ndim - t for a, t in zip(params, trailing, strict=True)]
         )
-
-    def _model_of(
-        self,
-        body_pos: Sequence[_pose.Vec],
-        body_rot: Sequence[_pose.Mat],
-        axes: Sequence[_pose.Vec],
-        anchors: Sequence[_pose.Vec],
-        site_pos: Sequence[_pose.Vec],
-        site_rot: Sequence[_pose.Mat],
-        *,
-        constants: bool,
-    ) -> _TreeModel:
-        """The reference path's view of the tree; ``constants``: the model's own values (so a
-        hinge about a coordinate axis may turn by ``cos``/``sin`` entries), else parameters to
-        differentiate (general formulas only)."""
-        joints = []
-        for k, kind in enumerate(self.joint_types):
-            along = lie.coordinate_axis(self.joint_axes[k]) if constants else None
-            W = _pose.hat(axes[k])
-            joints.append(
-                _TreeJoint(
-                    kind=kind,
-                    slot=int(self._full_adr[k]),
-                    ref=float(self.joint_refs[k]),
-                    axis=axes[k],
-                    anchor=anchors[k],
-                    along=along if kind == "revolute" else None,
-                    W=W,
-                    W2=_pose.mat_mat(W, W),
+        batch = max([qpos.ndim - 1, *ranks])
+        lib = _levels.Lib(xp, like, batch)
+        if params is not None:
+            params = _levels.Constants(
+                *(
+                    _levels.batch_last(a, t, batch, xp)
+                    for a, t in zip(params, trailing, strict=True)
                 )
             )
-        bodies = tuple(
-            _TreeBody(int(self.body_parents[b]), body_pos[b], body_rot[b], self._body_joints[b])
-            for b in range(len(self.body_names))
-        )
-        sites = tuple(
-            (int(self.site_bodies[s]), site_pos[s], site_rot[s])
-            for s in range(len(self.site_names))
-        )
-        return _TreeModel(bodies, tuple(joints), sites)
+        x = _levels.expand(self._plan, _levels.batch_last(qpos, 1, batch, xp), lib)
+        return _levels.evaluate(self._plan, x, lib, params, joints=joints), lib
 
-    def _body_poses(
-        self, x: Sequence[Any], xp: Any, model: _TreeModel
-    ) -> tuple[list[_pose.Pose], list[_pose.Vec], list[_pose.Vec]]:
-        """World poses of every body from expanded slots ``x`` (:meth:`_slots_of`), and every
-        joint's world axis and anchor, taken before the joint moves (MuJoCo's ``xaxis`` and
-        ``xanchor``), entry by entry (:mod:`poekin._pose`)."""
-        world: _pose.Pose = (_pose.IDENTITY, _pose.ORIGIN)
-        poses: list[_pose.Pose] = []
-        axes: list[_pose.Vec] = [_pose.ORIGIN] * len(model.joints)
-        anchors: list[_pose.Vec] = [_pose.ORIGIN] * len(model.joints)
-        moved_by = _joint_motions(model, x, xp)
-        for body in model.bodies:
-            pose = world if body.parent < 0 else poses[body.parent]
-            pose = _pose.compose_const(pose, body.rot, body.pos)
-            for k in body.joints:
-                joint = model.joints[k]
-                R_b, p_b = pose
-                axes[k] = _pose.mat_vec(R_b, joint.axis)
-                turned = _pose.mat_vec(R_b, joint.anchor)
-                anchors[k] = (p_b[0] + turned[0], p_b[1] + turned[1], p_b[2] + turned[2])
-                pose = _joint_turn(pose, joint, x, axes[k], moved_by[k])
-            poses.append(pose)
-        return poses, axes, anchors
-
-    def _frames(self, bodies: Sequence[_pose.Pose], model: _TreeModel) -> list[_pose.Pose]:
-        """Body then site poses."""
-        world: _pose.Pose = (_pose.IDENTITY, _pose.ORIGIN)
-        sites = [
-            _pose.compose_const(world if parent < 0 else bodies[parent], rot, pos)
-            for parent, pos, rot in model.sites
-        ]
-        return [*bodies, *sites]
+    def _frames(
+        self, qpos: Any, xp: Any, like: Any, params: _levels.Constants | None, form: Form
+    ) -> Any:
+        """:meth:`fk` of ``qpos`` (an array of ``xp``) on the reference path."""
+        poses, lib = self._poses(qpos, xp, like, params, joints=False)
+        return _levels.frames_array(poses, self._plan, form, lib)
 
     @_fast.fast_method("_kernel")
     def fk(
@@ -678,9 +534,8 @@ class Tree:
         # the kernel has run already where it takes the arguments as they are (fast_method)
         if params is not None or arrays.kind_of(qpos) is not None:
             form = _fast.check_form(form)
-            xp, q, like, model = self._inputs(qpos, out, params)
-            bodies, _, _ = self._body_poses(self._slots_of(q), xp, model)
-            return _pose.poses_to_array(self._frames(bodies, model), form, xp, like)  # type: ignore[no-any-return]
+            xp, q, like, constants = self._inputs(qpos, out, params)
+            return self._frames(q, xp, like, constants, form)  # type: ignore[no-any-return]
         frames = (self.n_frames,)
         return _fast.evaluate(self._kernel, qpos, out, form, self._as_qpos, self._fk_numpy, frames)
 
@@ -714,19 +569,17 @@ class Tree:
     def _fk_numpy(self, qpos: FloatArray) -> FloatArray:
         """:meth:`fk` on the reference path with NumPy (the compiled kernel's specification),
         for float64 ``qpos`` of shape ``(..., nq)`` that :meth:`fk` has validated."""
-        model = self._constants
-        bodies, _, _ = self._body_poses(self._slots_of(qpos), np, model)
-        frames = self._frames(bodies, model)
-        return _pose.poses_to_array(frames, "4x4", np, zeros_like_batch(qpos, np))  # type: ignore[no-any-return]
+        return self._frames(qpos, np, zeros_like_batch(qpos, np), None, "4x4")  # type: ignore[no-any-return]
 
     def _as_qpos(self, qpos: ArrayLike) -> FloatArray:
         return as_joint_values(qpos, self.nq, what="qpos values", layout=self._layout_text)
 
     def _inputs(
         self, qpos: Any, out: Any, params: TreeParams | None
-    ) -> tuple[Any, Any, Any, _TreeModel]:
+    ) -> tuple[Any, Any, Any, _levels.Constants | None]:
         """The generic path's namespace, ``qpos`` as its array, zeros of the batch shape (the
-        result's dtype and device) and the constants: the tree's, or ``params``'."""
+        result's dtype and device) and ``params`` as arrays of that library and dtype (None:
+        the tree's own constants)."""
         if params is not None and not isinstance(params, TreeParams):
             raise InputError(
                 f"params must be a TreeParams (see tree.parameters()), got {type(params).__name__}"
@@ -736,7 +589,7 @@ class Tree:
             qpos, self.nq, leaves, out, what="qpos values", layout=self._layout_text
         )
         if params is None:
-            return xp, q, like, self._constants
+            return xp, q, like, None
         nb, nj, ns = len(self.body_names), len(self.joint_names), len(self.site_names)
         shapes = {
             "body_pos": (nb, 3),
@@ -746,21 +599,12 @@ class Tree:
             "site_pos": (ns, 3),
             "site_rot": (ns, 3, 3),
         }
-        values = {}
+        values = []
         for name, shape in shapes.items():
             a = arrays.convert(getattr(params, name), xp, q.dtype, q)
             check_shape(a, shape, f"params.{name}")
-            values[name] = a
-        model = self._model_of(
-            [_vec_of(values["body_pos"], b) for b in range(nb)],
-            [_mat_of(values["body_rot"], b) for b in range(nb)],
-            [_vec_of(values["joint_axes"], k) for k in range(nj)],
-            [_vec_of(values["joint_anchors"], k) for k in range(nj)],
-            [_vec_of(values["site_pos"], s) for s in range(ns)],
-            [_mat_of(values["site_rot"], s) for s in range(ns)],
-            constants=False,
-        )
-        return xp, q, like, model
+            values.append(a)
+        return xp, q, like, _levels.Constants(*values)
 
     def parameters(self, like: Any = None) -> TreeParams:
         """The body offsets, joint axes and anchors and site offsets as :class:`TreeParams`:
@@ -833,8 +677,8 @@ class Tree:
         check_jacobian_convention(convention)
         index = self.frame_index(frame)
         if params is not None or arrays.kind_of(qpos) is not None:
-            xp, q, like, model = self._inputs(qpos, None, params)
-            columns = self._jacobian_columns(q, xp, model, index, convention)
+            xp, q, like, constants = self._inputs(qpos, None, params)
+            columns = self._jacobian_columns(q, xp, like, constants, index, convention)
             return jacobian_array(columns, xp, like)  # type: ignore[no-any-return]
         kernel = self._jacobian_kernel(frame, index, convention)
         return _fast.run_checked(
@@ -861,17 +705,24 @@ class Tree:
 
     def _jacobian_numpy(self, qpos: FloatArray, index: int, convention: str) -> FloatArray:
         """:meth:`jacobian` on the reference path with NumPy, for validated ``qpos``."""
-        columns = self._jacobian_columns(qpos, np, self._constants, index, convention)
-        return jacobian_array(columns, np, zeros_like_batch(qpos, np))  # type: ignore[no-any-return]
+        like = zeros_like_batch(qpos, np)
+        columns = self._jacobian_columns(qpos, np, like, None, index, convention)
+        return jacobian_array(columns, np, like)  # type: ignore[no-any-return]
 
     def _jacobian_columns(
-        self, qpos: Any, xp: Any, model: _TreeModel, index: int, convention: str
+        self,
+        qpos: Any,
+        xp: Any,
+        like: Any,
+        constants: _levels.Constants | None,
+        index: int,
+        convention: str,
     ) -> list[Column]:
         """The ``nv`` columns of frame ``index``'s Jacobian in ``convention``, entry by entry:
         each joint on the frame's path adds, times its mimic multiplier, its world axes
         ``a`` and levers ``a x (p_frame - anchor)`` (a free joint: the world axes first)."""
-        bodies, axes, anchors = self._body_poses(self._slots_of(qpos), xp, model)
-        T_frame = self._frames(bodies, model)[index]
+        poses, lib = self._poses(qpos, xp, like, constants, joints=True)
+        T_frame = _levels.frame_pose(poses, self._plan, index, lib)
         p_frame = T_frame[1]
         zero: Column = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
         J: list[Column] = [zero] * self.nv
@@ -883,15 +734,16 @@ class Tree:
                 static.joint_body[k],
                 static.scale[k],
             )
+            axis, anchor = _levels.joint_axis_anchor(poses, self._plan, k)
             if kind == "prismatic":
-                J[d] = _add_column(J[d], (0.0, 0.0, 0.0, *axes[k]), scale)
+                J[d] = _add_column(J[d], (0.0, 0.0, 0.0, *axis), scale)
                 continue
             if kind == "revolute":
-                turning, about = [axes[k]], anchors[k]
+                turning, about = [axis], anchor
             else:  # ball, free: about the body's own axes, the columns of R_b
-                R_b, p_b = bodies[b]
+                R_b, p_b = _levels.body_pose(poses, self._plan, b)
                 turning = [(R_b[0][j], R_b[1][j], R_b[2][j]) for j in range(3)]
-                about = anchors[k] if kind == "ball" else p_b
+                about = anchor if kind == "ball" else p_b
                 if kind == "free":
                     for e in range(3):
                         J[d + e] = tuple(1.0 if r == 3 + e else 0.0 for r in range(6))  # type: ignore[assignment]
@@ -966,19 +818,22 @@ class Tree:
                 )
         x = self._expand(self.qpos0)
         x[self._full_adr[list(joints)]] = 0.0  # every chain joint at position 0
-        bodies, axes_w, anchors_w = self._body_poses(list(x), np, self._constants)
-        frame_pose = self._frames(bodies, self._constants)[index]
-        home = _pose.to_array(frame_pose, "4x4", np, np.zeros(()))
-        axes, anchors = np.array(axes_w, dtype=np.float64), np.array(anchors_w, dtype=np.float64)
+        lib = _levels.Lib(np, np.zeros(()), 0)
+        poses = _levels.evaluate(self._plan, x, lib, None, joints=True)
+        home = _levels.frames_array(poses, self._plan, "4x4", lib)[index]
         screws = np.zeros((len(joints), 6))
         types: list[JointType] = []
         for row, k in enumerate(joints):
+            axis, anchor = (
+                np.array(v, dtype=np.float64)
+                for v in _levels.joint_axis_anchor(poses, self._plan, k)
+            )
             if self.joint_types[k] == "revolute":
-                screws[row, :3] = axes[k]
-                screws[row, 3:] = -np.cross(axes[k], anchors[k])
+                screws[row, :3] = axis
+                screws[row, 3:] = -np.cross(axis, anchor)
                 types.append("revolute")
             else:
-                screws[row, 3:] = axes[k]
+                screws[row, 3:] = axis
                 types.append("prismatic")
         independent = all(self.mimics[k] is None for k in joints)
         return Chain(
