@@ -1,24 +1,27 @@
-"""A tree's poses depth by depth: the bodies of one depth as stacked arrays.
+"""A tree's poses level by level, isomorphic subtrees side by side as stacked arrays.
 
 The reference path of :class:`poekin.tree.Tree` (the compiled kernel's specification, and what
-JAX and PyTorch run). A *group* is the bodies of one depth whose fixed offsets and joints take
-the same shortcuts (the kernel's: an identity rotation, a zero offset, a hinge about a
-coordinate axis); its poses are ``(..., m, 3, 3)`` rotations and ``(..., m, 3)`` points, and
-each joint moves all ``m`` bodies in a few array operations (:mod:`poekin._pose`'s stacked
-formulas). Every entry is computed by the operations :mod:`poekin._pose` would apply to it
-alone, in the same order, so the results are the kernel's but for signs of zero.
+JAX and PyTorch run). Sibling subtrees of the same shape (the go2's four legs, aloha's two
+arms) are *lanes*; the bodies at one place of ``m`` lanes are a *group*, whose poses are
+``(m, 3, 3, ...)`` rotations and ``(m, 3, ...)`` points, and each joint moves all ``m`` bodies
+in a few array operations (the ``*_stacked`` formulas of :mod:`poekin._pose`). A group takes
+the kernel's shortcuts (an identity rotation, a zero offset or anchor, a hinge about a
+coordinate axis) where all its bodies allow them. Every entry is computed by the operations
+:mod:`poekin._pose` would apply to it alone, in the same order, so the results are the
+kernel's but for signs of zero. Lanes come first and the batch axes last, so that each
+operation runs over contiguous memory.
 
-Why stacked: written entry by entry, a tree is one expression per output entry (~1,300
-operations for the go2). XLA on the CPU fuses each output's whole chain into that output's
-loop and computes the chain again there, so the forward pass cost more than forward plus
-backward; Inductor compiled the unrolled graph for minutes. By groups, the go2 is four steps
-of a few dozen operations and each body's pose is computed once.
+Why: written entry by entry, a tree was one expression per output entry (~1,300 operations
+for the go2). XLA on the CPU fused each output's whole chain into that output's loop and
+computed the chain again there, so the forward pass cost more than forward plus backward,
+and Inductor compiled the graph for minutes. By groups the go2 is four steps of a few dozen
+operations, each body's pose is computed once, and both compile it in seconds.
 
-The joint values are gathered once per kind, in group order, into *lanes* (every hinge's angle,
-every slide's position, every ball or free joint's quaternion), so that sines, cosines and unit
-quaternions take one operation each and each group reads a contiguous slice of them.
-Constants are nested tuples of Python floats until a call makes them arrays of its library,
-dtype and device (JAX and torch.compile see constants, not NumPy arrays).
+The joint values are gathered once per kind, in group order, into one array each (every
+hinge's angle, every slide's position, every ball's or free joint's quaternion), so that
+sines, cosines and unit quaternions take one operation each and each group reads a
+contiguous slice. Constants are nested tuples of Python floats until a call makes them arrays
+of its library, dtype and device (so JAX and torch.compile see constants, not NumPy arrays).
 """
 
 from __future__ import annotations
@@ -40,7 +43,6 @@ __all__ = [
     "Poses",
     "SiteGroup",
     "Step",
-    "batch_first",
     "batch_last",
     "body_pose",
     "evaluate",
@@ -52,7 +54,7 @@ __all__ = [
 ]
 
 FloatArray = NDArray[np.float64]
-Pairs = tuple[tuple[int, int], ...]  # (group, position in it) per member; (-1, 0): the world
+Pairs = tuple[tuple[int, int], ...]  # (group, lane) of each body or site
 Nested = tuple[Any, ...]  # constants: nested tuples of Python floats
 
 
@@ -73,8 +75,8 @@ class Step(NamedTuple):
 
     kind: str  # "revolute", "prismatic", "ball" or "free"
     joints: tuple[int, ...]
-    lane: int  # the first of this step's columns in its kind's lane (quaternions: ball, free)
-    position_lane: int  # a free joint's first column among the free joints' positions
+    start: int  # the first of this step's values among its kind's (quaternions: ball, free)
+    position_start: int  # a free joint's first value among the free joints' positions
     along: int | None  # every hinge turns about coordinate axis ``along`` (model constants)
     signs: Nested | None  # (m,) the hinges' directions along it; None: all +1
     zero_anchor: bool  # every anchor is exactly zero (model constants)
@@ -119,7 +121,7 @@ class Plan(NamedTuple):
     """How to evaluate a tree, from its structure and constants: built once per tree."""
 
     expand: tuple[tuple[int, ...], Nested, Nested] | None  # qpos -> expanded slots
-    hinges: tuple[int, ...]  # each hinge lane column's slot in the expanded qpos
+    hinges: tuple[int, ...]  # each hinge's slot in the expanded qpos, in group order
     hinge_refs: Nested | None
     slides: tuple[int, ...]
     slide_refs: Nested | None
@@ -139,11 +141,12 @@ class Plan(NamedTuple):
 
 class Poses(NamedTuple):
     """Every group's stacked poses, and with ``joints``, every step's world axes and anchors
-    before it moves (MuJoCo's ``xaxis``, ``xanchor``), ``(..., m, 3)`` each. The lane axis has
-    length 1 where every lane shares a value (it broadcasts)."""
+    before it moves (MuJoCo's ``xaxis``, ``xanchor``), ``(m, 3, ...)`` each. The lane axis has
+    length 1 where every lane shares a value (it broadcasts), the batch axes length 1 where a
+    value is the same for every configuration."""
 
-    rotations: tuple[Any, ...]  # (..., m or 1, 3, 3) per group
-    points: tuple[Any, ...]  # (..., m or 1, 3)
+    rotations: tuple[Any, ...]  # (m or 1, 3, 3, ...) per group
+    points: tuple[Any, ...]  # (m or 1, 3, ...)
     site_rotations: tuple[Any, ...]  # per site group
     site_points: tuple[Any, ...]
     axes: tuple[tuple[Any, ...], ...]  # per group, per step
@@ -211,14 +214,14 @@ def plan(
     constants: Constants,
 ) -> Plan:
     """The plan of a tree: isomorphic sibling subtrees as lanes, their bodies grouped by place,
-    joints gathered into lanes by kind.
+    and where each kind of joint finds its values.
 
     Subtrees are isomorphic when their bodies' joints have the same kinds (and hinges the same
     coordinate axis, if any), their bodies the same number of sites and their children are
     isomorphic in order; offsets and anchors may differ (a group then takes the shortcut all
     its bodies allow). ``joint_slots[k]`` is where joint ``k``'s numbers start in the expanded
-    qpos, whose entry ``j`` is ``qpos[slots[j]] * scale[j] + offset[j]``
-    (``expansion = (slots, scale, offset)``); ``constants`` (NumPy float64) are the model's.
+    qpos, whose entry ``j`` is ``qpos[sources[j]] * scale[j] + offset[j]``
+    (``expansion = (sources, scale, offset)``); ``constants`` (NumPy float64) are the model's.
     """
     nb = len(body_parents)
     children: list[list[int]] = [[] for _ in range(nb)]
@@ -242,7 +245,7 @@ def plan(
             shapes[b] = (joints, len(sites_of[b]), tuple(shape(c) for c in children[b]))
         return shapes[b]
 
-    lanes: dict[str, list[int]] = {"revolute": [], "prismatic": [], "quat": [], "free": []}
+    slots: dict[str, list[int]] = {"revolute": [], "prismatic": [], "quat": [], "free": []}
     refs: dict[str, list[float]] = {"revolute": [], "prismatic": []}
     groups: list[Group] = []
     site_groups: list[SiteGroup] = []
@@ -255,12 +258,12 @@ def plan(
         for n in range(len(body_joints[bodies[0]])):
             joints = [body_joints[b][n] for b in bodies]
             kind, turn = joint_types[joints[0]], along(joints[0])
-            lane = kind if kind in refs else "quat"
-            start, position_start = len(lanes[lane]), len(lanes["free"])
+            values = kind if kind in refs else "quat"
+            start, position_start = len(slots[values]), len(slots["free"])
             for j, k in enumerate(joints):
-                lanes[lane].append(joint_slots[k] + (3 if kind == "free" else 0))
+                slots[values].append(joint_slots[k] + (3 if kind == "free" else 0))
                 if kind == "free":
-                    lanes["free"].append(joint_slots[k])
+                    slots["free"].append(joint_slots[k])
                 if kind in refs:
                     refs[kind].append(float(joint_refs[k]))
                 joint_at[k] = (g, n, j)
@@ -270,8 +273,8 @@ def plan(
                 Step(
                     kind=kind,
                     joints=tuple(joints),
-                    lane=start,
-                    position_lane=position_start,
+                    start=start,
+                    position_start=position_start,
                     along=turn,
                     signs=None if turn is None or set(signs) == {1.0} else tuple(signs),
                     zero_anchor=not np.any(constants.joint_anchors[joints]),
@@ -342,16 +345,18 @@ def plan(
     site_rows = _order(blocks, 1, lambda g: [site_groups[s].sites for s in group_sites[g]])
     body_seq = body_rows[0]
     site_seq = site_rows[0] + list(on_world)
-    slots, scale, offset = (tuple(v) for v in expansion)
-    identity = slots == tuple(range(len(slots))) and set(scale) <= {1.0} and set(offset) <= {0.0}
+    sources, scale, offset = (tuple(v) for v in expansion)
+    identity = (
+        sources == tuple(range(len(sources))) and set(scale) <= {1.0} and set(offset) <= {0.0}
+    )
     return Plan(
-        expand=None if identity else (tuple(map(int, slots)), _nested(scale), _nested(offset)),
-        hinges=tuple(lanes["revolute"]),
+        expand=None if identity else (tuple(map(int, sources)), _nested(scale), _nested(offset)),
+        hinges=tuple(slots["revolute"]),
         hinge_refs=_refs(refs["revolute"]),
-        slides=tuple(lanes["prismatic"]),
+        slides=tuple(slots["prismatic"]),
         slide_refs=_refs(refs["prismatic"]),
-        quats=tuple(lanes["quat"]),
-        frees=tuple(lanes["free"]),
+        quats=tuple(slots["quat"]),
+        frees=tuple(slots["free"]),
         groups=tuple(groups),
         sites=tuple(site_groups),
         blocks=blocks,
@@ -467,15 +472,6 @@ def batch_last(a: Any, trailing: int, batch: int, xp: Any) -> Any:
     return xp.reshape(a, (*a.shape[:trailing], *(1,) * (batch - nb), *a.shape[trailing:]))
 
 
-def batch_first(a: Any, trailing: int, xp: Any) -> Any:
-    """:func:`batch_last` undone: ``(*T, *B)`` as ``(*B, *T)``, C-contiguous in NumPy and
-    PyTorch (their copies of a permutation run at memory speed)."""
-    a = xp.permute_dims(a, (*range(trailing, a.ndim), *range(trailing)))
-    if arrays.kind_of(a) == "torch":
-        return a.contiguous()
-    return np.ascontiguousarray(a) if xp is np else a
-
-
 def expand(plan: Plan, x: Any, lib: Lib) -> Any:
     """The expanded joint values ``(nq_full, ...)`` of ``x (nq, ...)``: each joint's own
     numbers, a mimic follower's ``multiplier * leader + offset`` (``x`` itself for trees
@@ -491,7 +487,7 @@ def expand(plan: Plan, x: Any, lib: Lib) -> Any:
     return x
 
 
-def _lanes(plan: Plan, x: Any, lib: Lib) -> dict[str, Any]:
+def _joint_values(plan: Plan, x: Any, lib: Lib) -> dict[str, Any]:
     """Each kind's values in group order, computed once: the hinges' sines and cosines, the
     slides' positions, the unit quaternions (normalised as MuJoCo does, entries ``w x y z``)
     and the free joints' positions; ``(n, ...)`` each."""
@@ -531,20 +527,20 @@ def _joint(
     library; ``general``: no shortcut (parameters)."""
     xp = lib.xp
     m = len(step.joints)
-    lane = slice(step.lane, step.lane + m)
+    at = slice(step.start, step.start + m)
     if step.kind == "free":
-        unit = [q[lane] for q in values["quat"]]
-        at = slice(step.position_lane, step.position_lane + m)
+        unit = [q[at] for q in values["quat"]]
+        where = slice(step.position_start, step.position_start + m)
         return _pose.stack_mat(_pose.quat_matrix(unit), xp), xp.stack(
-            [v[at] for v in values["free"]], axis=1
+            [v[where] for v in values["free"]], axis=1
         )
     if step.kind == "prismatic":
-        return R, p + c["axis_world"] * values["slide"][lane][:, None]
+        return R, p + c["axis_world"] * values["slide"][at][:, None]
     anchor = None if step.zero_anchor and not general else c["anchor"]
     if step.kind == "ball":
-        R_j = _pose.stack_mat(_pose.quat_matrix([q[lane] for q in values["quat"]]), xp)
+        R_j = _pose.stack_mat(_pose.quat_matrix([q[at] for q in values["quat"]]), xp)
     else:
-        s, co = values["sin"][lane], values["cos"][lane]
+        s, co = values["sin"][at], values["cos"][at]
         if step.along is not None and not general:
             if step.signs is not None:
                 s = s * lib.const(step.signs)
@@ -554,6 +550,26 @@ def _joint(
     if anchor is None:  # the turn about the origin: no translation (but signs of zero)
         return _pose.mat_mat_stacked(R, R_j, xp), p
     return _pose.compose_stacked(R, p, R_j, _pose.about_point_stacked(R_j, anchor, xp), xp)
+
+
+def _placed(
+    parent: tuple[Any, Any] | None, group: Group | SiteGroup, lib: Lib, params: Constants | None
+) -> tuple[Any, Any]:
+    """The poses of a group's bodies or sites at their fixed offsets from their parents' poses
+    ``parent`` (None: the world's, the identity): the model's offsets with their shortcut, or
+    those of ``params`` (no shortcut)."""
+    xp = lib.xp
+    if params is None:
+        rot, pos, fixed = lib.const(group.rot), lib.const(group.pos), group.fixed
+    elif isinstance(group, SiteGroup):
+        rot, pos = take(params.site_rot, group.sites, xp), take(params.site_pos, group.sites, xp)
+        fixed = "general"
+    else:
+        rot, pos = take(params.body_rot, group.bodies, xp), take(params.body_pos, group.bodies, xp)
+        fixed = "general"
+    if parent is None:
+        return rot, pos  # the world's pose, then the offset (compose_const)
+    return _fixed_offset(*parent, fixed, rot, pos, xp)
 
 
 def _step_constants(step: Step, lib: Lib, params: Constants | None) -> dict[str, Any]:
@@ -587,24 +603,19 @@ def evaluate(
     """
     xp = lib.xp
     general = params is not None
-    values = _lanes(plan, x, lib)
+    values = _joint_values(plan, x, lib)
     Rs: list[Any] = []
     ps: list[Any] = []
     axes: list[tuple[Any, ...]] = []
     anchors: list[tuple[Any, ...]] = []
     for group in plan.groups:
-        if params is None:
-            rot, pos, fixed = lib.const(group.rot), lib.const(group.pos), group.fixed
-        else:
-            rot = take(params.body_rot, group.bodies, xp)
-            pos = take(params.body_pos, group.bodies, xp)
-            fixed = "general"
-        if group.parent < 0:
-            R, p = rot, pos  # the world's pose, then the offset (compose_const)
-        else:
-            R = _repeat(Rs[group.parent], group.repeat, xp)
-            p = _repeat(ps[group.parent], group.repeat, xp)
-            R, p = _fixed_offset(R, p, fixed, rot, pos, xp)
+        parent = None
+        if group.parent >= 0:
+            parent = (
+                _repeat(Rs[group.parent], group.repeat, xp),
+                _repeat(ps[group.parent], group.repeat, xp),
+            )
+        R, p = _placed(parent, group, lib, params)
         step_axes, step_anchors = [], []
         for step in group.steps:
             c = _step_constants(step, lib, params)
@@ -620,16 +631,8 @@ def evaluate(
         anchors.append(tuple(step_anchors))
     site_Rs, site_ps = [], []
     for sites in plan.sites:
-        if params is None:
-            rot, pos, fixed = lib.const(sites.rot), lib.const(sites.pos), sites.fixed
-        else:
-            rot = take(params.site_rot, sites.sites, xp)
-            pos = take(params.site_pos, sites.sites, xp)
-            fixed = "general"
-        if sites.parent < 0:
-            R, p = rot, pos
-        else:
-            R, p = _fixed_offset(Rs[sites.parent], ps[sites.parent], fixed, rot, pos, xp)
+        parent = None if sites.parent < 0 else (Rs[sites.parent], ps[sites.parent])
+        R, p = _placed(parent, sites, lib, params)
         site_Rs.append(R)
         site_ps.append(p)
     return Poses(tuple(Rs), tuple(ps), tuple(site_Rs), tuple(site_ps), tuple(axes), tuple(anchors))
@@ -786,9 +789,9 @@ def frames_array(poses: Poses, plan: Plan, form: str, lib: Lib) -> Any:
     one stack, as the entry-by-entry path always did."""
     xp = lib.xp
     if _is_jax(xp):
-        return batch_first(
-            _frames_batch_last(poses, plan, form, lib), 2 if form == "pos_quat" else 3, xp
-        )
+        frames = _frames_batch_last(poses, plan, form, lib)
+        trailing = 2 if form == "pos_quat" else 3  # the batch axes back in front
+        return xp.permute_dims(frames, (*range(trailing, frames.ndim), *range(trailing)))
     batch = _batch(poses, lib)
     sources = [
         *zip(poses.rotations, poses.points, strict=True),
