@@ -12,7 +12,12 @@ go2 and aloha qpos from ``poekin.sample_qpos``):
   MJX ``jit(vmap(kinematics))`` (target: JAX poekin >= 100x faster) and pytorch_kinematics on the
   same tensor (target: PyTorch poekin >= 10x faster), each checked against MuJoCo.
 * go2 and aloha, every body and site: ``tree.fk`` in both libraries, forward and forward plus
-  backward, and JAX's first call (target <= 3 s for the go2).
+  backward (target: the forward never slower than forward plus backward), JAX's forward per
+  configuration against the NumPy kernel's (target for the go2: <= 5x), and ``torch.compile``
+  (Inductor) of ``tree.fk``: first call (target <= 60 s; compile caches off) and per
+  configuration.
+* every Menagerie model here (``first-calls``): JAX's first call of ``jit(vmap(tree.fk))``
+  (trace and compile; target <= 3 s each).
 
 Medians and interquartile ranges over repeats; ratios as ``x`` (time / poekin's). Accuracy: the
 largest position and orientation difference from MuJoCo's ``mj_kinematics`` on a subset. The
@@ -22,7 +27,7 @@ is asserted anywhere.
 examples:
   python benchmarks/bench_arrays.py --quick                  # seconds; what CI runs
   python benchmarks/bench_arrays.py --json arrays.json --plot arrays.png
-  python benchmarks/bench_arrays.py --skip mjx pytorch_kinematics torch_compile
+  python benchmarks/bench_arrays.py --skip mjx pytorch_kinematics torch_compile first_calls
 """
 
 from __future__ import annotations
@@ -59,7 +64,18 @@ from bench_fk import (  # the FK benchmark's timing helpers and model loading
 import poekin
 
 TREES = ("unitree_go2", "aloha")
-ANCHORS = ("mjx", "pytorch_kinematics", "torch_compile")
+MENAGERIE = (  # the models shared with the tests (../shared/menagerie)
+    "universal_robots_ur5e",
+    "universal_robots_ur10e",
+    "franka_emika_panda",
+    "franka_fr3",
+    "ufactory_lite6",
+    "rethink_robotics_sawyer",
+    "trs_so_arm100",
+    "unitree_go2",
+    "aloha",
+)
+ANCHORS = ("mjx", "pytorch_kinematics", "torch_compile", "first_calls")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -219,6 +235,49 @@ def torch_compile_row(chain: poekin.Chain, q: np.ndarray, sizes: Sizes, ref: Any
     return agreement(row, compiled(x[: len(ref)]).numpy(), ref)
 
 
+def tree_compile_row(
+    group: str, tree: poekin.Tree, qpos: np.ndarray, sizes: Sizes, ref: Any
+) -> Row:
+    """torch.compile (Inductor, fullgraph) of tree.fk with Inductor's caches off, so that the
+    first call is a whole compile however often the benchmark runs. An eager call has come
+    first (torch_rows): torch.compile as a process's first torch call fails (issue #20, 3)."""
+    import torch
+    import torch._inductor.config as inductor
+
+    x = torch.from_numpy(qpos)
+    compiled = torch.compile(tree.fk, fullgraph=True)
+    before = inductor.force_disable_caches
+    inductor.force_disable_caches = True
+    try:
+        first = first_call(lambda: compiled(x[:8]))
+    finally:
+        inductor.force_disable_caches = before
+    row = Row(group, "torch.compile(tree.fk) inductor", first_call_s=first)
+    with torch.no_grad():
+        row.timing = time_per_config(lambda: compiled(x), len(qpos), sizes.repeats)
+    return agreement(row, compiled(x[: len(ref)]).numpy(), ref)
+
+
+def first_call_rows(sizes: Sizes) -> list[Row]:
+    """JAX's first call of jit(vmap(tree.fk)) (trace and compile) for every Menagerie model."""
+    import jax
+    import jax.numpy as jnp
+
+    rows = []
+    for robot in MENAGERIE:
+        try:
+            tree = poekin.load_tree(_quiet(lambda robot=robot: poekin.load_model(robot)))
+        except poekin.PoekinError as e:
+            rows.append(skipped("first calls", robot, e))
+            continue
+        x = jnp.asarray(poekin.sample_qpos(tree, sizes.batch, seed=0))
+        forward = jax.jit(jax.vmap(tree.fk))
+        note = f"{len(tree.body_names)} bodies, {len(tree.site_names)} sites"
+        seconds = first_call(lambda forward=forward, x=x: forward(x))
+        rows.append(Row("first calls", robot, first_call_s=seconds, note=note))
+    return rows
+
+
 def pytorch_kinematics_row(model: Model, q: np.ndarray, sizes: Sizes, ref: Any) -> Row:
     import torch
 
@@ -263,7 +322,7 @@ def run_ur5e(sizes: Sizes, seed: int, skip: list[str]) -> list[Row]:
     return rows
 
 
-def run_tree(robot: str, sizes: Sizes, seed: int) -> list[Row]:
+def run_tree(robot: str, sizes: Sizes, seed: int, skip: list[str]) -> list[Row]:
     loaded = _quiet(lambda: poekin.load_model(robot))
     tree = poekin.load_tree(loaded)
     qpos = poekin.sample_qpos(tree, sizes.batch, seed=seed)
@@ -272,6 +331,11 @@ def run_tree(robot: str, sizes: Sizes, seed: int) -> list[Row]:
     rows[0].timing = time_per_config(lambda: tree.fk(qpos), len(qpos), sizes.repeats)
     rows += jax_rows(robot, tree.fk, qpos, sizes, ref)
     rows += torch_rows(robot, tree.fk, qpos, sizes, ref)
+    if "torch_compile" not in skip:
+        try:
+            rows.append(tree_compile_row(robot, tree, qpos, sizes, ref))
+        except Exception as e:  # a failed compile says so in its row
+            rows.append(skipped(robot, "torch.compile(tree.fk) inductor", e))
     for r in rows:
         if r.max_pos_m is not None:
             r.note = f"{r.note}; accuracy vs poekin's NumPy path".lstrip("; ")
@@ -287,6 +351,12 @@ def ratios(rows: list[Row]) -> dict[str, float]:
         if a in by and b in by:
             out[key] = by[a] / by[b]
 
+    for group in TREES:
+        ratio(
+            f"{group}: jax forward / numpy kernel",
+            (group, "jax jit(vmap(fk))"),
+            (group, "poekin numpy kernel (for scale)"),
+        )
     for group in ("ur5e", *TREES):
         ratio(
             f"{group}: jax forward+backward / forward",
@@ -415,7 +485,7 @@ def main(argv: list[str] | None = None) -> int:
         )
     if args.repeats:
         sizes = dataclasses.replace(sizes, repeats=args.repeats)
-    skip = list(args.skip) + (["torch_compile", "mjx"] if args.quick else [])
+    skip = list(args.skip) + (["torch_compile", "mjx", "first_calls"] if args.quick else [])
     try:
         import jax
         import torch
@@ -439,7 +509,9 @@ def main(argv: list[str] | None = None) -> int:
     rows = run_ur5e(sizes, args.seed, skip)
     if not args.no_trees:
         for robot in TREES[:1] if args.quick else TREES:  # --quick: the go2 only
-            rows += run_tree(robot, sizes, args.seed)
+            rows += run_tree(robot, sizes, args.seed, skip)
+    if "first_calls" not in skip:
+        rows += first_call_rows(sizes)
     print_rows(rows)
     summary = ratios(rows)
     print()

@@ -813,6 +813,13 @@ def frames_array(poses: Poses, plan: Plan, form: str, lib: Lib) -> Any:
         )
         for g, (R, p) in enumerate(sources)
     ]
+    like = (
+        lib.like
+        if tuple(lib.like.shape) == batch
+        else xp.zeros_like(xp.broadcast_to(lib.like, batch))
+    )
+    zero, one = xp.full_like(like, 0.0), xp.full_like(like, 1.0)
+    bottom = [zero, zero, zero, one]
     entries: list[Any] = []
     for g, j in at:
         R_lanes, p_lanes, q_lanes = lanes[g]
@@ -823,8 +830,7 @@ def frames_array(poses: Poses, plan: Plan, form: str, lib: Lib) -> Any:
         for r in range(3):
             entries.extend([*R[r], p[r]])
         if form == "4x4":
-            entries.extend([0.0, 0.0, 0.0, 1.0])
-    like = lib.like if tuple(lib.like.shape) == batch else xp.zeros(batch, dtype=lib.like.dtype)
+            entries.extend(bottom)
     # every entry a dense array of the batch: PyTorch stacks one broadcast (strided) entry
     # among them three times slower
     torch = arrays.kind_of(like) == "torch"

@@ -345,13 +345,10 @@ def poses_to_array(poses: Sequence[Pose], form: Form, xp: Any, like: Any) -> Any
 
 
 def unstack(a: Any, axis: int, xp: Any) -> tuple[Any, ...]:
-    """``a``'s slices along ``axis``: the array API's ``unstack`` (PyTorch's ``unbind``,
-    whose derivative is one stack; a slice's allocates and zeroes all of ``a`` each), or
-    indexing where the library has none (NumPy before 2.1)."""
-    if hasattr(a, "unbind"):  # PyTorch (array-api-compat's unstack has no torch.func.vmap rule)
+    """``a``'s slices along ``axis``: PyTorch's ``unbind`` (whose derivative is one stack,
+    where a slice's allocates and zeroes all of ``a`` for each), else indexing (views)."""
+    if hasattr(a, "unbind"):
         return tuple(a.unbind(axis))
-    if hasattr(xp, "unstack"):
-        return tuple(xp.unstack(a, axis=axis))
     keys = [(*(slice(None),) * axis, i) for i in range(a.shape[axis])]
     return tuple(a[key] for key in keys)
 
