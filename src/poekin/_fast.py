@@ -3,7 +3,7 @@
 A program is a list of pose operations, each ``(code, qpos address, parameter offset, slot)``,
 and one float64 array of parameters. :func:`chain_program` and :func:`tree_program` write them
 from the same constants the pure-NumPy reference path uses (:func:`poekin.chain.poe`,
-``Tree._body_poses``), with the same formulas in the same order, so both agree to ~1e-16.
+``poekin._levels.evaluate``), with the same formulas in the same order, so both agree to ~1e-16.
 
 Without the extension (no C compiler at install time) every function here still works:
 kernels are None and callers use the NumPy path.
@@ -301,7 +301,7 @@ def chain_jacobian_program(
 
 @dataclasses.dataclass(frozen=True)
 class TreeSpec:
-    """A tree's constants as the kernel programs read them (see ``Tree._body_poses``).
+    """A tree's constants as the kernel programs read them (see ``poekin._levels.evaluate``).
 
     ``slot_of_joint[k]`` is where joint ``k``'s numbers start in the expanded qpos, whose
     entry ``j`` is ``qpos[slots[j]] * slot_scale[j] + slot_offset[j]``.
@@ -370,7 +370,7 @@ def _body(
 
 
 def tree_program(t: TreeSpec) -> Any:
-    """Kernel for the world poses of every body then every site (see ``Tree._body_poses``);
+    """Kernel for the world poses of every body then every site (see ``poekin._levels.evaluate``);
     None if not compiled."""
     if _kernel is None:
         return None

@@ -10,7 +10,7 @@
  *
  * The state is one rigid transform per lane, ``cur = (R, t)``. Operations right-multiply it,
  * in the same order and with the same formulas as the pure-NumPy reference path
- * (poekin.chain.poe and poekin.tree.Tree._body_poses), so that both agree to ~1e-16.
+ * (poekin.chain.poe and poekin._levels.evaluate), so that both agree to ~1e-16.
  *
  * Floating point: built with -ffp-contract=off and without -ffast-math, so the result of one
  * configuration is the same bits whatever the batch size, the lane, the thread count or the
