@@ -16,7 +16,9 @@ from typing import Any
 
 MARKER = "<!-- cli-reference -->"
 PAGE = "cli.md"
-WIDTH = 100  # the usage lines' width, fixed so the page does not depend on the terminal
+# the usage lines' width: fixed, so the page does not depend on the terminal it was built in,
+# and within the ~85 characters the page's code boxes show
+WIDTH = 80
 
 
 def _subparsers(parser: argparse.ArgumentParser) -> dict[str, argparse.ArgumentParser]:
