@@ -77,7 +77,7 @@ def pages() -> list[pathlib.Path]:
 
 def name(page: pathlib.Path) -> str:
     """A page's path relative to the checkout, as failures and test ids name it."""
-    return page.relative_to(REPO).as_posix()
+    return page.relative_to(REPO).as_posix() if page.is_relative_to(REPO) else str(page)
 
 
 @dataclasses.dataclass(frozen=True)

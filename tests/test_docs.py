@@ -96,6 +96,46 @@ def test_readme_is_a_front_page() -> None:
     assert "docs/view_ur5e.png" in text
 
 
+# --- the machinery can fail --------------------------------------------------------------------
+
+
+def test_a_command_runs_once_and_its_files_come_with_it(tmp_path: pathlib.Path) -> None:
+    for folder in ("a", "b", "c"):
+        (tmp_path / folder).mkdir()
+    first, second, third = (db.scratch(tmp_path / f) for f in ("a", "b", "c"))
+    command = "echo $RANDOM$RANDOM > n.txt; cat n.txt"
+    code, out = db.run_once(command, first, offline=False)
+    assert code == 0 and (first / "n.txt").read_text() == out
+    assert db.run_once(command, second, offline=False) == (0, out)  # not run again
+    assert (second / "n.txt").read_text() == out
+    (third / "n.txt").write_text("mine\n")  # a file it names differs: it runs
+    assert db.run_once(command, third, offline=False)[1] != out
+
+
+def test_a_page_that_drifted_fails_and_update_rewrites_it(tmp_path: pathlib.Path) -> None:
+    page = tmp_path / "page.md"
+    page.write_text(
+        "Text.\n\n```console\n$ poekin fk universal_robots_ur5e --q 0 0 0 0 0 0 --precision 2\n"
+        "T_world_attachment_site =\n  1.00  0.00  0.00  -0.80\n...\n```\n"
+        "\n```python\nx = 1\n```\n"
+    )
+    outcomes = db.run_page(page, db.scratch(tmp_path))
+    assert [o.ok for o in outcomes] == [False, True]  # -0.82, not -0.80
+    page.write_text(db.update(page, tmp_path))
+    assert "  1.00  0.00   0.00  -0.82\n..." in page.read_text()
+    assert all(o.ok for o in db.run_page(page, tmp_path))
+
+
+def test_unknown_kinds_and_directives_are_reported(tmp_path: pathlib.Path) -> None:
+    page = tmp_path / "page.md"
+    page.write_text(
+        "```pyhton\nx = 1\n```\n\n<!-- readme: offlien -->\n```console\n$ poekin --version\n```\n"
+        "\n<!-- readme: file a.json -->\n```json\n{}\n```\n"
+    )
+    found = db.problems(page)
+    assert len(found) == 2 and "'pyhton'" in found[0] and "'offlien'" in found[1]
+
+
 # --- the command-line reference ----------------------------------------------------------------
 
 
