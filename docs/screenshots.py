@@ -1,4 +1,4 @@
-"""Make README's two screenshots of ``poekin view`` (Chromium via Playwright, WebGL in software).
+"""Make the two screenshots of ``poekin view`` that docs/viewer.md shows (README shows the first)
 
     python docs/screenshots.py       # writes docs/view_ur5e.png and docs/view_lynch_park.png
 

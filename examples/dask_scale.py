@@ -15,6 +15,7 @@ For many machines, point ``Client`` at a real scheduler (``Client("tcp://schedul
 from __future__ import annotations
 
 import argparse
+import logging
 import sys
 import time
 import warnings
@@ -51,6 +52,9 @@ def main() -> int:
             processes=True,
             host="127.0.0.1",
             dashboard_address=None,
+            # a busy machine makes Dask log warnings ("event loop was unresponsive") that say
+            # nothing about the result; errors still show
+            silence_logs=logging.ERROR,
         ) as cluster,
         Client(cluster, timeout=60) as client,
     ):

@@ -42,8 +42,8 @@ FD_TOL, FD_STEP = 1e-6, 1e-6
 # from the parameters) against the model's own (cos/sin entries): a few roundings apart.
 PARAM_TOL = 2e-14
 # Float32 vs float64 on the same q, every Menagerie model, 1000 samples in [-2 pi, 2 pi]:
-# measured at most 4.3e-7 m and 6.8e-7 rad (README); float32's eps is 1.2e-7 and an angle near
-# 2 pi is itself rounded by 2.4e-7.
+# measured at most 4.3e-7 m and 6.8e-7 rad (docs/jax-pytorch.md); float32's eps is 1.2e-7 and
+# an angle near 2 pi is itself rounded by 2.4e-7.
 F32_POS_TOL, F32_ORI_TOL = 1e-6, 1.5e-6
 N = 64
 BATCH_SHAPES = [(), (1,), (3, 1, 2)]
@@ -163,7 +163,8 @@ def test_a_chain_without_joints_and_an_empty_batch(lib: Lib) -> None:
 
 
 def test_float32_stays_float32_within_the_stated_error(lib: Lib) -> None:
-    """README's float32 figures: every Menagerie tree, float32 vs float64 on the same q."""
+    """The float32 figures of docs/jax-pytorch.md: every Menagerie tree, float32 vs float64 on
+    the same q."""
     worst_pos = worst_ori = 0.0
     for robot in MENAGERIE:
         tree = poekin.load_tree(load_quiet(robot))

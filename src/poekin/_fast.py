@@ -63,7 +63,8 @@ def compiled_kernel() -> bool:
 
 
 #: How much slower the NumPy path is than the kernel on a batch: 63x (UR5e ``chain.fk``) and 39x
-#: (go2 ``tree.fk``) against the kernel on one core, twice that against two (README "Install").
+#: (go2 ``tree.fk``) against the kernel on one core, twice that against two
+#: (docs/performance.md, "Without the compiled kernel").
 NUMPY_PATH_SLOWDOWN = "40 to 130 times"
 _VECTOR_UNITS = {8: "AVX-512", 4: "AVX2", 2: "SSE2"}
 # A batch of at least this many configurations on the NumPy path gets a note, once a process.
