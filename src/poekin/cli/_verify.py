@@ -263,8 +263,8 @@ def register(sub: Any, fmt: type[argparse.HelpFormatter]) -> None:
         "--params",
         metavar="FILE|NAME",
         required=True,
-        help="your parameters: a DH table or PoE set as a .json/.yaml file, or a named set "
-        f"({PARAM_NAMES})",
+        help="your parameters: a DH table or PoE set as a .json/.yaml file, UR's calibration "
+        f".yaml (ur_calibration's kinematics:), or a named set ({PARAM_NAMES})",
     )
     g.add_argument(
         "--against",
