@@ -25,6 +25,7 @@ where ``O_s`` is segment ``s``'s origin: translation ``(x, y, z)``, then the rot
 fixed-axis roll-pitch-yaw, ``R = Rz(yaw) Ry(pitch) Rx(roll)``; each joint turns about its link's
 z axis (``<axis xyz="0 0 1"/>``); ``F`` is the fixed joint ``wrist_3-flange``, rpy
 ``(0, -pi/2, -pi/2)``, and ``T`` the fixed joint ``flange-tool0``, rpy ``(pi/2, 0, pi/2)``.
+(``F T`` is the identity: ``tool0`` is ``wrist_3_link``'s own frame.)
 
 The base: in ur_macro.xacro the shoulder joint's parent is ``base_link_inertia``, which the fixed
 joint ``base_link-base_link_inertia`` turns by rpy ``(0, 0, pi)`` from ``base_link``; ``base`` is
@@ -37,6 +38,12 @@ The Menagerie UR5e (``universal_robots_ur5e``) uses the same frames: its world i
 and its ``attachment_site`` is turned like ``tool0`` (they agree to 6e-10 rad, the precision of
 the file's ``1.570796327``). Its link lengths are rounded to the millimetre, so UR's nominal
 UR5e is 0.2 to 0.7 mm from it in ``d1, a3, d4, d5, d6``.
+
+The angles are read as ROS reads them (URDF rpy). ``ur_calibration`` computes them with Eigen's
+``eulerAngles(0, 1, 2)``, whose angles mean ``R = Rx(roll) Ry(pitch) Rz(yaw)``; the two readings
+agree to second order in the small angles (3 to 7 micrometres and microradians for the two real
+UR10e calibrations in ur_calibration's tests), so ROS's ``tool0``, and this chain, can differ
+from the controller's by that much.
 
 Lengths are metres, angles radians.
 """
