@@ -52,7 +52,7 @@ EXAMPLES = _examples()
 
 
 def _fixtures(folder: pathlib.Path) -> None:
-    """The files the examples read: joint values for the UR5e and the go2, a parameter file."""
+    """The files the examples read: joint values for the UR5e and the go2, parameter files."""
     rng = np.random.default_rng(0)
     np.save(folder / "q.npy", rng.uniform(-3, 3, (20, 6)))
     tree = poekin.load_tree("unitree_go2")
@@ -60,6 +60,8 @@ def _fixtures(folder: pathlib.Path) -> None:
     (folder / "my_ur5e.json").write_text(
         __import__("json").dumps(poekin.named_params("ur5e-dh").describe())
     )
+    calibration = rb.REPO / "tests" / "data" / "ur" / "ur5e_calibration.yaml"  # synthetic
+    (folder / "my_robot_calibration.yaml").write_text(calibration.read_text())
 
 
 def test_every_command_has_examples() -> None:

@@ -105,7 +105,8 @@ def add_params(p: argparse.ArgumentParser, what: str) -> None:
     p.add_argument(
         "--params",
         metavar="FILE|NAME",
-        help=f"{what}: a DH table or PoE set as a .json/.yaml file, or a named set ({PARAM_NAMES})",
+        help=f"{what}: a DH table or PoE set as a .json/.yaml file, UR's calibration .yaml "
+        f"(ur_calibration's kinematics:), or a named set ({PARAM_NAMES})",
     )
 
 
