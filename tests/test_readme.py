@@ -60,7 +60,7 @@ def _fixtures(folder: pathlib.Path) -> None:
     (folder / "my_ur5e.json").write_text(
         __import__("json").dumps(poekin.named_params("ur5e-dh").describe())
     )
-    calibration = rb.REPO / "tests" / "data" / "ur" / "ur5e_calibration.yaml"  # synthetic
+    calibration = db.REPO / "tests" / "data" / "ur" / "ur5e_calibration.yaml"  # synthetic
     (folder / "my_robot_calibration.yaml").write_text(calibration.read_text())
 
 
