@@ -203,7 +203,11 @@ def run(command: str, cwd: pathlib.Path) -> tuple[int, str]:
             _inside(cwd),
             contextlib.redirect_stdout(buffer),
             contextlib.redirect_stderr(buffer),
+            warnings.catch_warnings(),
         ):
+            # as in a new process: a note shown to an earlier command is shown again (a change
+            # of the filters empties every module's record of the warnings it has shown)
+            warnings.simplefilter("default")
             try:
                 code = main(shlex.split(command, comments=True)[1:])
             except SystemExit as e:  # argparse: --help, usage errors
