@@ -372,6 +372,72 @@ def test_bad_targets(T: object, match: str, folder: pathlib.Path) -> None:
         arm_named("ur5e", folder).chain.ik_all(T)  # type: ignore[arg-type]
 
 
+# --- the compiled twin -------------------------------------------------------------------------
+
+needs_kernel = pytest.mark.skipif(not poekin.compiled_kernel(), reason="no compiled kernel")
+
+
+@needs_kernel
+def test_kernel_equals_the_numpy_reference(arm: Arm) -> None:
+    """Same operations in the same order: the same validity and the same angles but for the
+    last bit or two of atan2 (the kernel's own)."""
+    q = arm.sample(400, seed=10)
+    q[:100, 4] = 0.0  # wrist singularities
+    q[100:150, 2] = 0.0  # stretched elbows (UR)
+    T = arm.chain.fk(q)
+    T[150:160, :3, 3] *= 10  # out of reach
+    ref_q, ref_valid = analytic.solve_numpy(arm.chain, T)
+    got = analytic.solve_kernel(arm.chain, T)
+    assert got is not None
+    np.testing.assert_array_equal(got[1], ref_valid)
+    assert np.max(np.abs(got[0] - ref_q)) <= 4 * np.finfo(float).eps * np.pi
+
+
+def test_without_the_kernel(folder: pathlib.Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """An install without a C compiler runs the NumPy reference, with the same checks."""
+    monkeypatch.setattr(analytic, "_kernel", None)
+    arm = arm_named("irb120", folder)
+    q = arm.sample(30, seed=12)
+    check(arm, arm.mujoco_poses(q), q)
+    assert analytic.solve_kernel(arm.chain, np.eye(4)) is None
+    with pytest.raises(InputError, match="not a rigid transform"):
+        arm.chain.ik_all(np.diag([1.0, 1.0, 1.0, 2.0]))
+
+
+@needs_kernel
+def test_kernel_widths_threads_and_batches_give_the_same_bits(folder: pathlib.Path) -> None:
+    from poekin import _fast
+
+    arm = arm_named("puma560", folder)
+    T = arm.chain.fk(arm.sample(3000, seed=11))
+    best = _fast._kernel.set_width(0)
+    threads = poekin.get_threads()
+    results = []
+    try:
+        for w in (2, 4, 8):
+            if w <= best:
+                _fast._kernel.set_width(w)
+                for t in (1, 2):
+                    poekin.set_threads(t)
+                    results.append(arm.chain.ik_all(T).q)
+    finally:
+        _fast._kernel.set_width(0)
+        poekin.set_threads(threads)
+    singles = np.stack([arm.chain.ik_all(t).q for t in T[:20]])
+    for r in results[1:]:
+        np.testing.assert_array_equal(r, results[0])
+    np.testing.assert_array_equal(singles, results[0][:20])
+
+
+@needs_kernel
+def test_kernel_rejects_what_the_reference_rejects(folder: pathlib.Path) -> None:
+    chain = arm_named("ur5e", folder).chain
+    T = np.tile(np.eye(4), (100, 1, 1))
+    T[37, 0, 0] = 1.001
+    with pytest.raises(InputError, match=r"target pose \(37,\) is not a rigid transform"):
+        chain.ik_all(T)
+
+
 # --- the page -----------------------------------------------------------------------------------
 
 

@@ -53,6 +53,11 @@ from poekin.ik import subproblems as sp
 from poekin.ik._angles import within_limits, wrap_into_limits
 from poekin.ik.subproblems import CosSin, add, dot, lift, rotate, sub
 
+try:
+    from poekin import _kernel  # type: ignore[attr-defined]
+except ImportError:  # built without a C compiler: the NumPy reference serves
+    _kernel = None
+
 if TYPE_CHECKING:
     from poekin.chain import Chain
 
@@ -143,6 +148,8 @@ class Geometry:
     size: float
     n_solutions: int
     _solve: Callable[[_Target], _Branches] = dataclasses.field(repr=False)
+    _kind: int = dataclasses.field(repr=False)  # the compiled twin's split and constants
+    _params: FloatArray = dataclasses.field(repr=False)
 
 
 # --- the geometry ------------------------------------------------------------------------------
@@ -288,13 +295,13 @@ def _find(chain: Chain) -> Geometry:
         tried.append(("a spherical wrist (axes 4, 5, 6 meeting)", wrist))
         raise AnalyticIKError(_describe_failure(chain, arm, tried))
     shoulders = [
-        ("axes 2 and 3 parallel", arm.parallel(2, 3), _two_parallel),
-        ("axes 1 and 2 meet", arm.meet(1, 2), _one_two_meet),
-        ("axes 2 and 3 meet", arm.meet(2, 3), _two_three_meet),
+        ("axes 2 and 3 parallel", arm.parallel(2, 3), _TwoParallel),
+        ("axes 1 and 2 meet", arm.meet(1, 2), _OneTwoMeet),
+        ("axes 2 and 3 meet", arm.meet(2, 3), _TwoThreeMeet),
     ]
-    for what, fails, solver in shoulders:
+    for what, fails, split in shoulders:
         if not fails:
-            return _spherical_geometry(arm, what, solver)
+            return _spherical_geometry(arm, what, split)
     why = ", ".join(fails for _, fails, _ in shoulders)
     tried.append(("a spherical wrist (axes 4, 5, 6 meet) with its first three axes", why))
     raise AnalyticIKError(_describe_failure(chain, arm, tried))
@@ -329,6 +336,8 @@ class _Wrist:
     x6: Vec
     x6_end: Vec
     d56: float  # h5 . h6
+    tol: float  # subproblem tolerances for directions (_EXISTS, _DEGENERATE)
+    tiny: float
 
 
 def _wrist_constants(arm: _Arm) -> _Wrist:
@@ -342,7 +351,24 @@ def _wrist_constants(arm: _Arm) -> _Wrist:
         x6=_v(x6),
         x6_end=_v(R_M.T @ x6),
         d56=float(h[4] @ h[5]),
+        tol=_EXISTS,
+        tiny=_DEGENERATE,
     )
+
+
+def _flat(consts: Any) -> FloatArray:
+    """A split's constants in declaration order (nested dataclasses and vectors flattened):
+    the compiled kernel reads them as a struct of doubles in the same order."""
+    out: list[float] = []
+    for field in dataclasses.fields(consts):
+        value = getattr(consts, field.name)
+        if dataclasses.is_dataclass(value):
+            out.extend(_flat(value))
+        else:
+            out.extend(np.ravel(value).tolist())
+    flat = np.array(out, dtype=np.float64)
+    flat.flags.writeable = False
+    return flat
 
 
 def _in_end_frame(arm: _Arm, x: FloatArray) -> Vec:
@@ -370,7 +396,9 @@ class _Target(NamedTuple):
 class _ThreeParallel:
     wrist: _Wrist
     h: Vec  # axis 2's direction, shared by 3 and 4 (as their sense allows)
-    sign3: float  # +-1: axis 3 = sign3 h
+    minus_h: Vec
+    h3: Vec  # axis 3's direction, sign3 h
+    sign3: float  # +-1
     sign4: float
     r1: Vec
     r2: Vec
@@ -395,6 +423,8 @@ def _three_parallel_geometry(arm: _Arm) -> Geometry:
     consts = _ThreeParallel(
         wrist=_wrist_constants(arm),
         h=_v(h),
+        minus_h=_v(-h),
+        h3=_v(np.sign(l3.w @ h) * h),
         sign3=float(np.sign(l3.w @ h)),
         sign4=float(np.sign(l4.w @ h)),
         r1=_v(l1.point),
@@ -416,6 +446,8 @@ def _three_parallel_geometry(arm: _Arm) -> Geometry:
         arm.size,
         8,
         lambda target: _solve_three_parallel(consts, target),
+        _KINDS[_ThreeParallel],
+        _flat(consts),
     )
 
 
@@ -423,9 +455,7 @@ def _solve_three_parallel(P: _ThreeParallel, target: _Target) -> _Branches:
     """Branch axes: q1 (2), then q2 + q3 + q4 with q5 (2), then the elbow (2)."""
     W = P.wrist
     h5, h6 = W.h[4], W.h[5]
-    minus_h1, minus_h5 = W.minus[0], W.minus[4]
-    minus_h = _v(-np.asarray(P.h))
-    h3 = _v(P.sign3 * np.asarray(P.h))
+    minus_h1, minus_h5, minus_h, h3 = W.minus[0], W.minus[4], P.minus_h, P.h3
     R, p = target
     # q1: the point where axes 5 and 6 meet keeps its height along h through joints 2 to 6
     y1 = sub(add(_pose.mat_vec(R, P.c56_end), p), P.r1)
@@ -434,7 +464,7 @@ def _solve_three_parallel(P: _ThreeParallel, target: _Target) -> _Branches:
     # theta = q2 + q3 + q4 (as turns about h) and q5: axis 6 points along
     # v = rot(h, theta) rot(h5, q5) h6 in joint 1's frame
     v = rotate(minus_h1, a1, lift(_pose.mat_vec(R, W.h6_end)))
-    turn = sp.sp4_cs(h5, v, minus_h, W.d56, _EXISTS, _DEGENERATE)  # (N, 2, 2)
+    turn = sp.sp4_cs(h5, v, minus_h, W.d56, W.tol, W.tiny)  # (N, 2, 2)
     theta = turn.root
     u = rotate(minus_h, theta, lift(v))  # = rot(h5, q5) h6
     a5 = sp.sp1_cs(h6, u, h5)
@@ -518,20 +548,20 @@ class _Shoulder(NamedTuple):
 class _Spherical:
     wrist: _Wrist
     pw_end: Vec  # the wrist centre in the end frame
-    shoulder: Callable[[Vec], _Shoulder]  # the wrist centre's target position -> q1, q2, q3
+    shoulder: _ShoulderSplit  # the wrist centre's target position -> q1, q2, q3
 
 
-def _spherical_geometry(
-    arm: _Arm, what: str, shoulder: Callable[[_Arm, FloatArray], Callable[[Vec], _Shoulder]]
-) -> Geometry:
+def _spherical_geometry(arm: _Arm, what: str, split: type[_ShoulderSplit]) -> Geometry:
     pw = _meet(arm.line(4), arm.line(5))
-    consts = _Spherical(_wrist_constants(arm), _in_end_frame(arm, pw), shoulder(arm, pw))
+    consts = _Spherical(_wrist_constants(arm), _in_end_frame(arm, pw), split.of(arm, pw))
     return Geometry(
         "spherical wrist",
         f"spherical wrist (axes 4, 5, 6 meet), {what}",
         arm.size,
         8,
         lambda target: _solve_spherical(consts, target),
+        _KINDS[split],
+        _flat(consts),
     )
 
 
@@ -544,7 +574,7 @@ def _solve_spherical(P: _Spherical, target: _Target) -> _Branches:
     # axis 6's direction and its normal in joint 3's frame: the wrist's rotation R4 R5 R6
     # applied to h6 and x6
     v = _back(W, (a1, a2, a3), _pose.mat_vec(R, W.h6_end))  # (N, 2, 2)
-    turn = sp.sp4_cs(W.h[4], v, W.minus[3], W.d56, _EXISTS, _DEGENERATE)  # (N, 2, 2, 2)
+    turn = sp.sp4_cs(W.h[4], v, W.minus[3], W.d56, W.tol, W.tiny)  # (N, 2, 2, 2)
     a4 = turn.root
     u = rotate(W.minus[3], a4, lift(v))  # = rot(h5, q5) h6
     a5 = sp.sp1_cs(W.h[5], u, W.h[4])
@@ -574,99 +604,149 @@ def _back(W: _Wrist, shoulder: tuple[CosSin, CosSin, CosSin], x: _pose.Vec) -> _
     return out
 
 
-def _scales(arm: _Arm) -> tuple[float, float, float, float]:
+def _scales(arm: _Arm) -> dict[str, float]:
     """Subproblem tolerances: existence and point circle, in metres and in metres squared."""
     L = arm.size
-    return _EXISTS * L, _DEGENERATE * L, _EXISTS * L * L, _DEGENERATE * L * L
+    return {"tol": _EXISTS * L, "tiny": _DEGENERATE * L, "tol2": _EXISTS * L * L,
+            "tiny2": _DEGENERATE * L * L}  # fmt: skip
 
 
-def _two_parallel(arm: _Arm, pw: FloatArray) -> Callable[[Vec], _Shoulder]:
+@dataclasses.dataclass(frozen=True)
+class _TwoParallel:
     """Axes 2 and 3 parallel: q1 keeps the wrist centre's height along them (subproblem 4),
     the elbow q3 its distance from axis 2 (subproblem 3), then q2 (subproblem 1)."""
-    l1, l2, l3 = arm.line(1), arm.line(2), arm.line(3)
-    h2, h3 = _v(l2.w), _v(l3.w)
-    minus_h1 = _v(-l1.w)
-    r1 = _v(l1.point)
-    r2 = _foot(l1.point, l2)
-    r3 = _foot(r2, l3)
-    d1 = float(l2.w @ (pw - l1.point))
-    pw3, p23, p32 = _v(pw - r3), _v(r2 - r3), _v(r3 - r2)
-    r2v = _v(r2)
-    tol, tiny, tol2, tiny2 = _scales(arm)
 
-    def solve(y: Vec) -> _Shoulder:
-        y1 = sub(y, r1)
-        shoulder = sp.sp4_cs(h2, y1, minus_h1, d1, tol, tiny)  # q1: (N, 2)
-        zr = sub(add(rotate(minus_h1, shoulder.root, lift(y1)), r1), r2v)  # e1^-1 y - r2
-        elbow = sp.sp3_cs(pw3, p23, h3, dot(zr, zr), tol2, tiny2)  # q3: (N, 2, 2)
-        a2 = sp.sp1_cs(add(p32, rotate(h3, elbow.root, pw3)), lift(zr), h2)
+    h2: Vec
+    h3: Vec
+    minus_h1: Vec
+    r1: Vec
+    r2: Vec
+    pw3: Vec  # pw - r3
+    p23: Vec  # r2 - r3
+    p32: Vec
+    d1: float  # h2 . (pw - r1)
+    tol: float
+    tiny: float
+    tol2: float
+    tiny2: float
+
+    @classmethod
+    def of(cls, arm: _Arm, pw: FloatArray) -> _TwoParallel:
+        l1, l2, l3 = arm.line(1), arm.line(2), arm.line(3)
+        r2 = _foot(l1.point, l2)
+        r3 = _foot(r2, l3)
+        return cls(
+            _v(l2.w), _v(l3.w), _v(-l1.w), _v(l1.point), _v(r2), _v(pw - r3), _v(r2 - r3),
+            _v(r3 - r2), float(l2.w @ (pw - l1.point)), **_scales(arm),
+        )  # fmt: skip
+
+    def __call__(self, y: Vec) -> _Shoulder:
+        y1 = sub(y, self.r1)
+        shoulder = sp.sp4_cs(self.h2, y1, self.minus_h1, self.d1, self.tol, self.tiny)  # q1
+        zr = sub(add(rotate(self.minus_h1, shoulder.root, lift(y1)), self.r1), self.r2)
+        elbow = sp.sp3_cs(self.pw3, self.p23, self.h3, dot(zr, zr), self.tol2, self.tiny2)  # q3
+        a2 = sp.sp1_cs(add(self.p32, rotate(self.h3, elbow.root, self.pw3)), lift(zr), self.h2)
         exists = shoulder.exists[..., None, None] & elbow.exists[..., None]
         return _Shoulder((_up(shoulder.root, 1), a2, elbow.root), exists)
 
-    return solve
 
-
-def _one_two_meet(arm: _Arm, pw: FloatArray) -> Callable[[Vec], _Shoulder]:
+@dataclasses.dataclass(frozen=True)
+class _OneTwoMeet:
     """Axes 1 and 2 meet at c: q3 keeps the wrist centre's distance from c (subproblem 3),
     then q1 and q2 turn it into place (subproblem 2, the circle about axis 1 first)."""
-    l1, l2, l3 = arm.line(1), arm.line(2), arm.line(3)
-    c = _meet(l1, l2)
-    h2, h3 = _v(l2.w), _v(l3.w)
-    minus_h1 = _v(-l1.w)
-    cv = _v(c)
-    pw3, pc3, p3c = _v(pw - l3.point), _v(c - l3.point), _v(l3.point - c)
-    tol, tiny, tol2, tiny2 = _scales(arm)
 
-    def solve(y: Vec) -> _Shoulder:
-        yc = sub(y, cv)
-        elbow = sp.sp3_cs(pw3, pc3, h3, dot(yc, yc), tol2, tiny2)  # q3: (N, 2)
-        xc = add(p3c, rotate(h3, elbow.root, pw3))  # e3 pw - c
+    h2: Vec
+    h3: Vec
+    minus_h1: Vec
+    c: Vec
+    pw3: Vec  # pw - r3
+    pc3: Vec  # c - r3
+    p3c: Vec
+    tol: float
+    tiny: float
+    tol2: float
+    tiny2: float
+
+    @classmethod
+    def of(cls, arm: _Arm, pw: FloatArray) -> _OneTwoMeet:
+        l1, l2, l3 = arm.line(1), arm.line(2), arm.line(3)
+        c = _meet(l1, l2)
+        return cls(
+            _v(l2.w), _v(l3.w), _v(-l1.w), _v(c), _v(pw - l3.point), _v(c - l3.point),
+            _v(l3.point - c), **_scales(arm),
+        )  # fmt: skip
+
+    def __call__(self, y: Vec) -> _Shoulder:
+        yc = sub(y, self.c)
+        elbow = sp.sp3_cs(self.pw3, self.pc3, self.h3, dot(yc, yc), self.tol2, self.tiny2)  # q3
+        xc = add(self.p3c, rotate(self.h3, elbow.root, self.pw3))  # e3 pw - c
         yc1 = lift(yc)
-        shoulder = sp.sp4_cs(h2, yc1, minus_h1, dot(h2, xc), tol, tiny)  # q1: (N, 2, 2)
-        a2 = sp.sp1_cs(lift(xc), rotate(minus_h1, shoulder.root, lift(yc1)), h2)
+        shoulder = sp.sp4_cs(self.h2, yc1, self.minus_h1, dot(self.h2, xc), self.tol, self.tiny)
+        a2 = sp.sp1_cs(lift(xc), rotate(self.minus_h1, shoulder.root, lift(yc1)), self.h2)
         exists = elbow.exists[..., None, None] & shoulder.exists[..., None]
         return _Shoulder((shoulder.root, a2, _up(elbow.root, 1)), exists)
 
-    return solve
 
-
-def _two_three_meet(arm: _Arm, pw: FloatArray) -> Callable[[Vec], _Shoulder]:
+@dataclasses.dataclass(frozen=True)
+class _TwoThreeMeet:
     """Axes 2 and 3 meet at c: q1 keeps the wrist centre's distance from c (subproblem 3),
     then q2 and q3 turn it into place (subproblem 2, the circle about axis 2 first)."""
-    l1, l2, l3 = arm.line(1), arm.line(2), arm.line(3)
-    c = _meet(l2, l3)
-    h3 = _v(l3.w)
-    minus_h1, minus_h2 = _v(-l1.w), _v(-l2.w)
-    r1 = _v(l1.point)
-    pc1, pwc = _v(c - l1.point), _v(pw - c)
-    cv = _v(c)
-    dist2 = float((pw - c) @ (pw - c))
-    d3 = float(l3.w @ (pw - c))
-    tol, tiny, tol2, tiny2 = _scales(arm)
 
-    def solve(y: Vec) -> _Shoulder:
-        y1 = sub(y, r1)
-        shoulder = sp.sp3_cs(y1, pc1, minus_h1, dist2, tol2, tiny2)  # q1: (N, 2)
-        zc = sub(add(rotate(minus_h1, shoulder.root, lift(y1)), r1), cv)  # e1^-1 y - c
-        upper = sp.sp4_cs(h3, zc, minus_h2, d3, tol, tiny)  # q2: (N, 2, 2)
-        a3 = sp.sp1_cs(pwc, rotate(minus_h2, upper.root, lift(zc)), h3)
+    h3: Vec
+    minus_h1: Vec
+    minus_h2: Vec
+    r1: Vec
+    pc1: Vec  # c - r1
+    pwc: Vec  # pw - c
+    c: Vec
+    dist2: float  # |pw - c|^2
+    d3: float  # h3 . (pw - c)
+    tol: float
+    tiny: float
+    tol2: float
+    tiny2: float
+
+    @classmethod
+    def of(cls, arm: _Arm, pw: FloatArray) -> _TwoThreeMeet:
+        l1, l2, l3 = arm.line(1), arm.line(2), arm.line(3)
+        c = _meet(l2, l3)
+        return cls(
+            _v(l3.w), _v(-l1.w), _v(-l2.w), _v(l1.point), _v(c - l1.point), _v(pw - c), _v(c),
+            float((pw - c) @ (pw - c)), float(l3.w @ (pw - c)), **_scales(arm),
+        )  # fmt: skip
+
+    def __call__(self, y: Vec) -> _Shoulder:
+        y1 = sub(y, self.r1)
+        shoulder = sp.sp3_cs(y1, self.pc1, self.minus_h1, self.dist2, self.tol2, self.tiny2)
+        zc = sub(add(rotate(self.minus_h1, shoulder.root, lift(y1)), self.r1), self.c)
+        upper = sp.sp4_cs(self.h3, zc, self.minus_h2, self.d3, self.tol, self.tiny)  # q2
+        a3 = sp.sp1_cs(self.pwc, rotate(self.minus_h2, upper.root, lift(zc)), self.h3)
         exists = shoulder.exists[..., None, None] & upper.exists[..., None]
         return _Shoulder((_up(shoulder.root, 1), upper.root, a3), exists)
 
-    return solve
+
+_ShoulderSplit = _TwoParallel | _OneTwoMeet | _TwoThreeMeet
+# the compiled kernel's number for each split (_kernel.c: IK_*)
+_KINDS: dict[type, int] = {_ThreeParallel: 0, _TwoParallel: 1, _OneTwoMeet: 2, _TwoThreeMeet: 3}
 
 
 # --- solving -----------------------------------------------------------------------------------
 
 
-def _targets(T: ArrayLike) -> FloatArray:
-    """``T`` as float64 ``(..., 4, 4)`` rigid transforms, or :class:`InputError`."""
+def _as_poses(T: ArrayLike) -> FloatArray:
+    """``T`` as a float64 array of shape ``(..., 4, 4)``, or :class:`InputError`."""
     try:
         arr = np.asarray(T, dtype=np.float64)
     except (TypeError, ValueError) as e:
         raise InputError(f"target poses must be numbers, got {T!r:.60}") from e
     if arr.ndim < 2 or arr.shape[-2:] != (4, 4):
         raise InputError(f"target poses must have shape (..., 4, 4), got {arr.shape}")
+    return arr
+
+
+def _targets(T: ArrayLike) -> FloatArray:
+    """``T`` as float64 ``(..., 4, 4)`` rigid transforms, or :class:`InputError`."""
+    arr = _as_poses(T)
     if not np.all(np.isfinite(arr)):
         raise InputError("target poses contain NaN or inf; every entry must be finite")
     R = arr[..., :3, :3]
@@ -685,6 +765,9 @@ def _targets(T: ArrayLike) -> FloatArray:
 def ik_all(chain: Chain, T: ArrayLike) -> IKSolutions:
     """Every closed-form solution of ``chain.fk(q) = T`` (:meth:`poekin.Chain.ik_all`).
 
+    Runs in the compiled kernel where it is installed (:func:`solve_kernel`), else on the
+    NumPy reference path (:func:`solve_numpy`); both give the same solutions.
+
     Args:
         chain: six revolute joints in a supported geometry (:func:`geometry`).
         T: ``(..., 4, 4)`` target poses ``T_world_frame`` of the chain's end frame.
@@ -697,11 +780,34 @@ def ik_all(chain: Chain, T: ArrayLike) -> IKSolutions:
         InputError: ``T`` is not ``(..., 4, 4)`` finite rigid transforms.
     """
     geo = geometry(chain)
-    arr = _targets(T)
+    arr = _as_poses(T)
     batch = arr.shape[:-2]
-    q, valid = solve_numpy(chain, arr.reshape(-1, 4, 4))
     k = geo.n_solutions
+    found = _solve_kernel(geo, chain, arr)
+    if found is None:
+        q, valid = solve_numpy(chain, _targets(arr).reshape(-1, 4, 4))
+    else:
+        q, valid = found
     return IKSolutions(q.reshape(*batch, k, 6), valid.reshape(*batch, k), geo, chain, arr)
+
+
+def solve_kernel(chain: Chain, T: FloatArray) -> tuple[FloatArray, BoolArray] | None:
+    """The compiled twin of :func:`solve_numpy`: ``q`` ``(n, k, 6)`` and ``valid`` ``(n, k)``
+    for ``(..., 4, 4)`` float64 targets, or None without the compiled kernel. Raises
+    :class:`InputError` as :func:`_targets` does."""
+    return _solve_kernel(geometry(chain), chain, _as_poses(T))
+
+
+def _solve_kernel(
+    geo: Geometry, chain: Chain, T: FloatArray
+) -> tuple[FloatArray, BoolArray] | None:
+    if _kernel is None:
+        return None
+    q, valid, bad = _kernel.ik_all(geo._kind, geo._params, np.ascontiguousarray(T), chain.limits)
+    if bad >= 0:
+        _targets(T)  # raises, saying what is wrong
+        raise InputError(f"target pose {bad} is not a rigid transform")
+    return q, valid
 
 
 def solve_numpy(chain: Chain, T: FloatArray) -> tuple[FloatArray, BoolArray]:
