@@ -43,6 +43,7 @@
 #define split_one_two_meet GLUE(ik_one_two_meet, LANES)
 #define split_two_three_meet GLUE(ik_two_three_meet, LANES)
 #define spherical GLUE(ik_spherical, LANES)
+#define wrist_root GLUE(ik_wrist_root, LANES)
 #define finish GLUE(ik_finish, LANES)
 #define ik_block GLUE(ik_block, LANES)
 #define ik_task GLUE(ik_task, LANES)
@@ -203,11 +204,22 @@ AI vd atan2v(vd y, vd x) {
 
 /* --- the splits: analytic._solve_three_parallel and the shoulders of _solve_spherical --- */
 
+/* analytic._wrist for one root `first` of turn = sp4(h5, v, minus_axis, ...): q5, q6, sign
+ * and phi. x0 is the normal x turned back through the joints before. */
+AI void wrist_root(const IkWrist *W, V3 axis, V3 minus_axis, CS first, V3 v, V3 x0, CS *a5,
+                   CS *a6, vd *sign, CS *phi) {
+    V3 u = rotate(minus_axis, first, v); /* = rot(h5, q5) h6 */
+    *a5 = sp1(bc3(W->h[5]), u, bc3(W->h[4]));
+    V3 x = rotate(bc3(W->minus[4]), *a5, rotate(minus_axis, first, x0));
+    *a6 = sp1(bc3(W->x6), x, bc3(W->h[5]));
+    *sign = vselect(dot(axis, u) < 0.0, bc(-1.0), bc(1.0));
+    *phi = angle_plus(first, *a6, *sign);
+}
+
 AI void three_parallel(const IkThreeParallel *P, const vd *T, Branches *out) {
     const IkWrist *W = &P->w;
     const V3 h = bc3(P->h), minus_h = bc3(P->minus_h), h3 = bc3(P->h3);
-    const V3 h5 = bc3(W->h[4]), h6 = bc3(W->h[5]), minus_h1 = bc3(W->minus[0]);
-    const V3 minus_h5 = bc3(W->minus[4]), r1 = bc3(P->r1), r2 = bc3(P->r2);
+    const V3 minus_h1 = bc3(W->minus[0]), r1 = bc3(P->r1), r2 = bc3(P->r2);
     const V3 c56_r4 = bc3(P->c56_r4), p43 = bc3(P->p43), p23 = bc3(P->p23), p32 = bc3(P->p32);
     const V3 p = {{T[3], T[7], T[11]}};
     const vd sign3 = bc(P->sign3), sign4 = bc(P->sign4);
@@ -217,18 +229,14 @@ AI void three_parallel(const IkThreeParallel *P, const vd *T, Branches *out) {
     for (int i1 = 0; i1 < 2; ++i1) {
         CS a1 = shoulder.root[i1];
         V3 v = rotate(minus_h1, a1, Rh6);
-        Quad turn = sp4(h5, v, minus_h, bc(W->d56), bc(W->tol), bc(W->tiny));
         V3 x1 = rotate(minus_h1, a1, Rx6);
+        Quad turn = sp4(bc3(W->h[4]), v, minus_h, bc(W->d56), bc(W->tol), bc(W->tiny));
         V3 back = add3(rotate(minus_h1, a1, y1), r1);
         CS fold = sp1(c56_r4, sub3(back, r2), h);
         for (int i2 = 0; i2 < 2; ++i2) {
-            CS theta = turn.root[i2];
-            V3 u = rotate(minus_h, theta, v);
-            CS a5 = sp1(h6, u, h5);
-            V3 x = rotate(minus_h5, a5, rotate(minus_h, theta, x1));
-            CS a6 = sp1(bc3(W->x6), x, h6);
-            vd sign = vselect(dot(h, u) < 0.0, bc(-1.0), bc(1.0));
-            CS phi = angle_plus(theta, a6, sign);
+            CS theta = turn.root[i2], a5, a6, phi;
+            vd sign;
+            wrist_root(W, h, minus_h, theta, v, x1, &a5, &a6, &sign, &phi);
             CS ends = i2 == 0 ? (CS){fold.c * 1.0, fold.s * 1.0} : (CS){fold.c * -1.0, fold.s * -1.0};
             theta = pick(turn.degenerate, ends, theta);
             CS rest = angle_minus(phi, theta);
@@ -319,16 +327,12 @@ AI void spherical(const IkSpherical *P, int kind, const vd *T, Branches *out) {
         for (int i2 = 0; i2 < 2; ++i2) {
             CS a1 = first.a[0][i1][i2], a2 = first.a[1][i1][i2], a3 = first.a[2][i1][i2];
             V3 v = rotate(m[2], a3, rotate(m[1], a2, rotate(m[0], a1, Rh6)));
-            Quad turn = sp4(h[4], v, m[3], bc(W->d56), bc(W->tol), bc(W->tiny));
             V3 x0 = rotate(m[2], a3, rotate(m[1], a2, rotate(m[0], a1, Rx6)));
+            Quad turn = sp4(h[4], v, m[3], bc(W->d56), bc(W->tol), bc(W->tiny));
             for (int i3 = 0; i3 < 2; ++i3) {
-                CS a4 = turn.root[i3];
-                V3 u = rotate(m[3], a4, v);
-                CS a5 = sp1(h[5], u, h[4]);
-                V3 x = rotate(m[4], a5, rotate(m[3], a4, x0));
-                CS a6 = sp1(bc3(W->x6), x, h[5]);
-                vd sign = vselect(dot(h[3], u) < 0.0, bc(-1.0), bc(1.0));
-                CS phi = angle_plus(a4, a6, sign);
+                CS a4 = turn.root[i3], a5, a6, phi;
+                vd sign;
+                wrist_root(W, h[3], m[3], a4, v, x0, &a5, &a6, &sign, &phi);
                 CS hf = angle_half(phi);
                 CS on6 = i3 == 0 ? hf : phi;
                 a4 = pick(turn.degenerate, i3 == 0 ? hf : (CS){bc(1.0), bc(0.0)}, a4);
@@ -429,6 +433,7 @@ TARGET static void ik_task(IkTask *task) {
 #undef split_one_two_meet
 #undef split_two_three_meet
 #undef spherical
+#undef wrist_root
 #undef finish
 #undef ik_block
 #undef ik_task

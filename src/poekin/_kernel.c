@@ -336,34 +336,27 @@ static int choose_width(int widest) {
     return w;
 }
 
+/* One share of a batch: fn(arg), on a thread of its own or on the caller's. */
+typedef struct {
+    void (*fn)(void *);
+    void *arg;
+} Share;
+
 #ifdef _WIN32
-static DWORD WINAPI thread_main(LPVOID arg) {
-    g_run_task((Task *)arg);
+static DWORD WINAPI share_main(LPVOID share) {
+    ((Share *)share)->fn(((Share *)share)->arg);
     return 0;
 }
 #else
-static void *thread_main(void *arg) {
-    g_run_task((Task *)arg);
+static void *share_main(void *share) {
+    ((Share *)share)->fn(((Share *)share)->arg);
     return NULL;
 }
 #endif
 
-/* Run prog on n configurations on up to g_threads threads. 0: done, 1: a q is not finite,
- * -1: out of memory. */
-static int run_program(const Program *prog, const double *q, npy_intp n, double *out, int form,
-                       int threads) {
-    Task tasks[MAX_THREADS];
-    npy_intp per_thread = MIN_WORK_PER_THREAD / (prog->n_ops > 0 ? prog->n_ops : 1);
-    npy_intp most = n / (per_thread > 0 ? per_thread : 1);
-    int nt = threads < most ? threads : (int)(most > 0 ? most : 1);
-    if (nt > MAX_THREADS) nt = MAX_THREADS;
-    npy_intp chunk = (n + nt - 1) / nt;
-    chunk = (chunk + 7) / 8 * 8; /* whole blocks of every width */
-    for (int k = 0; k < nt; ++k) {
-        npy_intp lo = k * chunk < n ? k * chunk : n;
-        npy_intp hi = lo + chunk < n ? lo + chunk : n;
-        tasks[k] = (Task){prog, q, out, lo, hi, form, 0};
-    }
+/* Run the nt shares: the first here, the others on threads of their own (or here, where no
+ * thread is to be had), and wait for them all. */
+static void run_shares(Share *shares, int nt) {
 #ifdef _WIN32
     HANDLE handles[MAX_THREADS];
 #else
@@ -372,14 +365,13 @@ static int run_program(const Program *prog, const double *q, npy_intp n, double 
     int started[MAX_THREADS];
     for (int k = 1; k < nt; ++k) {
 #ifdef _WIN32
-        handles[k] = CreateThread(NULL, 0, thread_main, &tasks[k], 0, NULL);
+        handles[k] = CreateThread(NULL, 0, share_main, &shares[k], 0, NULL);
         started[k] = handles[k] != NULL;
 #else
-        started[k] = pthread_create(&handles[k], NULL, thread_main, &tasks[k]) == 0;
+        started[k] = pthread_create(&handles[k], NULL, share_main, &shares[k]) == 0;
 #endif
     }
-    g_run_task(&tasks[0]);
-    int status = tasks[0].bad;
+    shares[0].fn(shares[0].arg);
     for (int k = 1; k < nt; ++k) {
         if (started[k]) {
 #ifdef _WIN32
@@ -389,10 +381,43 @@ static int run_program(const Program *prog, const double *q, npy_intp n, double 
             pthread_join(handles[k], NULL);
 #endif
         } else {
-            g_run_task(&tasks[k]); /* no thread to be had: do its share here */
+            shares[k].fn(shares[k].arg);
         }
-        if (tasks[k].bad && !status) status = tasks[k].bad;
     }
+}
+
+/* How many threads share n items, at least per_thread each, and the items per thread (whole
+ * blocks of every width). */
+static int split_batch(npy_intp n, npy_intp per_thread, int threads, npy_intp *chunk) {
+    npy_intp most = n / (per_thread > 0 ? per_thread : 1);
+    int nt = threads < most ? threads : (int)(most > 0 ? most : 1);
+    if (nt > MAX_THREADS) nt = MAX_THREADS;
+    npy_intp c = (n + nt - 1) / nt;
+    *chunk = (c + 7) / 8 * 8;
+    return nt;
+}
+
+static void fk_share(void *task) { g_run_task((Task *)task); }
+
+/* Run prog on n configurations on up to g_threads threads. 0: done, 1: a q is not finite,
+ * -1: out of memory. */
+static int run_program(const Program *prog, const double *q, npy_intp n, double *out, int form,
+                       int threads) {
+    Task tasks[MAX_THREADS];
+    Share shares[MAX_THREADS];
+    npy_intp chunk;
+    int nt = split_batch(n, MIN_WORK_PER_THREAD / (prog->n_ops > 0 ? prog->n_ops : 1), threads,
+                         &chunk);
+    for (int k = 0; k < nt; ++k) {
+        npy_intp lo = k * chunk < n ? k * chunk : n;
+        npy_intp hi = lo + chunk < n ? lo + chunk : n;
+        tasks[k] = (Task){prog, q, out, lo, hi, form, 0};
+        shares[k] = (Share){fk_share, &tasks[k]};
+    }
+    run_shares(shares, nt);
+    int status = 0;
+    for (int k = 0; k < nt; ++k)
+        if (tasks[k].bad && !status) status = tasks[k].bad;
     return status;
 }
 
@@ -793,56 +818,20 @@ static PyObject *expose_python(PyObject *Py_UNUSED(mod), PyObject *args) {
 /* Targets per thread below which another thread does not pay for its start. */
 #define IK_MIN_PER_THREAD 2048
 
-#ifdef _WIN32
-static DWORD WINAPI ik_thread_main(LPVOID arg) {
-    g_ik_task((IkTask *)arg);
-    return 0;
-}
-#else
-static void *ik_thread_main(void *arg) {
-    g_ik_task((IkTask *)arg);
-    return NULL;
-}
-#endif
+static void ik_share(void *task) { g_ik_task((IkTask *)task); }
 
 static void ik_run(IkTask proto, npy_intp n, int threads) {
     IkTask tasks[MAX_THREADS];
-    npy_intp most = n / IK_MIN_PER_THREAD;
-    int nt = threads < most ? threads : (int)(most > 0 ? most : 1);
-    npy_intp chunk = (n + nt - 1) / nt;
-    chunk = (chunk + 7) / 8 * 8; /* whole blocks of every width */
+    Share shares[MAX_THREADS];
+    npy_intp chunk;
+    int nt = split_batch(n, IK_MIN_PER_THREAD, threads, &chunk);
     for (int k = 0; k < nt; ++k) {
         tasks[k] = proto;
         tasks[k].lo = k * chunk < n ? k * chunk : n;
         tasks[k].hi = tasks[k].lo + chunk < n ? tasks[k].lo + chunk : n;
+        shares[k] = (Share){ik_share, &tasks[k]};
     }
-#ifdef _WIN32
-    HANDLE handles[MAX_THREADS];
-#else
-    pthread_t handles[MAX_THREADS];
-#endif
-    int started[MAX_THREADS];
-    for (int k = 1; k < nt; ++k) {
-#ifdef _WIN32
-        handles[k] = CreateThread(NULL, 0, ik_thread_main, &tasks[k], 0, NULL);
-        started[k] = handles[k] != NULL;
-#else
-        started[k] = pthread_create(&handles[k], NULL, ik_thread_main, &tasks[k]) == 0;
-#endif
-    }
-    g_ik_task(&tasks[0]);
-    for (int k = 1; k < nt; ++k) {
-        if (started[k]) {
-#ifdef _WIN32
-            WaitForSingleObject(handles[k], INFINITE);
-            CloseHandle(handles[k]);
-#else
-            pthread_join(handles[k], NULL);
-#endif
-        } else {
-            g_ik_task(&tasks[k]);
-        }
-    }
+    run_shares(shares, nt);
 }
 
 /* A batch smaller than the kernel's width on the narrowest width that holds it: a block costs

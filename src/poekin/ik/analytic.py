@@ -440,22 +440,50 @@ def _three_parallel_geometry(arm: _Arm) -> Geometry:
         tol2=_EXISTS * arm.size**2,
         tiny2=_DEGENERATE * arm.size**2,
     )
+    description = "three parallel axes (2, 3, 4), axes 5 and 6 meet"
+    return _geometry("three parallel axes", description, arm, consts, _solve_three_parallel)
+
+
+def _geometry(
+    kind: str, description: str, arm: _Arm, consts: Any, solve: Callable[[Any, _Target], _Branches]
+) -> Geometry:
+    split = type(consts.shoulder) if isinstance(consts, _Spherical) else type(consts)
     return Geometry(
-        "three parallel axes",
-        "three parallel axes (2, 3, 4), axes 5 and 6 meet",
-        arm.size,
-        8,
-        lambda target: _solve_three_parallel(consts, target),
-        _KINDS[_ThreeParallel],
+        kind, description, arm.size, 8, functools.partial(solve, consts), _KINDS[split],
         _flat(consts),
-    )
+    )  # fmt: skip
+
+
+class _WristTurns(NamedTuple):
+    """The last three rotations of one branch axis (:func:`_wrist`)."""
+
+    turn: sp.Quadratic  # the first rotation's subproblem: roots, exists, degenerate
+    first: CosSin  # its roots (a new last axis)
+    a5: CosSin
+    a6: CosSin
+    sign: Any  # +-1: axis 6 turned by q5 points along (or against) the first axis
+    phi: CosSin  # first + sign q6: what the first and the last share at a singularity
+
+
+def _wrist(W: _Wrist, axis: Vec, minus_axis: Vec, v: _pose.Vec, x: _pose.Vec) -> _WristTurns:
+    """The first rotation (about ``axis``: joint 4, or joints 2 to 4 of three parallel axes), q5
+    and q6 that turn axis 6 and its normal ``x6`` into ``v`` and ``x`` (both turned back through
+    the joints before): the first rotation and q5 by subproblem 4 on the circle of ``v`` about
+    ``axis`` (it shrinks to a point at the wrist singularity) then 1, q6 by subproblem 1."""
+    turn = sp.sp4_cs(W.h[4], v, minus_axis, W.d56, W.tol, W.tiny)
+    first = turn.root
+    u = rotate(minus_axis, first, lift(v))  # = rot(h5, q5) h6
+    a5 = sp.sp1_cs(W.h[5], u, W.h[4])
+    x = rotate(W.minus[4], a5, rotate(minus_axis, first, lift(x)))
+    a6 = sp.sp1_cs(W.x6, x, W.h[5])
+    sign = np.where(dot(axis, u) < 0.0, -1.0, 1.0)
+    return _WristTurns(turn, first, a5, a6, sign, _plus(first, a6, sign))
 
 
 def _solve_three_parallel(P: _ThreeParallel, target: _Target) -> _Branches:
     """Branch axes: q1 (2), then q2 + q3 + q4 with q5 (2), then the elbow (2)."""
     W = P.wrist
-    h5, h6 = W.h[4], W.h[5]
-    minus_h1, minus_h5, minus_h, h3 = W.minus[0], W.minus[4], P.minus_h, P.h3
+    minus_h1, h3 = W.minus[0], P.h3
     R, p = target
     # q1: the point where axes 5 and 6 meet keeps its height along h through joints 2 to 6
     y1 = sub(add(_pose.mat_vec(R, P.c56_end), p), P.r1)
@@ -464,22 +492,14 @@ def _solve_three_parallel(P: _ThreeParallel, target: _Target) -> _Branches:
     # theta = q2 + q3 + q4 (as turns about h) and q5: axis 6 points along
     # v = rot(h, theta) rot(h5, q5) h6 in joint 1's frame
     v = rotate(minus_h1, a1, lift(_pose.mat_vec(R, W.h6_end)))
-    turn = sp.sp4_cs(h5, v, minus_h, W.d56, W.tol, W.tiny)  # (N, 2, 2)
-    theta = turn.root
-    u = rotate(minus_h, theta, lift(v))  # = rot(h5, q5) h6
-    a5 = sp.sp1_cs(h6, u, h5)
-    # q6: the normal x6 of axis 6 turned back through joints 1 to 5
     x = rotate(minus_h1, a1, lift(_pose.mat_vec(R, W.x6_end)))
-    x = rotate(minus_h5, a5, rotate(minus_h, theta, lift(x)))
-    a6 = sp.sp1_cs(W.x6, x, h6)
+    turn, theta, a5, a6, sign, phi = _wrist(W, P.h, P.minus_h, v, x)  # (N, 2, 2)
     # the planar arm: joints 2 and 3 put axis 4's point r4 at z, theta turns the rest about it
     back = add(rotate(minus_h1, a1, lift(y1)), P.r1)  # e1^-1 y
     # wrist singularity (axis 6 along h): theta and q6 turn about parallel axes and only
     # phi = theta + sign q6 is fixed. The roots become the two turns theta that put where
     # axes 5 and 6 meet in line with axis 2 and axis 4's point r4 (nearest and furthest
     # from axis 2: one is within reach if any theta is), and q6 = sign (phi - theta).
-    sign = np.where(dot(P.h, u) < 0.0, -1.0, 1.0)
-    phi = _plus(theta, a6, sign)
     fold = sp.sp1_cs(P.c56_r4, sub(back, P.r2), P.h)
     ends = CosSin(fold.c[..., None] * _ENDS, fold.s[..., None] * _ENDS)
     singular = turn.degenerate[..., None]
@@ -554,15 +574,8 @@ class _Spherical:
 def _spherical_geometry(arm: _Arm, what: str, split: type[_ShoulderSplit]) -> Geometry:
     pw = _meet(arm.line(4), arm.line(5))
     consts = _Spherical(_wrist_constants(arm), _in_end_frame(arm, pw), split.of(arm, pw))
-    return Geometry(
-        "spherical wrist",
-        f"spherical wrist (axes 4, 5, 6 meet), {what}",
-        arm.size,
-        8,
-        lambda target: _solve_spherical(consts, target),
-        _KINDS[split],
-        _flat(consts),
-    )
+    description = f"spherical wrist (axes 4, 5, 6 meet), {what}"
+    return _geometry("spherical wrist", description, arm, consts, _solve_spherical)
 
 
 def _solve_spherical(P: _Spherical, target: _Target) -> _Branches:
@@ -574,18 +587,11 @@ def _solve_spherical(P: _Spherical, target: _Target) -> _Branches:
     # axis 6's direction and its normal in joint 3's frame: the wrist's rotation R4 R5 R6
     # applied to h6 and x6
     v = _back(W, (a1, a2, a3), _pose.mat_vec(R, W.h6_end))  # (N, 2, 2)
-    turn = sp.sp4_cs(W.h[4], v, W.minus[3], W.d56, W.tol, W.tiny)  # (N, 2, 2, 2)
-    a4 = turn.root
-    u = rotate(W.minus[3], a4, lift(v))  # = rot(h5, q5) h6
-    a5 = sp.sp1_cs(W.h[5], u, W.h[4])
-    x = lift(_back(W, (a1, a2, a3), _pose.mat_vec(R, W.x6_end)))
-    x = rotate(W.minus[4], a5, rotate(W.minus[3], a4, x))
-    a6 = sp.sp1_cs(W.x6, x, W.h[5])
+    x = _back(W, (a1, a2, a3), _pose.mat_vec(R, W.x6_end))
+    turn, a4, a5, a6, sign, phi = _wrist(W, W.h[3], W.minus[3], v, x)  # (N, 2, 2, 2)
     # wrist singularity (axes 4 and 6 aligned): only phi = q4 + sign q6 is fixed, phi in
     # (-pi, pi]. The two roots become phi shared evenly (q4 = sign q6 = phi / 2, each within
     # +-pi/2) and phi all on q6 (q4 = 0)
-    sign = np.where(dot(W.h[3], u) < 0.0, -1.0, 1.0)
-    phi = _plus(a4, a6, sign)
     half = _half(phi)
     even = _EVEN  # the + root: shared evenly; the - root: q4 = 0
     singular = turn.degenerate[..., None]
