@@ -10,6 +10,7 @@ than the pose it produces, so the exactness is judged on the pose).
 from __future__ import annotations
 
 import pathlib
+import warnings
 
 import ik_arms
 import numpy as np
@@ -319,6 +320,19 @@ def test_a_tilted_ur_axis_is_named(folder: pathlib.Path) -> None:
         _tilted(ur, 3, 0.3).ik_all(np.eye(4))
 
 
+def test_a_fourth_parallel_axis_is_named(folder: pathlib.Path) -> None:
+    """Axis 5 turned parallel to axes 2 to 4 (and axis 6 to where axis 5 was, so that they
+    still meet): four parallel axes, no closed form."""
+    ur = arm_named("ur5e", folder).chain
+    screws = ur.screws.copy()
+    point = _meet(ur, 4, 5)
+    for joint, w in ((4, ur.screws[1, :3]), (5, ur.screws[4, :3])):
+        screws[joint] = np.r_[w, -np.cross(w, point)]
+    flat = poekin.Chain(ur.joint_names, ur.joint_types, screws, ur.home, ur.limits)
+    with pytest.raises(AnalyticIKError, match="axes 2 and 5 are parallel"):
+        analytic.geometry(flat)
+
+
 def test_a_wrist_that_does_not_meet_is_named(folder: pathlib.Path) -> None:
     irb = arm_named("irb120", folder).chain
     off = _shifted(irb, 4, np.array([0.0, 0.0, 0.0032]))  # axis 5 (along y) 3.2 mm up
@@ -328,6 +342,19 @@ def test_a_wrist_that_does_not_meet_is_named(folder: pathlib.Path) -> None:
     five = _shifted(ur, 5, 0.0032 * np.cross(ur.screws[4, :3], ur.screws[5, :3]))
     with pytest.raises(AnalyticIKError, match=r"axes 5 and 6 do not meet: 3\.2 mm apart"):
         analytic.geometry(five)
+
+
+def test_a_spherical_wrist_with_an_unsupported_shoulder_is_named(folder: pathlib.Path) -> None:
+    """The IRB 120 with axis 2 moved 5 mm off axis 1 and axis 3 tilted by 1 deg: its wrist
+    still meets in a point, but no split of the first three axes applies."""
+    irb = arm_named("irb120", folder).chain
+    bent = _tilted(_shifted(irb, 1, np.array([0.005, 0.0, 0.0])), 2, 1.0)
+    with pytest.raises(AnalyticIKError) as e:
+        analytic.geometry(bent)
+    assert (
+        "its first three axes fails: axes 2 and 3 are not parallel: 1 deg, axes 1 and 2 do not "
+        "meet: 5 mm apart, axes 2 and 3 do not meet: 5 mm apart" in str(e.value)
+    )
 
 
 def test_within_tolerance_is_accepted(folder: pathlib.Path) -> None:
@@ -445,5 +472,8 @@ def test_docs_page_runs() -> None:
     scope: dict[str, object] = {}
     blocks = [b for b in rb.blocks(DOCS.read_text()) if b.kind == "python"]
     assert blocks
-    for block in blocks:
-        exec(compile(block.text, f"{DOCS.name}:{block.start + 1}", "exec"), scope)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", poekin.AssetsStrippedWarning)  # XML-only Menagerie arms
+        for block in blocks:
+            exec(compile(block.text, f"{DOCS.name}:{block.start + 1}", "exec"), scope)
+    assert scope["sols"].q.shape == (1000, 8, 6)  # type: ignore[attr-defined]

@@ -175,9 +175,7 @@ def _closest(a: _Line, b: _Line) -> tuple[FloatArray, FloatArray]:
 
 
 def _gap(a: _Line, b: _Line) -> float:
-    """The distance between two lines (of a parallel pair: from a's point to b)."""
-    if _angle(a, b) <= GEOMETRY_TOL:
-        return _to_line(a.point, b)
+    """The distance between two lines that are not parallel."""
     pa, pb = _closest(a, b)
     return float(np.linalg.norm(pa - pb))
 
@@ -227,6 +225,14 @@ class _Arm:
     def parallel(self, i: int, j: int) -> str:
         angle = _angle(self.line(i), self.line(j))
         return "" if angle <= GEOMETRY_TOL else f"axes {i} and {j} are not parallel: {_deg(angle)}"
+
+    def crossing(self, i: int, j: int) -> str:
+        """Axes ``i`` and ``j`` not parallel (else the split has a circle that never turns)."""
+        return (
+            f"axes {i} and {j} are parallel"
+            if _angle(self.line(i), self.line(j)) <= GEOMETRY_TOL
+            else ""
+        )
 
     def meet(self, i: int, j: int) -> str:
         a, b = self.line(i), self.line(j)
@@ -286,7 +292,7 @@ def _find(chain: Chain) -> Geometry:
             "use the numerical chain.ik"
         )
     arm = _Arm(chain)
-    three = arm.parallel(2, 3) or arm.parallel(2, 4) or arm.meet(5, 6)
+    three = arm.parallel(2, 3) or arm.parallel(2, 4) or arm.meet(5, 6) or arm.crossing(2, 5)
     if not three:
         return _three_parallel_geometry(arm)
     tried = [("three parallel axes (2, 3, 4) with axes 5 and 6 meeting", three)]
@@ -295,7 +301,7 @@ def _find(chain: Chain) -> Geometry:
         tried.append(("a spherical wrist (axes 4, 5, 6 meeting)", wrist))
         raise AnalyticIKError(_describe_failure(chain, arm, tried))
     shoulders = [
-        ("axes 2 and 3 parallel", arm.parallel(2, 3), _TwoParallel),
+        ("axes 2 and 3 parallel", arm.parallel(2, 3) or arm.crossing(1, 2), _TwoParallel),
         ("axes 1 and 2 meet", arm.meet(1, 2), _OneTwoMeet),
         ("axes 2 and 3 meet", arm.meet(2, 3), _TwoThreeMeet),
     ]
@@ -316,13 +322,9 @@ def _v(x: ArrayLike) -> Vec:
 
 
 def _unit_normal(w: FloatArray, hint: FloatArray) -> FloatArray:
-    """A unit vector normal to ``w``: ``hint`` with its part along ``w`` removed, or another
-    axis where ``hint`` is along ``w``."""
-    for x in (hint, np.eye(3)[int(np.argmin(np.abs(w)))]):
-        n = x - w * (x @ w)
-        if np.linalg.norm(n) > 1e-6:
-            return np.asarray(n / np.linalg.norm(n), dtype=np.float64)
-    raise AssertionError("unreachable: a coordinate axis is never along a unit w")
+    """The unit vector normal to ``w`` nearest ``hint`` (not along ``w``)."""
+    n = hint - w * (hint @ w)
+    return np.asarray(n / np.linalg.norm(n), dtype=np.float64)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -343,7 +345,7 @@ class _Wrist:
 def _wrist_constants(arm: _Arm) -> _Wrist:
     h = [line.w for line in arm.lines]
     R_M = arm.home[:3, :3]
-    x6 = _unit_normal(h[5], h[4])
+    x6 = _unit_normal(h[5], h[4])  # axes 5 and 6 meet, so they are not parallel
     return _Wrist(
         h=tuple(_v(w) for w in h),
         minus=tuple(_v(-w) for w in h),
