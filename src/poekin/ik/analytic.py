@@ -14,7 +14,7 @@ The arm's geometry is read from its screw axes (never from its name) and the pos
   move), with the first three axes in one of these arrangements: axes 2 and 3 parallel
   (PUMA, ABB, KUKA, Fanuc arms: subproblems 4, 3, 1), axes 1 and 2 meeting (subproblems 3, 2),
   or axes 2 and 3 meeting (subproblems 3, 2). The wrist angles then follow from the
-  orientation (subproblems 2 and 1).
+  orientation (subproblem 2 on the direction of axis 6, then 1 for ``q6``).
 
 Tolerance of the geometry test: axes count as parallel within ``GEOMETRY_TOL`` rad and as
 meeting when closer than ``GEOMETRY_TOL`` times the arm's size (the largest distance from the
@@ -27,9 +27,13 @@ but not exact gets residuals up to about its deviation times its size, which ``p
 Singular targets keep exact solutions, with these conventions where a family of solutions
 replaces discrete ones:
 
-* wrist singularity (spherical wrist: axes 4 and 6 aligned; three parallel axes: ``q5 = 0`` or
-  ``pi`` puts axis 6 parallel to axes 2 to 4): only the sum (or difference) of the two
-  aligned rotations is fixed, and the solutions have ``q6 = 0``;
+* wrist singularity, spherical wrist (axes 4 and 6 aligned): only ``phi = q4 +- q6`` is
+  fixed; the two wrist branches share it evenly (``q4 = +-q6 = phi / 2``) and put it all on
+  ``q6`` (``q4 = 0``);
+* wrist singularity, three parallel axes (``q5 = 0`` or ``pi`` puts axis 6 parallel to axes 2
+  to 4): only ``q2 + q3 + q4 +- q6`` is fixed; the two wrist branches put the point where
+  axes 5 and 6 meet in one plane with axes 2 and 4, nearest to and furthest from axis 2 (one
+  is within reach whenever any configuration is), and ``q6`` takes the rest;
 * shoulder singularity (the wrist centre on axis 1): ``q1`` is free, and the solutions have
   ``q1 = 0`` and ``q1 = pi``;
 * a stretched or folded elbow, or any other tangent case: the two roots coincide and come

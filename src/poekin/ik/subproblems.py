@@ -5,8 +5,8 @@ places, solved in closed form and batched. Analytic IK (:mod:`poekin.ik.analytic
 References: R. M. Murray, Z. Li and S. S. Sastry, *A Mathematical Introduction to Robotic
 Manipulation* (1994), section 3.2; K. M. Lynch and F. C. Park, *Modern Robotics* (2017),
 chapter 6; A. J. Elias and J. T. Wen, "IK-Geo: Unified robot inverse kinematics using
-subproblem decomposition", *Mechanism and Machine Theory* 209 (2025), whose numbering and
-notation these follow (``rot(k, theta)`` is the rotation about the unit axis ``k`` by
+subproblem decomposition" (arXiv:2211.05737; code: github.com/rpiRobotics/ik-geo), whose
+numbering and notation these follow (``rot(k, theta)`` is the rotation about the unit axis ``k`` by
 ``theta``; every axis passes through the origin, so the vectors are directions or points
 relative to a point on the axes).
 
