@@ -27,7 +27,7 @@ setup(
         Extension(
             "poekin._kernel",
             ["src/poekin/_kernel.c"],
-            depends=["src/poekin/_kernel_core.h"],
+            depends=["src/poekin/_kernel_core.h", "src/poekin/_ik_core.h"],
             include_dirs=[np.get_include()],
             define_macros=[("NPY_TARGET_VERSION", "NPY_1_24_API_VERSION")],
             optional=True,

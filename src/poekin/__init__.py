@@ -19,6 +19,7 @@ from poekin.chain import Chain, ChainParams, JointType
 from poekin.dh import DHTable, dh_from_chain
 from poekin.diagnose import Diagnosis, diagnose
 from poekin.errors import (
+    AnalyticIKError,
     InputError,
     MenagerieUnavailableError,
     MetricsFileError,
@@ -83,6 +84,7 @@ __all__ = [
     "UR5E_HOME",
     "UR5E_SCREWS",
     "UR5_DH",
+    "AnalyticIKError",
     "AssetsStrippedWarning",
     "Chain",
     "ChainParams",

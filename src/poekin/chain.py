@@ -17,7 +17,7 @@ from __future__ import annotations
 import dataclasses
 import functools
 from collections.abc import Sequence
-from typing import Any, Literal, NamedTuple
+from typing import TYPE_CHECKING, Any, Literal, NamedTuple
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -25,6 +25,9 @@ from numpy.typing import ArrayLike, NDArray
 from poekin import _fast, _pose, arrays, lie
 from poekin._fast import Form
 from poekin.errors import InputError, did_you_mean
+
+if TYPE_CHECKING:
+    from poekin.ik.analytic import IKSolutions
 
 __all__ = [
     "JACOBIAN_CONVENTIONS",
@@ -698,6 +701,32 @@ class Chain:
         th = [q[..., i] for i in range(self.n_joints)]
         pose = poe(self._constants.body, th, np, left=self._constants.home)
         return _pose.to_array(pose, "4x4", np, zeros_like_batch(q, np))  # type: ignore[no-any-return]
+
+    def ik_all(self, T: ArrayLike) -> IKSolutions:
+        """Every closed-form inverse kinematics solution: the joint values that put the end
+        frame at ``T``, all branches at once (:mod:`poekin.ik.analytic`).
+
+        For six revolute joints whose axes admit a closed form: three parallel axes (2, 3, 4)
+        with axes 5 and 6 meeting (the UR arms), or a spherical wrist (axes 4, 5, 6 meeting)
+        with axes 2 and 3 parallel, axes 1 and 2 meeting, or axes 2 and 3 meeting. The
+        geometry is read from the screws (:func:`poekin.ik.analytic.geometry`).
+
+        Args:
+            T: ``(..., 4, 4)`` target poses ``T_world_frame`` of :attr:`frame`.
+
+        Returns:
+            :class:`~poekin.ik.analytic.IKSolutions`: ``q`` ``(..., k, 6)`` (``k = 8``),
+            ``valid`` ``(..., k)``, and ``pos_err``, ``ori_err`` ``(..., k)``. Each angle is
+            within the limits where a whole turn brings it there.
+
+        Raises:
+            AnalyticIKError: the chain fits no supported geometry; the message names the
+                condition that fails and by how much.
+            InputError: ``T`` is not ``(..., 4, 4)`` finite rigid transforms.
+        """
+        from poekin.ik.analytic import ik_all
+
+        return ik_all(self, T)
 
     def __repr__(self) -> str:
         joints = ", ".join(

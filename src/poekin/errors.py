@@ -10,6 +10,7 @@ import difflib
 from collections.abc import Iterable
 
 __all__ = [
+    "AnalyticIKError",
     "InputError",
     "MenagerieUnavailableError",
     "MetricsFileError",
@@ -40,6 +41,12 @@ class ModelError(PoekinError):
 
 class URDFError(ModelError):
     """A URDF file that poekin cannot read as a robot: malformed, or outside what it supports."""
+
+
+class AnalyticIKError(ModelError):
+    """A chain whose joints have no closed-form inverse in :meth:`poekin.Chain.ik_all`: not six
+    revolute joints, or axes that fit none of the supported geometries (the message names the
+    condition that fails and by how much)."""
 
 
 class UnknownRobotError(ModelError, LookupError):
