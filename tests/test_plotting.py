@@ -227,10 +227,29 @@ def test_mismatched_inputs_raise(tmp_path: pathlib.Path) -> None:
 def test_missing_parent_directory_raises(tmp_path: pathlib.Path) -> None:
     missing = tmp_path / "nope"
     pos, ori = _realistic(10)
-    with pytest.raises(FileNotFoundError, match="does not exist") as info:
+    with pytest.raises(InputError, match="does not exist") as info:
         plot_errors(pos, ori, title="t", path=missing / "fk.png")
     assert str(missing) in str(info.value)
     assert not missing.exists()
+
+
+@pytest.mark.skipif(not os.path.isdir("/proc/self"), reason="needs /proc")
+def test_a_folder_that_takes_no_files_is_refused_before_drawing(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """issue 20: /proc exists but takes no new files (as root too): one InputError line, not
+    matplotlib's FileNotFoundError after the figure was drawn."""
+    pos, ori = _realistic(10)
+
+    def no_drawing(*_: object, **__: object) -> None:
+        raise AssertionError("drew before checking the path")
+
+    monkeypatch.setattr(plotting, "_histogram", no_drawing)
+    monkeypatch.setattr(plotting, "_diagnosis_figure", no_drawing)
+    with pytest.raises(InputError, match=r"to /proc/fk\.png: folder /proc is not"):
+        plot_errors(pos, ori, title="t", path="/proc/fk.png")
+    with pytest.raises(InputError, match=r"to /proc/w\.png: folder /proc is not"):
+        plot_diagnosis(None, "/proc/w.png")  # type: ignore[arg-type]
 
 
 def test_fresh_process_keeps_its_backend_and_has_no_pyplot(tmp_path: pathlib.Path) -> None:

@@ -26,7 +26,7 @@ from poekin.chain import Chain
 from poekin.dh import joint_lines
 from poekin.diagnose import Diagnosis
 from poekin.errors import InputError
-from poekin.fileio import figure_format
+from poekin.fileio import check_writable, figure_format, save_figure
 
 __all__ = ["plot_diagnosis", "plot_errors"]
 
@@ -263,8 +263,8 @@ def plot_errors(
         ori_err: ``{method: (N,) orientation errors [rad]}``, same keys and lengths.
         title: the figure title.
         path: where to write the figure, in the format its suffix names (``.png``, ``.pdf``,
-            ``.svg``, ``.jpg``...: :data:`poekin.fileio.FIGURE_FORMATS`); its directory must
-            exist. An existing file is overwritten.
+            ``.svg``, ``.jpg``...: :data:`poekin.fileio.FIGURE_FORMATS`); its folder must
+            exist and take new files (checked first). An existing file is overwritten.
         pos_tol: position tolerance [m] to draw, or ``None``.
         ori_tol: orientation tolerance [rad] to draw, or ``None``.
         passed: the verdict, said under the title (``PASS``/``FAIL`` and the tolerances, in
@@ -274,18 +274,13 @@ def plot_errors(
         ``path`` as a :class:`pathlib.Path`.
 
     Raises:
-        FileNotFoundError: the directory of ``path`` does not exist.
-        InputError: the two mappings have different keys or lengths, an array is not 1-D, or
-            the suffix names no figure format.
-        OSError: the file cannot be written (left to the caller).
+        InputError: the two mappings have different keys or lengths, an array is not 1-D, the
+            suffix names no figure format, or the file cannot be written there
+            (:func:`poekin.fileio.cannot_write` says why; checked before any drawing).
     """
     p = pathlib.Path(path)
-    file_format = figure_format(p, "plot")
-    if not p.parent.is_dir():
-        raise FileNotFoundError(
-            f"cannot write the plot to {p}: directory {p.parent} does not exist; "
-            "create it or choose another path"
-        )
+    figure_format(p, "plot")
+    check_writable(p, "the plot")
     if list(pos_err) != list(ori_err):
         raise InputError(
             f"pos_err and ori_err must have the same methods in the same order, "
@@ -327,8 +322,7 @@ def plot_errors(
             color=_PASS_COLOR if passed else _FAIL_COLOR,
         )
     fig.tight_layout(rect=(0, 0, 1, 0.93 if passed is not None else 1))
-    fig.savefig(p, format=file_format, dpi=_DPI)
-    return p
+    return save_figure(fig, p, dpi=_DPI, what="plot")
 
 
 # --- the diagnosis figure -----------------------------------------------------------------------
@@ -801,6 +795,11 @@ def plot_diagnosis(
             :data:`poekin.fileio.FIGURE_FORMATS`); an existing file is overwritten.
         title: the figure title; default ``"<yours> vs <model>: match|mismatch"``. A second line
             gives the largest errors.
+
+    Raises:
+        InputError: the suffix names no figure format, or the file cannot be written there
+            (:func:`poekin.fileio.cannot_write` says why; checked before any drawing).
     """
-    file_format = figure_format(path, "plot")
-    _diagnosis_figure(diagnosis, title).savefig(path, format=file_format, dpi=_DIAG_DPI)
+    figure_format(path, "plot")
+    check_writable(path, "the plot")
+    save_figure(_diagnosis_figure(diagnosis, title), path, dpi=_DIAG_DPI, what="plot")
