@@ -37,7 +37,7 @@ from poekin import lie
 from poekin.chain import Chain
 from poekin.dh import Convention, DHTable, dh_from_chain, joint_lines
 from poekin.errors import InputError
-from poekin.verify import pose_errors, sample_joint_values, whole_number
+from poekin.verify import check_sample_memory, pose_errors, sample_joint_values, whole_number
 
 if TYPE_CHECKING:
     from poekin.sources import LoadedModel
@@ -770,6 +770,7 @@ def diagnose(
             "give one row or screw per joint, base to tip"
         )
     whole_number(samples, "samples", 1)
+    check_sample_memory(samples, model.n_joints + 2 * 16)  # q, the model's and your poses
     convention: Convention = table.convention if table is not None else "standard"
     q = sample_joint_values(model, samples, seed=seed)
     T_ref = model.fk(q)
