@@ -110,3 +110,28 @@ def test_a_fresh_process_keeps_its_backend_and_has_no_pyplot(tmp_path: pathlib.P
     )
     assert proc.returncode == 0, proc.stderr
     assert out.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_aligned_needs_parameters(monkeypatch: pytest.MonkeyPatch) -> None:
+    """issue 20: aligned=True without params was ignored; it is refused before any work."""
+
+    def no_work(*_: object, **__: object) -> None:
+        raise AssertionError("loaded a model before checking aligned")
+
+    monkeypatch.setattr("poekin.viewer.loading.load_shown", no_work)
+    with pytest.raises(InputError, match=r"aligned=True draws your parameters .*: give params"):
+        drawing.draw("universal_robots_ur5e", aligned=True)
+
+
+def test_a_path_that_cannot_be_written_is_refused_before_any_work(
+    monkeypatch: pytest.MonkeyPatch, tmp_path: pathlib.Path
+) -> None:
+    def no_work(*_: object, **__: object) -> None:
+        raise AssertionError("loaded a model before checking the path")
+
+    monkeypatch.setattr("poekin.viewer.loading.load_shown", no_work)
+    (tmp_path / "file").write_text("")
+    with pytest.raises(InputError, match=r"cannot write the drawing to .*: .*file is a file, not"):
+        drawing.draw("universal_robots_ur5e", path=tmp_path / "file" / "arm.png")
+    with pytest.raises(InputError, match=r"folder .* does not exist"):
+        drawing.draw("universal_robots_ur5e", path=tmp_path / "no" / "arm.png")

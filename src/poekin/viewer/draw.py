@@ -24,7 +24,7 @@ from numpy.typing import ArrayLike, NDArray
 from poekin.chain import Chain
 from poekin.dh import DHTable
 from poekin.errors import InputError
-from poekin.fileio import figure_format
+from poekin.fileio import check_writable, figure_format, save_figure
 from poekin.plotting import _MODEL_COLOR, _YOURS_COLOR, draw_triad
 from poekin.viewer.scene import (
     FORMS,
@@ -225,12 +225,20 @@ def draw(
     replaced.
 
     Raises:
-        InputError: an unknown suffix (before any work), ``qpos`` of the wrong length, ...
+        InputError: an unknown suffix or a path that cannot be written (both before any work:
+            :func:`poekin.fileio.check_writable`), ``aligned`` without ``params``, ``qpos`` of
+            the wrong length, ...
     """
     from poekin.viewer.geometry import _geom_tips
     from poekin.viewer.loading import load_params_comparison, load_shown
 
-    fmt = figure_format(path, "drawing") if path is not None else None
+    if aligned and params is None:
+        raise InputError(
+            "aligned=True draws your parameters after aligning their base: give params too"
+        )
+    if path is not None:
+        figure_format(path, "drawing")
+        check_writable(path, "the drawing")
     shown = load_shown(model, frame)
     subject = shown.subject
     comparison = load_params_comparison(subject, params)
@@ -245,5 +253,5 @@ def draw(
         tips=tips,
     )
     if path is not None:
-        fig.savefig(path, format=fmt, dpi=_DPI)
+        save_figure(fig, path, dpi=_DPI, what="drawing")
     return fig
