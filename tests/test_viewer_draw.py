@@ -13,7 +13,7 @@ import matplotlib.colors
 import matplotlib.image as mimage
 import numpy as np
 import pytest
-from helpers import load_quiet
+from helpers import assert_labels_apart, load_quiet
 from mpl_toolkits.mplot3d.art3d import Line3DCollection
 
 import poekin
@@ -135,3 +135,43 @@ def test_a_path_that_cannot_be_written_is_refused_before_any_work(
         drawing.draw("universal_robots_ur5e", path=tmp_path / "file" / "arm.png")
     with pytest.raises(InputError, match=r"folder .* does not exist"):
         drawing.draw("universal_robots_ur5e", path=tmp_path / "no" / "arm.png")
+
+
+LABEL_CASES = {
+    "ur5e at qpos0": dict(model="universal_robots_ur5e"),
+    "ur5e bent": dict(model="universal_robots_ur5e", qpos=[0.0, -1.57, 1.57, 0.0, 0.0, 0.0]),
+    "ur5e body form": dict(
+        model="universal_robots_ur5e", qpos=[0.3, -1.2, 1.3, -1, -1.57, 0], form="body"
+    ),
+    "lynch-park ghost": dict(
+        model="universal_robots_ur5e",
+        qpos=np.radians([0, -90, 90, 0, 0, 0]),
+        params="lynch-park-ur5",
+    ),
+    "lynch-park aligned": dict(
+        model="universal_robots_ur5e",
+        qpos=[0.3, -1.2, 1.3, -1.0, -1.5708, 0.0],
+        params="lynch-park-ur5",
+        aligned=True,
+    ),
+    "ur5e-dh ghost": dict(model="universal_robots_ur5e", params="ur5e-dh", aligned=True),
+    "go2 every frame": dict(model="unitree_go2", all_frames=True),
+}
+
+
+@pytest.mark.parametrize("case", list(LABEL_CASES))
+def test_no_label_overlaps_another_or_a_tick_label(case: str, tmp_path: pathlib.Path) -> None:
+    """issue 20: the ghost's J4/J5/J6 offsets, T(q), "yours: ..." and S2/world, T(q)/S4/S6 were
+    drawn over each other. Checked on the figure as saved (PNG and PDF, whose dpi differs)."""
+    kwargs = dict(LABEL_CASES[case])
+    model = kwargs.pop("model")
+    source = load_quiet(model) if model == "unitree_go2" else model
+    fig = drawing.draw(source, **kwargs)  # type: ignore[arg-type]
+    assert_labels_apart(fig)
+    texts = _texts(fig)
+    assert "T(q): " + ("FL_calf" if model == "unitree_go2" else "attachment_site") in texts
+    if "params" in kwargs:
+        assert any(t.startswith("yours: ") for t in texts)
+        assert sum(t.startswith("J") and "offset" in t for t in texts) == 5
+    fig.savefig(tmp_path / "d.pdf", format="pdf", dpi=drawing._DPI)
+    assert_labels_apart(fig)  # the placement is in axes coordinates: any dpi

@@ -136,6 +136,16 @@ class Diagnosis:
         is compared as it is)."""
         return not np.array_equal(self.base, np.eye(4))
 
+    def placement(self, aligned: bool) -> str:
+        """Where your parameters are drawn, in words, for a figure that draws them ``aligned``
+        or not: after the base alignment only where it reduced the errors
+        (:attr:`base_aligned`), as :meth:`report` says."""
+        if not aligned:
+            return "as given"
+        if self.base_aligned:
+            return "after aligning your base to the model's"
+        return "as given: aligning your base does not reduce the error"
+
     @property
     def unattributed(self) -> tuple[float, float] | None:
         """The errors (m, rad) that the bisection left above the tolerances once every part that
