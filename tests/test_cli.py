@@ -1212,11 +1212,24 @@ def test_verify_of_a_missing_urdf_says_so_before_asking_for_yourdfpy(
     assert_one_error_line(err, "reading x.urdf needs yourdfpy, which is not installed")
 
 
-def test_jacobian_help_examples_write_different_files(capsys: pytest.CaptureFixture[str]) -> None:
-    """Each --help example runs in one folder (test_readme.py): no two may write one file."""
-    for command in ("fk", "jacobian"):
-        with pytest.raises(SystemExit):
-            main([command, "--help"])
-        examples = capsys.readouterr().out.split("examples:")[1].splitlines()
-        outputs = [ln.split("--output ")[1].split()[0] for ln in examples if "--output " in ln]
-        assert len(outputs) == len(set(outputs)), outputs
+def test_no_two_help_examples_write_one_file() -> None:
+    """Run one after another in one folder, as a reader trying them would, every --help example
+    works: no two write the same file (issue 20: jacobian's two wrote J.npy; poekin --help
+    repeated verify's, which wrote fk.png)."""
+    import shlex
+
+    from poekin.cli import _build_parser
+
+    parser = _build_parser()
+    epilogs = [parser.epilog or ""]
+    sub = next(a for a in parser._actions if a.dest == "command")
+    epilogs += [p.epilog or "" for p in sub.choices.values()]  # type: ignore[union-attr]
+    written: dict[str, str] = {}
+    for line in (ln.strip() for e in epilogs for ln in e.splitlines()):
+        argv = shlex.split(line) if line.startswith("poekin ") else []
+        for flag in ("--output", "--out", "--plot"):
+            if flag in argv:
+                path = argv[argv.index(flag) + 1]
+                assert path not in written, f"{line!r} and {written[path]!r} both write {path}"
+                written[path] = line
+    assert {"J.npy", "J_FL_calf.npy", "fk.png", "T.csv"} <= set(written)
