@@ -42,8 +42,8 @@ VAlign = Literal["bottom", "center", "top"]
 # A position to try: where (axes fraction), the alignment, the distance from the anchor (px).
 Candidate = tuple[FloatArray, HAlign, VAlign, float]
 
-# Distances tried from the anchor, as multiples of a label's offset, nearest first.
-_RADII = (1.0, 1.8, 3.0, 4.5, 6.5, 9.0, 12.0, 16.0)
+# Distances tried from the anchor, beyond a label's offset, in points, nearest first.
+_STEPS_PT = (0.0, 5.0, 10.0, 18.0, 28.0, 42.0, 60.0, 85.0, 120.0)
 _LEADER_AFTER = 2.5  # a label farther than this many offsets from its anchor gets a leader
 _GAP_PT = 1.5  # clear space kept around every label and point, in points
 _POINT_PT = 3.0  # half the side of the square kept clear around a marked point, in points
@@ -164,20 +164,21 @@ def _alignment(d: FloatArray) -> tuple[HAlign, VAlign]:
     return ha, va
 
 
-def _overlap(box: Bbox, others: Sequence[Bbox]) -> float:
-    """The area of ``box`` that ``others`` cover (summed)."""
-    total = 0.0
-    for o in others:
-        w = min(box.x1, o.x1) - max(box.x0, o.x0)
-        h = min(box.y1, o.y1) - max(box.y0, o.y0)
-        if w > 0 and h > 0:
-            total += w * h
-    return total
+def _extents(boxes: Sequence[Bbox]) -> FloatArray:
+    """``(K, 4)``: ``x0, y0, x1, y1`` of each box."""
+    return np.array([b.extents for b in boxes], dtype=np.float64).reshape(-1, 4)
+
+
+def _overlap(box: Bbox, others: FloatArray) -> float:
+    """The area of ``box`` that the boxes ``others`` (``(K, 4)`` extents) cover, summed."""
+    w = np.minimum(box.x1, others[:, 2]) - np.maximum(box.x0, others[:, 0])
+    h = np.minimum(box.y1, others[:, 3]) - np.maximum(box.y0, others[:, 1])
+    return float(np.sum(np.clip(w, 0.0, None) * np.clip(h, 0.0, None)))
 
 
 def _outside(box: Bbox, bounds: Bbox) -> float:
     """The area of ``box`` outside ``bounds``."""
-    return box.width * box.height - _overlap(box, [bounds])
+    return box.width * box.height - _overlap(box, _extents([bounds]))
 
 
 def _candidates(label: Label, px_per_pt: float) -> list[Candidate]:
@@ -198,8 +199,8 @@ def _candidates(label: Label, px_per_pt: float) -> list[Candidate]:
         return [(to_axes.transform((x, y)), ha, va, 0.0) for x, y, ha, va in corners]
     anchor = _display(ax, label.at)
     out: list[Candidate] = []
-    for r in _RADII:
-        distance = r * label.offset_pt * px_per_pt
+    for step in _STEPS_PT:
+        distance = (label.offset_pt + step) * px_per_pt
         for d in label.directions or tuple(_all_directions()):
             xy = anchor + d * distance
             out.append((np.asarray(to_axes.transform(xy)), *_alignment(d), distance))
@@ -239,20 +240,24 @@ def _axis_marks(ax: Any) -> list[Any]:
     return marks
 
 
-def _covered(box: Bbox, segments: FloatArray) -> float:
-    """The length of ``segments`` (pixels) inside ``box`` (Liang-Barsky clipping)."""
-    if not len(segments):
+def _covered(boxes: FloatArray, segments: FloatArray) -> float:
+    """The length (pixels) of ``segments`` ``(M, 2, 2)`` inside the boxes ``(K, 4)``, summed
+    over every box and segment (Liang-Barsky clipping)."""
+    if not len(segments) or not len(boxes):
         return 0.0
-    p0, d = segments[:, 0], segments[:, 1] - segments[:, 0]
-    t_lo, t_hi = np.zeros(len(d)), np.ones(len(d))
-    for k, (lo, hi) in enumerate(((box.x0, box.x1), (box.y0, box.y1))):
-        moving = np.abs(d[:, k]) > 1e-12
-        safe = np.where(moving, d[:, k], 1.0)
-        a, b = (lo - p0[:, k]) / safe, (hi - p0[:, k]) / safe
-        inside = (p0[:, k] >= lo) & (p0[:, k] <= hi)
+    p0, d = segments[None, :, 0], segments[None, :, 1] - segments[None, :, 0]  # (1, M, 2)
+    t_lo = np.zeros((len(boxes), len(segments)))
+    t_hi = np.ones((len(boxes), len(segments)))
+    for k in range(2):
+        lo, hi = boxes[:, None, k], boxes[:, None, k + 2]  # (K, 1)
+        moving = np.abs(d[..., k]) > 1e-12
+        safe = np.where(moving, d[..., k], 1.0)
+        a, b = (lo - p0[..., k]) / safe, (hi - p0[..., k]) / safe
+        inside = (p0[..., k] >= lo) & (p0[..., k] <= hi)
         t_lo = np.maximum(t_lo, np.where(moving, np.minimum(a, b), np.where(inside, 0.0, 2.0)))
         t_hi = np.minimum(t_hi, np.where(moving, np.maximum(a, b), np.where(inside, 1.0, -1.0)))
-    return float(np.sum(np.clip(t_hi - t_lo, 0.0, None) * np.linalg.norm(d, axis=1)))
+    length = np.linalg.norm(d[0], axis=-1)  # (M,)
+    return float(np.sum(np.clip(t_hi - t_lo, 0.0, None) * length))
 
 
 def place_labels(
@@ -267,7 +272,8 @@ def place_labels(
     the figure gives its axes.
 
     Args:
-        fig: a figure whose axes are laid out (drawn once here to find where its texts are).
+        fig: a figure whose axes are laid out (drawn here, without rendering, to find where its
+            texts and lines are).
         labels: what to place.
         points: ``(ax, (N, 3))`` 3-D points to keep clear (joint dots, frame origins).
         leader_color: the colour of a leader line.
@@ -275,17 +281,19 @@ def place_labels(
     Returns:
         The texts added, in the order of ``labels``.
     """
-    fig.canvas.draw()
+    fig.draw_without_rendering()  # lays out the ticks and 3-D projections; no pixels
     renderer = fig.canvas.get_renderer()  # type: ignore[attr-defined]
     px_per_pt = fig.dpi / 72.0
     gap = _GAP_PT * px_per_pt
-    texts = [text_box(t, renderer) for t in drawn_texts(fig)]  # and the labels placed
-    spots = []
+    texts = _extents([text_box(t, renderer) for t in drawn_texts(fig)])  # + the labels placed
     half = _POINT_PT * px_per_pt
-    for ax, pts in points:
-        for p in np.asarray(pts, dtype=np.float64).reshape(-1, 3):
-            x, y = _display(ax, p)
-            spots.append(Bbox.from_extents(x - half, y - half, x + half, y + half))
+    spots = _extents(
+        [
+            Bbox.from_extents(x - half, y - half, x + half, y + half)
+            for ax, pts in points
+            for x, y in (_display(ax, p) for p in np.asarray(pts, np.float64).reshape(-1, 3))
+        ]
+    )
     axes = {id(label.ax): label.ax for label in labels}.values()
     lines = {id(ax): _segments([*ax.lines, *ax.collections]) for ax in axes}  # not the grid
     marks = {id(ax): _segments(_axis_marks(ax)) for ax in axes}
@@ -304,19 +312,19 @@ def place_labels(
                 break  # farther than the cost of the best: none after it can beat it
             _put(t, candidate)
             box = text_box(t, renderer).padded(gap)
-            unusable = _overlap(box, [*texts, *spots]) + _outside(box, bounds)
+            unusable = _overlap(box, texts) + _overlap(box, spots) + _outside(box, bounds)
             cost = _OVERLAP_COST * unusable + candidate[3]
-            cost += line_cost * _covered(box, lines[id(ax)])
-            cost += _AXIS_LINE_COST * _covered(box, marks[id(ax)])
+            cost += line_cost * _covered(_extents([box]), lines[id(ax)])
+            cost += _AXIS_LINE_COST * _covered(_extents([box]), marks[id(ax)])
             if anchor is not None and candidate[3] > far:  # its leader must cross no text
                 leader = _leader_ends(anchor, box.padded(-gap))[None]
-                cost += _CROSSING_COST * sum(_covered(b, leader) for b in texts)
+                cost += _CROSSING_COST * _covered(texts, leader)
             if best is None or cost < best[0]:
                 best = (cost, box, candidate)
         assert best is not None  # there is always a candidate
         _, box, candidate = best
         _put(t, candidate)
-        texts.append(box)
+        texts = np.vstack([texts, _extents([box])])
         if anchor is not None and candidate[3] > far:
             ends = _leader_ends(anchor, box.padded(-gap))
             _leader(ax, ends, label, leader_color)
