@@ -81,3 +81,50 @@ def import_extra(module: str) -> Any:
     if os.environ.get("POEKIN_REQUIRE_EXTRAS") == "1":
         return importlib.import_module(module)
     return pytest.importorskip(module)
+
+
+def drawn_text_boxes(fig: Any) -> list[tuple[Any, Any]]:
+    """``(text, display box)`` of every text a draw of ``fig`` renders (its box included),
+    recorded as it is drawn: a tick label out of view, which exists but is not drawn, is not
+    counted, and a 3-D text has its extent where it was drawn (it moves back to its 3-D
+    coordinates after)."""
+    from matplotlib.text import Text
+    from matplotlib.transforms import Bbox
+
+    renderer = fig.canvas.get_renderer()
+    drawn: dict[int, tuple[Any, Any]] = {}
+    original = Text.draw
+
+    def record(self: Any, renderer: Any) -> Any:
+        if self.get_visible() and self.get_text().strip() and id(self) not in drawn:
+            box = self.get_window_extent(renderer)
+            patch = self.get_bbox_patch()
+            if patch is not None:
+                self.update_bbox_position_size(renderer)
+                box = Bbox.union([box, patch.get_window_extent(renderer)])
+            drawn[id(self)] = (self, box)
+        return original(self, renderer)
+
+    Text.draw = record  # type: ignore[method-assign]
+    try:
+        fig.draw(renderer)
+    finally:
+        Text.draw = original  # type: ignore[method-assign]
+    return list(drawn.values())
+
+
+def assert_labels_apart(fig: Any) -> None:
+    """No two labels (the texts of the axes: joint tags, screw labels, findings, boxes) overlap,
+    and none overlaps another drawn text (a tick or axis label, a title, the legend), with
+    matplotlib's own extents (``Text.get_window_extent``); every label is inside the figure."""
+    boxes = drawn_text_boxes(fig)
+    labels = {id(t) for ax in fig.axes for t in ax.texts}
+    whole = fig.bbox
+    for i, (a, box_a) in enumerate(boxes):
+        if id(a) not in labels:
+            continue
+        assert whole.x0 <= box_a.x0 and box_a.x1 <= whole.x1, f"{a.get_text()!r} leaves the figure"
+        assert whole.y0 <= box_a.y0 and box_a.y1 <= whole.y1, f"{a.get_text()!r} leaves the figure"
+        for j, (b, box_b) in enumerate(boxes):
+            if j != i and (id(b) not in labels or j > i):
+                assert not box_a.overlaps(box_b), f"{a.get_text()!r} overlaps {b.get_text()!r}"

@@ -201,11 +201,16 @@ def test_integer_and_float32_qpos_are_accepted(features: mujoco.MjModel) -> None
         ),
         ([0.0] * 16 + [np.nan], "NaN or inf"),
         (["a"] * 17, "must be numbers"),
+        (np.array([None] * 17), "must be numbers, got None"),
+        (np.zeros(17) + 1j, "must be real numbers, got complex numbers"),
     ],
 )
 def test_bad_qpos_is_an_input_error(features: mujoco.MjModel, qpos: object, message: str) -> None:
+    tree = tree_from_model(features)
     with pytest.raises(InputError, match=message):
-        tree_from_model(features).fk(qpos)  # type: ignore[arg-type]
+        tree.fk(qpos)  # type: ignore[arg-type]
+    with pytest.raises(InputError, match=message):
+        tree.jacobian(qpos, "finger")  # type: ignore[arg-type]
 
 
 # --- chains of a tree ---------------------------------------------------------------------------

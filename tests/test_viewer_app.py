@@ -316,3 +316,24 @@ def test_opacity_and_framing(ur5e: Viewer) -> None:
     ur5e.frame_view()  # no page open: nothing to point
     position, look_at = ur5e._camera(ur5e.snapshot())
     assert np.linalg.norm(position - look_at) > ur5e.subject.extent
+
+
+def test_set_option_refuses_values_the_control_cannot_show(ur5e: Viewer) -> None:
+    """issue 20: an unknown value was taken as it was. Each control says what it takes."""
+    before = ur5e.options()
+    with pytest.raises(InputError, match=r"'Jacobian' has no choice 'wrld': did you mean 'world'"):
+        ur5e.set_option("Jacobian", "wrld")
+    with pytest.raises(InputError, match=r"Valid names: 'space', 'body', 'world'"):
+        ur5e.set_option("Jacobian", 3)
+    with pytest.raises(InputError, match="'DH frames' is a check box: give True or False, got 1"):
+        ur5e.set_option("DH frames", 1)
+    with pytest.raises(InputError, match=r"'robot opacity' takes a number in \[0.1, 1\], got 2"):
+        ur5e.set_option("robot opacity", 2)
+    with pytest.raises(InputError, match="'PoE step k' takes a number in"):
+        ur5e.set_option("PoE step k", float("nan"))
+    with pytest.raises(InputError, match="'angles' has no choice 'degrees': did you mean 'deg'"):
+        ur5e.set_option("angles", "degrees")
+    assert ur5e.options() == before  # nothing changed
+    ur5e.set_option("robot opacity", 0.5)
+    assert ur5e.options()["robot opacity"] == 0.5
+    ur5e.set_option("robot opacity", before["robot opacity"])

@@ -41,6 +41,7 @@ __all__ = [
     "jacobian_from_world",
     "poe",
     "readonly_array",
+    "relative_jacobian",
 ]
 
 JointType = Literal["revolute", "prismatic"]
@@ -70,19 +71,40 @@ def check_pose(T: FloatArray, name: str) -> None:
         raise InputError(f"{name}: the last row must be [0, 0, 0, 1]")
 
 
+def _shown(x: object) -> str:
+    """``repr(x)`` on one line, cut to 60 characters."""
+    text = " ".join(repr(x).split())
+    return text if len(text) <= 60 else text[:57] + "..."
+
+
 def as_joint_values(
     q: ArrayLike, n: int, *, what: str = "joint values", layout: str = ""
 ) -> FloatArray:
     """Validate joint values ``q`` of shape ``(..., n)`` and return them as float64.
 
-    Integers and float32 are accepted and converted. Anything non-numeric, a wrong last axis,
+    Integers, booleans and float32 are accepted and converted. Anything that is not a real
+    number (``None``, text, complex numbers: never cast to their real part), a wrong last axis,
     NaN or inf raises :class:`~poekin.errors.InputError`; ``what`` names the values in the
     message, and ``layout`` (if given) is appended to a wrong-shape message.
     """
     try:
-        arr = np.asarray(q, dtype=np.float64)
-    except (TypeError, ValueError) as e:
-        raise InputError(f"{what} must be numbers, got {q!r:.60}") from e
+        raw = np.asarray(q)
+    except (TypeError, ValueError) as e:  # ragged nested lists
+        raise InputError(f"{what} must be numbers, got {_shown(q)}") from e
+    values = list(raw.flat) if raw.dtype.kind in "OUS" else []
+    not_number = [x for x in values if x is None or isinstance(x, str | bytes)]
+    if not_number:
+        bad = not_number[0].item() if isinstance(not_number[0], np.generic) else not_number[0]
+        raise InputError(f"{what} must be numbers, got {bad!r} in {_shown(q)}")
+    if raw.dtype.kind == "c" or any(isinstance(x, complex | np.complexfloating) for x in values):
+        raise InputError(
+            f"{what} must be real numbers, got complex numbers; pass their real part "
+            "(numpy.real) if that is what you mean"
+        )
+    try:
+        arr = np.asarray(raw, dtype=np.float64)
+    except (TypeError, ValueError) as e:  # objects that are no numbers
+        raise InputError(f"{what} must be numbers, got {_shown(q)}") from e
     if arr.ndim == 0 or arr.shape[-1] != n:
         raise InputError(
             f"expected {n} {what} (shape (..., {n})), got an array of shape {arr.shape}"
@@ -298,6 +320,45 @@ def jacobian_from_world(
             R_t = _pose.transpose(R)
             out.append((*_pose.mat_vec(R_t, c[:3]), *_pose.mat_vec(R_t, c[3:])))
     return out
+
+
+def relative_jacobian(
+    J_frame: Any, J_ref: Any, T_world_frame: Any, T_world_ref: Any, convention: str
+) -> Any:
+    """The Jacobian of ``T_ref_frame(q) = T_world_ref^-1 T_world_frame``: how a frame moves as
+    seen from another, moving or not, frame ``ref``, which takes the world's role.
+
+    Args:
+        J_frame, J_ref: ``(..., 6, n)`` world-convention Jacobians of both frames (rows
+            ``[w; v_origin]`` in world coordinates, as ``Tree.jacobian(..., "world")``), over the
+            same ``n`` velocities.
+        T_world_frame, T_world_ref: ``(..., 4, 4)`` their poses.
+        convention: ``"world"``: ``[w; v]``, the angular velocity of ``frame`` relative to
+            ``ref`` and the velocity of its origin in ``ref``, both in ``ref``'s coordinates;
+            ``"space"``: the twist of ``T_ref_frame`` in ``ref``'s frame; ``"body"``: in
+            ``frame``'s (:func:`jacobian_from_world` with ``ref`` as the world).
+
+    Returns:
+        ``(..., 6, n)``, of the inputs' library.
+    """
+    check_jacobian_convention(convention)
+    kind = arrays.kind_of(J_frame)
+    xp = np if kind is None else arrays.namespace(kind)
+    R_ref, p_ref = pose_of(T_world_ref)
+    R_frame, p_frame = pose_of(T_world_frame)
+    R_t = _pose.transpose(R_ref)
+    d = (p_frame[0] - p_ref[0], p_frame[1] - p_ref[1], p_frame[2] - p_ref[2])
+    columns = []
+    for c in range(J_frame.shape[-1]):
+        f = [J_frame[..., r, c] for r in range(6)]
+        a = [J_ref[..., r, c] for r in range(6)]
+        arm = _pose.cross(a[:3], d)  # the velocity of ref's points where frame's origin is
+        w = [f[k] - a[k] for k in range(3)]
+        v = [f[3 + k] - a[3 + k] - arm[k] for k in range(3)]
+        columns.append((*_pose.mat_vec(R_t, w), *_pose.mat_vec(R_t, v)))
+    pose = (_pose.mat_mat(R_t, R_frame), _pose.mat_vec(R_t, d))  # T_ref_frame
+    like = xp.zeros_like(J_frame[..., 0, 0])
+    return jacobian_array(jacobian_from_world(columns, pose, convention), xp, like)
 
 
 def jacobian_array(columns: Sequence[Column], xp: Any, like: Any) -> Any:

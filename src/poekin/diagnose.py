@@ -44,7 +44,7 @@ from poekin.dh import (
     joint_lines,
 )
 from poekin.errors import InputError
-from poekin.verify import pose_errors, sample_joint_values, whole_number
+from poekin.verify import check_sample_memory, pose_errors, sample_joint_values, whole_number
 
 if TYPE_CHECKING:
     from poekin.sources import LoadedModel
@@ -145,6 +145,16 @@ class Diagnosis:
         """Whether a base alignment other than the identity reduced the errors (else your base
         is compared as it is)."""
         return not np.array_equal(self.base, np.eye(4))
+
+    def placement(self, aligned: bool) -> str:
+        """Where your parameters are drawn, in words, for a figure that draws them ``aligned``
+        or not: after the base alignment only where it reduced the errors
+        (:attr:`base_aligned`), as :meth:`report` says."""
+        if not aligned:
+            return "as given"
+        if self.base_aligned:
+            return "after aligning your base to the model's"
+        return "as given: aligning your base does not reduce the error"
 
     @property
     def unattributed(self) -> tuple[float, float] | None:
@@ -869,6 +879,7 @@ def diagnose(
             "give one row or screw per joint, base to tip"
         )
     whole_number(samples, "samples", 1)
+    check_sample_memory(samples, model.n_joints + 2 * 16)  # q, the model's and your poses
     convention: Convention = table.convention if table is not None else "standard"
     q = sample_joint_values(model, samples, seed=seed)
     T_ref = model.fk(q)

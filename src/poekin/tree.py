@@ -44,6 +44,7 @@ from poekin.chain import (
     jacobian_array,
     jacobian_from_world,
     readonly_array,
+    relative_jacobian,
     zeros_like_batch,
 )
 from poekin.errors import InputError, ModelError, UnknownFrameError, did_you_mean
@@ -801,6 +802,7 @@ class Tree:
         convention: JacobianConvention = "world",
         *,
         params: TreeParams | None = None,
+        relative_to: str | None = None,
     ) -> FloatArray:
         """Jacobian of ``frame`` (a body or site name): ``(..., 6, nv)``.
 
@@ -815,10 +817,26 @@ class Tree:
         (:func:`poekin.chain.jacobian_from_world`). ``qpos`` and ``params`` as for
         :meth:`fk`, and the result in ``qpos``'s library, as there.
 
+        With ``relative_to`` (a body or site name, as for :meth:`pose`), the Jacobian of
+        ``T_relative_frame(qpos)``, that frame in the world's role
+        (:func:`poekin.chain.relative_jacobian`): the rows of ``"world"`` in its coordinates,
+        ``"space"`` the twist in it, ``"body"`` in ``frame``.
+
         Raises:
             UnknownFrameError: no such frame.
             InputError: ``qpos`` is not ``(..., nq)`` finite numbers, or an unknown convention.
         """
+        if relative_to is not None:
+            check_jacobian_convention(convention)
+            index, reference = self.frame_index(frame), self.frame_index(relative_to)
+            T = self.fk(qpos, params=params)
+            return relative_jacobian(  # type: ignore[no-any-return]
+                self.jacobian(qpos, frame, "world", params=params),
+                self.jacobian(qpos, relative_to, "world", params=params),
+                T[..., index, :, :],
+                T[..., reference, :, :],
+                convention,
+            )
         # the one-call fast path: a frame and convention seen before (so valid) and qpos the
         # kernel takes as it is
         if params is None and type(qpos) is np.ndarray:

@@ -60,7 +60,8 @@ def _build_parser() -> argparse.ArgumentParser:
     parser = Parser(
         prog="poekin",
         description="Product-of-Exponentials forward kinematics derived from MuJoCo models.",
-        epilog="example:\n  poekin verify --plot fk.png --metrics metrics.csv",
+        epilog="examples:\n  poekin verify universal_robots_ur5e\n"
+        "  poekin fk universal_robots_ur5e --q 0 -1.57 1.57 0 0 0",
         formatter_class=fmt,
     )
     parser.add_argument("--version", action=_Version)

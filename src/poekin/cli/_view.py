@@ -16,6 +16,7 @@ from poekin.cli._args import (
     model_source,
     read_joint_values,
 )
+from poekin.errors import InputError
 
 __all__ = ["register"]
 
@@ -63,6 +64,11 @@ def _cmd_draw(args: argparse.Namespace, out: TextIO) -> int:
     from poekin.loading import load_tree
     from poekin.viewer.draw import draw
 
+    if args.aligned and not args.params:
+        raise InputError(
+            "--aligned draws the arm of --params after aligning its base to the model's: "
+            "give --params FILE|NAME too, or drop --aligned"
+        )
     figure_format(args.out, "--out")
     check_new_file(args.out, "drawing", force=args.force)
     source = model_source(args)

@@ -48,7 +48,6 @@ from poekin.viewer.scene import (
     make_subject,
     manipulability,
     nearest_point,
-    rpy_from_rotation,
     screw_kind,
     snapshot,
 )
@@ -245,11 +244,32 @@ class Viewer:
         too): e.g. ``set_option("DH frames", True)``, ``set_option("Jacobian", "body")``.
 
         Raises:
-            InputError: no such setting; the message lists them.
+            InputError: no such setting, or a value the control cannot show: a choice not in
+                its list, not True or False for a check box, not a number in a slider's range.
+                The message lists the valid ones.
         """
         if name not in self._options:
             raise InputError(f"no panel setting {name!r}: {did_you_mean(name, self._options)}")
-        self._options[name].value = value
+        handle = self._options[name]
+        choices = getattr(handle, "options", None)
+        if choices is not None:  # a dropdown
+            if value not in choices:
+                raise InputError(
+                    f"{name!r} has no choice {value!r}: {did_you_mean(str(value), choices)}"
+                )
+        elif isinstance(handle.value, bool):  # a check box
+            if not isinstance(value, bool | np.bool_):
+                raise InputError(f"{name!r} is a check box: give True or False, got {value!r}")
+            value = bool(value)
+        else:  # a slider
+            lo, hi = handle.min, handle.max
+            if (
+                isinstance(value, bool)
+                or not isinstance(value, int | float | np.integer | np.floating)
+                or not lo <= value <= hi
+            ):
+                raise InputError(f"{name!r} takes a number in [{lo:g}, {hi:g}], got {value!r}")
+        handle.value = value
 
     def snapshot(self) -> Snapshot:
         """What is drawn now (:func:`poekin.viewer.scene.snapshot` at :attr:`q`)."""
@@ -848,8 +868,8 @@ class Viewer:
                 else:
                     start = c.adr + (3 if c.kind == "free" else 0)
                     quat = np.asarray(lie.quat_normalize(x[start : start + 4]), dtype=np.float64)
-                    rpy = rpy_from_rotation(np.asarray(lie.quat_to_rotation(quat)))
-                    value = rpy[("roll", "pitch", "yaw").index(key)]
+                    rpy = lie.rotation_to_rpy(lie.quat_to_rotation(quat))
+                    value = float(rpy[("roll", "pitch", "yaw").index(key)])
                     value = math.degrees(value) if deg else value
                 slider.value = value
             self._q_input.value = " ".join(f"{v + 0.0:.6g}" for v in x)

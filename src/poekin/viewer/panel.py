@@ -195,11 +195,7 @@ def compare_text(comparison: Comparison, ghost: Ghost, aligned: bool) -> str:
     """The live end-frame error, the verdict and :func:`~poekin.diagnose.diagnose`'s findings."""
     d = comparison.diagnosis
     verdict = "MATCH" if d.matches else "MISMATCH"
-    placed = (
-        "after aligning your base to the model's"
-        if aligned
-        else "as given, on the model's base frame"
-    )
+    placed = d.placement(aligned) + ("" if aligned else ", on the model's base frame")
     lines = [
         f"**{comparison.name}** vs **{d.model.robot or 'the model'}** / `{d.model.frame}`: "
         f"**{verdict}**",

@@ -66,7 +66,6 @@ __all__ = [
     "manipulability",
     "nearest_point",
     "pose_summary",
-    "rpy_from_rotation",
     "screw_kind",
     "skeleton",
     "snapshot",
@@ -652,19 +651,6 @@ def skeleton(
 # --- readouts -----------------------------------------------------------------------------------
 
 
-def rpy_from_rotation(R: FloatArray) -> tuple[float, float, float]:
-    """Roll, pitch, yaw (rad) with ``R = Rz(yaw) Ry(pitch) Rx(roll)`` (URDF's ``rpy``): pitch in
-    ``[-pi/2, pi/2]``; at pitch ``+-pi/2`` (gimbal lock) roll is 0 and yaw takes the rest."""
-    pitch = math.atan2(-float(R[2, 0]), math.hypot(float(R[0, 0]), float(R[1, 0])))
-    if math.hypot(float(R[0, 0]), float(R[1, 0])) < 1e-12:
-        return 0.0, pitch, math.atan2(-float(R[0, 1]), float(R[1, 1]))
-    return (
-        math.atan2(float(R[2, 1]), float(R[2, 2])),
-        pitch,
-        math.atan2(float(R[1, 0]), float(R[0, 0])),
-    )
-
-
 def pose_summary(T: FloatArray) -> dict[str, tuple[float, ...]]:
     """``{"position": (x, y, z), "quat_wxyz": (w, x, y, z), "rpy": (roll, pitch, yaw)}`` of a
     pose, quaternion with ``w >= 0``."""
@@ -672,7 +658,7 @@ def pose_summary(T: FloatArray) -> dict[str, tuple[float, ...]]:
     return {
         "position": tuple(float(x) for x in T[:3, 3]),
         "quat_wxyz": tuple(float(x) for x in quat),
-        "rpy": rpy_from_rotation(T[:3, :3]),
+        "rpy": tuple(float(x) for x in lie.rotation_to_rpy(T[:3, :3])),
     }
 
 
