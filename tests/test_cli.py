@@ -8,6 +8,8 @@ import os
 import pathlib
 import subprocess
 import sys
+from collections.abc import Callable
+from typing import Any
 
 import numpy as np
 import pytest
@@ -342,7 +344,34 @@ BAD_INPUTS = [
     (["jacobian", "unitree_go2", "--relative-to", "bse", "--q", "0"], "did you mean 'base'"),
     (["jacobian", "aloha", "--all-frames", "--frame", "left/gripper", "--q", "0"], "drop --frame"),
     (["jacobian", "--params", "ur5e-dh", "--relative-to", "base", "--q", "0"], "not --params"),
+    # UR calibration files (issue 22): BAD_UR_CALIBRATIONS below
+    (["fk", "--params", "{ur_missing_segment}", "--q", *"000000"], "has no 'wrist_2' segment"),
+    (["diagnose", "--params", "{ur_misspelled_segment}"], "did you mean 'wrist_1'?"),
+    (["dh", "--params", "{ur_text}"], "kinematics.forearm.x must be a number"),
+    (["verify", "--params", "{ur_extra_segment}"], "unknown segment 'wrist_4'"),
+    (
+        ["diagnose", "--params", "{ur_calibration}", "--against", "ur5e-dh", "--frame", "tool0"],
+        "frame out",
+    ),
 ]
+
+# {name}.yaml files for BAD_INPUTS: the synthetic UR5e calibration of tests/data/ur, edited
+UR_CALIBRATION = pathlib.Path(__file__).parent / "data" / "ur" / "ur5e_calibration.yaml"
+BAD_UR_CALIBRATIONS: dict[str, Callable[[dict[str, Any]], object]] = {
+    "ur_missing_segment": lambda k: k.pop("wrist_2"),
+    "ur_misspelled_segment": lambda k: k.update(wrist1=k.pop("wrist_1")),
+    "ur_text": lambda k: k["forearm"].update(x="abc"),
+    "ur_extra_segment": lambda k: k.update(wrist_4=dict(k["wrist_3"])),
+}
+
+
+def _ur_calibration(edit: Callable[[dict[str, Any]], object]) -> str:
+    import yaml
+
+    doc = yaml.safe_load(UR_CALIBRATION.read_text())
+    edit(doc["kinematics"])
+    return str(yaml.safe_dump(doc))
+
 
 _LINKS = '<link name="base"/><link name="a"/>'
 _ONE_JOINT = _LINKS + '<joint name="j" type="{}"><parent link="base"/><child link="a"/>{}</joint>'
@@ -422,6 +451,11 @@ def test_bad_input_gives_one_line_and_exit_2(
         k: _write(tmp_path, f"{k}.urdf", f'<robot name="r">{v}</robot>')
         for k, v in BAD_URDFS.items()
     }
+    fills |= {
+        k: _write(tmp_path, f"{k}.yaml", _ur_calibration(edit))
+        for k, edit in BAD_UR_CALIBRATIONS.items()
+    }
+    fills["ur_calibration"] = str(UR_CALIBRATION)
     before = pathlib.Path(other).read_bytes()
     listing = sorted(tmp_path.iterdir())
     code, out, err = run(capsys, *[a.format(**fills) for a in argv])

@@ -471,30 +471,6 @@ def test_every_command_reads_it(
 
 
 # The lead merges these rows into tests/test_cli.py's BAD_INPUTS.
-BAD_UR_INPUTS = [
-    (["fk", "--params", "{missing_segment}", "--q", *"000000"], "has no 'wrist_2' segment"),
-    (["diagnose", "--params", "{misspelled_segment}"], "did you mean 'wrist_1'?"),
-    (["dh", "--params", "{text}"], "kinematics.forearm.x must be a number"),
-    (["verify", "--params", "{extra_segment}"], "unknown segment 'wrist_4'"),
-    (["diagnose", "--params", "{cal}", "--against", "ur5e-dh", "--frame", "tool0"], "frame out"),
-]
-
-
-@pytest.mark.parametrize(("argv", "message"), BAD_UR_INPUTS)
-def test_bad_input_gives_one_line_and_exit_2(
-    argv: list[str], message: str, tmp_path: pathlib.Path, capsys: pytest.CaptureFixture[str]
-) -> None:
-    fills = {"cal": str(CALIBRATION)}
-    for change, _ in BAD:
-        path = tmp_path / f"{change}.yaml"
-        path.write_text(yaml.safe_dump(_edit(change)))
-        fills[change] = str(path)
-    code, out, err = _run(capsys, *[a.format(**fills) for a in argv])
-    errors = [line for line in err.splitlines() if line.startswith("poekin: error: ")]
-    assert code == 2 and not out
-    assert len(errors) == 1 and message in errors[0] and "Traceback" not in err, err
-
-
 # --- the user page ------------------------------------------------------------------------------
 
 PAGE = REPO / "docs" / "ur_calibration.md"
