@@ -45,6 +45,7 @@ __all__ = [
     "figure_format",
     "read_array",
     "write_array",
+    "write_text",
 ]
 
 #: Array file suffixes and what they hold.
@@ -267,4 +268,13 @@ def write_array(
             else:
                 np.savetxt(text, rows, fmt="%.17g", header=" ".join(columns))
             f.write(text.getvalue().encode())
+    return p
+
+
+def write_text(path: str | os.PathLike[str], text: str) -> pathlib.Path:
+    """Write ``text`` (UTF-8) to ``path``, replacing any file there in one step (see the module
+    docstring). Returns the path written."""
+    p = pathlib.Path(path)
+    with _replacing(p) as f:
+        f.write(text.encode())
     return p
