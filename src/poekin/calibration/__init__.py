@@ -25,7 +25,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from poekin.calibration.fit import LOSSES, Loss, fit, initial_state, residuals
+from poekin.calibration.fit import _MAD, LOSSES, Loss, fit, initial_state, residuals
 from poekin.calibration.identify import (
     advice,
     minimum_poses,
@@ -213,11 +213,7 @@ def calibrate(
     fitted = fit(cm, q_arr, meas, start=start, **options)  # type: ignore[arg-type]
     state = fitted.state
     T = cm.poses(state, q_arr)
-    r = residuals(cm, T, meas)
-    sig = np.repeat(
-        [fitted.sigma_ori, fitted.sigma_pos] if measure == "pose" else [fitted.sigma_pos], 3
-    )
-    normalised = np.sqrt(np.mean((r / sig) ** 2, axis=1))
+    normalised = _normalised(residuals(cm, T, meas))
     directions = unidentified(cm, fitted)
     source = _source_name(model, chain)
     notes = advice(cm, q_arr, directions, source)
@@ -264,6 +260,17 @@ def calibrate(
         f_scale=f_scale,
         folds=folds,
     )
+
+
+def _normalised(r: FloatArray) -> FloatArray:
+    """Each pose's residual in sigmas, RMS over its numbers, with each group's sigma (rotation,
+    position) from the median absolute residual: robust, so that outliers stand out whatever
+    the loss was."""
+    groups = [slice(0, 3), slice(3, 6)] if r.shape[1] == 6 else [slice(0, 3)]
+    scaled = np.concatenate(
+        [r[:, g] / max(_MAD * float(np.median(np.abs(r[:, g]))), 1e-300) for g in groups], axis=1
+    )
+    return np.asarray(np.sqrt(np.mean(scaled**2, axis=1)), dtype=np.float64)
 
 
 def _source_name(model: object, chain: Chain) -> str:

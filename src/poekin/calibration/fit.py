@@ -23,8 +23,10 @@ Steps (:func:`fit`):
    error would exceed one prior unit (singular value below the residual sigma), or that is
    numerically null, is not fitted: it keeps the model's value, and the fit is repeated in the
    subspace that is left. So noise is never fitted as geometry.
-5. **Robust loss** (``huber``, ``soft_l1``): poses are reweighted by their normalised residual
-   (RMS over their numbers, in sigmas; the sigmas then from the median absolute residual).
+5. **Robust loss**: poses are reweighted by their normalised residual ``u`` (RMS over their
+   numbers, in sigmas; the sigmas then from the median absolute residual), iteratively
+   (IRLS), as SciPy's losses of the same names with ``f_scale`` in sigmas: ``huber`` and
+   ``soft_l1`` bound an outlier's pull, ``cauchy`` lets it fade (best for gross outliers).
 """
 
 from __future__ import annotations
@@ -42,8 +44,8 @@ from poekin.errors import InputError
 __all__ = ["LOSSES", "Fit", "Loss", "fit", "register", "residuals"]
 
 FloatArray = NDArray[np.float64]
-Loss = Literal["linear", "huber", "soft_l1"]
-LOSSES: tuple[Loss, ...] = ("linear", "huber", "soft_l1")
+Loss = Literal["linear", "huber", "soft_l1", "cauchy"]
+LOSSES: tuple[Loss, ...] = ("linear", "huber", "soft_l1", "cauchy")
 
 _MAX_ITER = 60
 _STEP_TOL = 1e-11  # stop when a step moves every correction by less than this many prior units
@@ -137,9 +139,7 @@ def initial_state(model: CalibrationModel, q: FloatArray, measured: FloatArray) 
             x[turn] = lie.log_so3(R_tool)
             T_r = model.poses(State(np.eye(4), x), q)
         # the measured point's offset in the model's end frame: p = B (P_n p_M + P_n R_M t)
-        home = model.chain.home
         A = base[:3, :3] @ T_r[:, :3, :3] @ lie.exp_so3(-x[turn] if turn else np.zeros(3))
-        A = A @ home[:3, :3].T @ home[:3, :3]  # R_B R_{P_n M'} R_M'^T R_M
         b = p_meas - (base[:3, :3] @ T_r[:, :3, 3, None])[:, :, 0] - base[:3, 3]
         dt = np.linalg.lstsq(A.reshape(-1, 3), b.reshape(-1), rcond=None)[0]
         x[shift] += dt
@@ -147,7 +147,31 @@ def initial_state(model: CalibrationModel, q: FloatArray, measured: FloatArray) 
             break
     state = State(np.eye(4), x)
     base = register(model.poses(state, q)[:, :3, 3], p_meas)
-    return State(base, x)
+    return to_free(model, State(base, x), q)
+
+
+def to_free(model: CalibrationModel, state: State, q: FloatArray) -> State:
+    """The same robot (the same poses at ``q``) with the corrections that are not free at 0:
+    Gauss-Newton on the free ones towards the poses of ``state`` (the dropped corrections are
+    redundant, so the minimal set reproduces them exactly)."""
+    dropped = [r.param for r in model.redundant]
+    if not np.any(state.x[dropped]):
+        return state
+    target = model.poses(state, q)
+    x = state.x.copy()
+    x[dropped] = 0.0
+    free = list(model.free)
+    current = State(state.base, x)
+    for _ in range(_MAX_ITER):
+        T, D = model.jacobian(current, q)
+        turn = lie.log_so3(target[:, :3, :3] @ np.swapaxes(T[:, :3, :3], 1, 2))
+        r = np.concatenate([turn, target[:, :3, 3] - T[:, :3, 3]], axis=1)
+        J = D[:, :, free].reshape(-1, len(free))
+        dx = np.linalg.lstsq(J, r.reshape(-1), rcond=None)[0]
+        current = _retract(model, current, free, dx)
+        if np.max(np.abs(dx)) < 1e-14:
+            break
+    return current
 
 
 def _retract(model: CalibrationModel, state: State, free: list[int], dx: FloatArray) -> State:
@@ -169,6 +193,8 @@ def _robust(loss: Loss, u: FloatArray, f_scale: float) -> FloatArray:
         return np.minimum(1.0, f_scale / np.maximum(u, 1e-300))
     if loss == "soft_l1":
         return 1.0 / np.sqrt(1.0 + (u / f_scale) ** 2)
+    if loss == "cauchy":
+        return 1.0 / (1.0 + (u / f_scale) ** 2)
     return np.ones_like(u)
 
 
