@@ -134,8 +134,10 @@ def _read_csv(p: pathlib.Path, where: str, joints: Sequence[str]) -> tuple[Float
         raise InputError(f"{where}: column {twice!r} appears twice")
     for name in [*joints, *POSITION]:
         if name not in header:
-            others = [h for h in header if h not in known or h not in (*POSITION, *QUATERNION)]
-            raise InputError(f"{where}: no column {name!r}: {did_you_mean(name, others or header)}")
+            raise InputError(
+                f"{where}: no column {name!r}; the header names every joint "
+                f"({', '.join(joints)}), then x, y, z (and qw, qx, qy, qz)"
+            )
     quats = [h for h in QUATERNION if h in header]
     if quats and len(quats) != 4:
         missing = [h for h in QUATERNION if h not in header]

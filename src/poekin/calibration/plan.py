@@ -104,16 +104,19 @@ def plan_poses(
     J = scaled_jacobian(cm, design_state(cm), pool, _PRIOR_M, _PRIOR_RAD)  # (C m, F)
     blocks = J.reshape(count, m, -1)
     F = J.shape[1]
-    A = _RIDGE * float(np.mean(np.sum(J * J, axis=0))) * m * np.eye(F)
+    A_inv = np.eye(F) / (_RIDGE * float(np.mean(np.sum(J * J, axis=0))) * m)
+    Y = J @ A_inv  # (C m, F): every candidate's J_c A^-1, kept up to date
     left = np.ones(count, dtype=bool)
     picked: list[int] = []
     for _ in range(n):
-        Y = np.linalg.solve(A, J.T)  # (F, C m)
-        G = np.einsum("cmf,cfk->cmk", blocks, Y.T.reshape(count, m, F).transpose(0, 2, 1))
-        _, logdet = np.linalg.slogdet(np.eye(m) + G)
-        logdet[~left] = -np.inf
-        best = int(np.argmax(logdet))
+        G = np.einsum("cmf,ckf->cmk", blocks, Y.reshape(count, m, F))  # J_c A^-1 J_c^T
+        _, gain = np.linalg.slogdet(np.eye(m) + G)
+        gain[~left] = -np.inf
+        best = int(np.argmax(gain))
         picked.append(best)
         left[best] = False
-        A = A + blocks[best].T @ blocks[best]
+        # Woodbury: (A + J_b^T J_b)^-1 = A^-1 - K^T (I + J_b K^T)^-1 K, K = J_b A^-1
+        K = Y[best * m : (best + 1) * m]
+        update = np.linalg.solve(np.eye(m) + blocks[best] @ K.T, K)
+        Y = Y - (J @ K.T) @ update
     return np.asarray(pool[picked], dtype=np.float64)
