@@ -37,6 +37,7 @@ Lengths are metres, angles radians.
 from __future__ import annotations
 
 import dataclasses
+import functools
 from collections.abc import Sequence
 from typing import Literal
 
@@ -44,7 +45,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from poekin import lie
-from poekin.chain import Chain
+from poekin.chain import Chain, _ScrewTerms
 from poekin.dh import joint_lines
 from poekin.lie import _one_minus_cos_over_t2, _t_minus_sin_over_t3
 
@@ -169,6 +170,21 @@ def _hat(v: FloatArray) -> FloatArray:
     return W
 
 
+def _exponentials(terms: _ScrewTerms, theta: FloatArray) -> FloatArray:
+    """``(N, n, 4, 4)`` ``exp([S_i] theta_i)`` of unit screws, in the form of
+    :class:`poekin.chain._ScrewTerms` (whose constants they are): ``R = I + sin W + (1 - cos)
+    W^2``, ``p = r - R r + theta u`` (a prismatic screw: ``W = 0``, ``r = 0``, ``u = v``),
+    evaluated for every joint and pose at once."""
+    W = _hat(terms.w)  # (n, 3, 3)
+    s, c = np.sin(theta)[..., None, None], np.cos(theta)[..., None, None]
+    R = np.eye(3) + s * W + (1.0 - c) * (W @ W)
+    E = np.zeros((*theta.shape, 4, 4))
+    E[..., :3, :3] = R
+    E[..., :3, 3] = terms.r - (R @ terms.r[:, :, None])[..., 0] + theta[..., None] * terms.u
+    E[..., 3, 3] = 1.0
+    return E
+
+
 def _ad(T: FloatArray, xi: FloatArray) -> FloatArray:
     """``Ad(T) xi`` for poses ``(..., 4, 4)`` and twists ``(..., 6, K)`` (columns), the leading
     axes broadcast: ``[R w; p x R w + R v]``."""
@@ -182,8 +198,9 @@ def _ad(T: FloatArray, xi: FloatArray) -> FloatArray:
 class Geometry:
     """The corrected robot in its base frame at ``q = 0`` (:meth:`CalibrationModel.geometry`):
     joint directions and points ``(n, 3)``, offsets ``(n,)``, screws ``(n, 6)``, home ``M'``,
-    and, for the Jacobian, each joint's tilt rotation and its right Jacobian ``(n, 3, 3)`` and
-    the tool's turn ``phi`` ``(3,)``."""
+    and, for the Jacobian, each joint's tilt rotation and its right Jacobian ``(n, 3, 3)``, the
+    tool's turn ``phi`` ``(3,)`` and its right Jacobian; and the screws' terms
+    (:class:`poekin.chain._ScrewTerms`) for :meth:`CalibrationModel._products`."""
 
     dirs: FloatArray
     points: FloatArray
@@ -191,8 +208,24 @@ class Geometry:
     screws: FloatArray
     home: FloatArray
     turn: FloatArray
-    turn_jacobian: FloatArray
-    tool_turn: FloatArray
+    vectors: FloatArray  # (n + 1, 3): the joints' tilt vectors, then the tool's turn
+    terms: _ScrewTerms
+
+    @functools.cached_property
+    def _jacobians(self) -> FloatArray:
+        return _right_jacobian(self.vectors)
+
+    @property
+    def turn_jacobian(self) -> FloatArray:
+        return self._jacobians[:-1]
+
+    @property
+    def tool_turn(self) -> FloatArray:
+        return np.asarray(self.vectors[-1], dtype=np.float64)
+
+    @property
+    def tool_turn_jacobian(self) -> FloatArray:
+        return np.asarray(self._jacobians[-1], dtype=np.float64)
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
@@ -334,37 +367,43 @@ class CalibrationModel:
         return cache[key]
 
     def _geometry(self, x: FloatArray) -> Geometry:
-        slots = np.asarray(self.line_slots)
+        slots = self._slots
         values = np.where(slots >= 0, x[np.maximum(slots, 0)], 0.0)  # (n, 4)
         a, b = self.a, self.b
         shift = values[:, :1] * a + values[:, 1:2] * b
-        theta = values[:, 2:3] * a + values[:, 3:4] * b
-        turn = np.asarray(lie.exp_so3(theta), dtype=np.float64)
-        dirs = (turn @ self.dirs[:, :, None])[:, :, 0]
+        phi = x[list(self.tool_turn_index)] if self.tool_turn_index else np.zeros(3)
+        # the joints' tilts and the tool's turn, as one batch
+        vectors = np.concatenate([values[:, 2:3] * a + values[:, 3:4] * b, phi[None]])
+        turns = np.asarray(lie.exp_so3(vectors), dtype=np.float64)
+        dirs = (turns[:-1] @ self.dirs[:, :, None])[:, :, 0]
         points = self.points + shift
         prismatic = self.prismatic[:, None]
         w = np.where(prismatic, 0.0, dirs)
         v = np.where(prismatic, dirs, _cross(points, dirs))
         home = self.chain.home
         t = x[list(self.tool_shift_index)]
-        phi = x[list(self.tool_turn_index)] if self.tool_turn_index else np.zeros(3)
         M = np.eye(4)
-        M[:3, :3] = home[:3, :3] @ lie.exp_so3(phi)
+        M[:3, :3] = home[:3, :3] @ turns[-1]
         M[:3, 3] = home[:3, 3] + home[:3, :3] @ t
+        screws = np.concatenate([w, v], axis=1)
         return Geometry(
             dirs=dirs,
             points=points,
             offsets=x[list(self.offset_index)],
-            screws=np.concatenate([w, v], axis=1),
+            screws=screws,
             home=M,
-            turn=turn,
-            turn_jacobian=_right_jacobian(theta),
-            tool_turn=phi,
+            turn=turns[:-1],
+            vectors=vectors,
+            terms=_ScrewTerms.of(screws),
         )
 
     @property
     def prismatic(self) -> NDArray[np.bool_]:
         return np.array([t == "prismatic" for t in self.chain.joint_types], dtype=bool)
+
+    @functools.cached_property
+    def _slots(self) -> NDArray[np.int_]:
+        return np.asarray(self.line_slots, dtype=int)
 
     @property
     def line_slots(self) -> list[list[int]]:
@@ -386,12 +425,13 @@ class CalibrationModel:
         exp([S'_i] o_i)``.
         """
         geo = self.geometry(state.x)
-        S, offsets, M = geo.screws, geo.offsets, geo.home
+        S, M = geo.screws, geo.home
+        E = _exponentials(geo.terms, geo.offsets[None])[0]  # exp([S'_i] o_i)
         G = np.asarray(state.base, dtype=np.float64).copy()
         screws = np.zeros_like(S)
         for i in range(len(S)):
-            G = G @ lie.exp_se3(S[i] * offsets[i])
-            screws[i] = lie.adjoint(G) @ S[i]
+            G = G @ E[i]
+            screws[i] = _ad(G, S[i][:, None])[:, 0]
         # the screws' axes are unit up to rounding; renormalise so that the chain takes them
         for i, kind in enumerate(self.chain.joint_types):
             part = slice(0, 3) if kind == "revolute" else slice(3, 6)
@@ -405,7 +445,7 @@ class CalibrationModel:
         o_i))``; and the geometry."""
         geo = self.geometry(state.x)
         N, n = len(q), self.chain.n_joints
-        E = lie.exp_se3(geo.screws[None, :, :] * (q + geo.offsets)[:, :, None])  # (N, n, 4, 4)
+        E = _exponentials(geo.terms, q + geo.offsets)
         P = np.empty((N, n + 1, 4, 4))
         P[:, 0] = np.eye(4)
         for i in range(n):
@@ -442,9 +482,9 @@ class CalibrationModel:
         xi[:, :, slots[slots >= 0]] = moved[:, :, slots >= 0]
         T_r = P[:, -1] @ geo.home
         body = np.zeros((6, 3 + len(self.tool_turn_index)))
-        body[3:, :3] = lie.exp_so3(-geo.tool_turn)
+        body[3:, :3] = geo.home[:3, :3].T @ self.chain.home[:3, :3]  # exp(-phi)
         if self.tool_turn_index:
-            body[:3, 3:] = _right_jacobian(geo.tool_turn)
+            body[:3, 3:] = geo.tool_turn_jacobian
         xi[:, :, [*self.tool_shift_index, *self.tool_turn_index]] = _ad(T_r, body)
         T = np.asarray(state.base @ T_r, dtype=np.float64)
         twist = _ad(state.base, xi)
