@@ -161,11 +161,13 @@ def advice(
         involved = sorted(j for j in joints if j is not None)
         still = _still(model, q)
         move = [i for i in involved if i in still] or sorted(still)
-        items = "; ".join(describe(model, d) for d in directions)
+        parts = [_joint_list(model, involved)] if involved else []
+        groups = {model.params[k].group for d in directions for k in d.params}
+        parts += [f"the {g}" for g in ("tool", "base") if g in groups]
         count = len(directions)
         text = (
             f"the poses leave {count} combination{'s' if count > 1 else ''} of parameters "
-            f"unidentified, kept at the model's values: {items}"
+            f"unidentified, kept at the model's values (corrections of {' and '.join(parts)})"
         )
         if move:
             spans = ", ".join(

@@ -241,6 +241,7 @@ class Calibration:
 
         robot, nominal = self.robot, self.nominal
         tilt, offset = joint_differences(robot, nominal)
+        partial = {self.model.params[k].joint for d in self.unidentified for k in d.params}
         out = []
         for i, name in enumerate(nominal.joint_names):
             part = f"joint {i + 1} ({name})"
@@ -251,6 +252,8 @@ class Calibration:
             if revolute:
                 items.append(f"axis line offset by {offset[i] * 1e3:.3g} mm")
             items.append(f"encoder offset {enc:+.3g} {unit}")
+            if i in partial:
+                items.append("not all identified")
             out.append(
                 Change(
                     part,
