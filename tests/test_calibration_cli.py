@@ -6,6 +6,7 @@ from __future__ import annotations
 import functools
 import json
 import pathlib
+import re
 
 import numpy as np
 import pytest
@@ -158,6 +159,56 @@ def test_plan(tmp_path: pathlib.Path, capsys: pytest.CaptureFixture[str]) -> Non
     )
     assert code == 0 and f"planned poses written to {out}" in text and "12 positions" in text
     assert np.load(out).shape == (12, 6)
+
+
+HEADER_LINE = (
+    "shoulder_pan_joint,shoulder_lift_joint,elbow_joint,wrist_1_joint,wrist_2_joint,wrist_3_joint,"
+    "x,y,z,qw,qx,qy,qz"
+)
+
+
+@pytest.mark.parametrize(
+    ("name", "content", "message"),
+    [
+        ("dup.csv", HEADER_LINE.replace(",x,", ",x,x,") + "\n", "column 'x' appears twice"),
+        ("short.csv", HEADER_LINE + "\n1,2,3\n", "row 1 has 3 values, the header 13"),
+        ("empty.csv", "# nothing\n", "is empty"),
+        ("header.csv", HEADER_LINE + "\n", "has a header but no rows"),
+        ("latin.csv", b"\xff\xfe\x00", "not a text file"),
+        ("text.npz", "not an archive", "not a readable .npz"),
+        ("strings.npz", {"q": np.array([["a"] * 6] * 8), "p": np.zeros((8, 3))}, "not real"),
+        ("shape.npz", {"q": np.zeros((8, 5)), "p": np.zeros((8, 3))}, "'q' must be (N, 6)"),
+        ("nan.npz", {"q": np.zeros((8, 6)), "T": np.full((8, 4, 4), np.nan)}, "'T' of row 1"),
+        (
+            "both.npz",
+            {"q": np.zeros((8, 6)), "T": np.zeros((8, 4, 4)), "p": np.zeros((8, 3))},
+            "either",
+        ),
+    ],
+)
+def test_bad_measurement_files(
+    name: str, content: object, message: str, tmp_path: pathlib.Path
+) -> None:
+    path = tmp_path / name
+    if isinstance(content, dict):
+        np.savez(path, **content)
+    elif isinstance(content, bytes):
+        path.write_bytes(content)
+    else:
+        path.write_text(str(content))
+    with pytest.raises(poekin.InputError, match=re.escape(message)):
+        read_measurements(path, poekin.load(ROBOT))
+
+
+def test_bad_measured_arrays() -> None:
+    from poekin.calibration import check_measurements
+
+    with pytest.raises(poekin.InputError, match="must be numbers"):
+        check_measurements([["a", "b", "c"]], 1)
+    T = np.tile(np.eye(4), (3, 1, 1))
+    T[1, 3, 0] = 1.0
+    with pytest.raises(poekin.InputError, match="measured pose 1: the last row"):
+        check_measurements(T, 3)
 
 
 def _npz_without_poses(folder: pathlib.Path) -> str:

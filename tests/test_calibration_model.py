@@ -137,7 +137,13 @@ def test_calibrated_chain_absorbs_the_offsets() -> None:
 
 
 @pytest.mark.parametrize(
-    ("robot", "frame"), [("universal_robots_ur5e", None), ("franka_fr3", None)]
+    ("robot", "frame"),
+    [
+        ("universal_robots_ur5e", None),
+        ("franka_fr3", None),
+        ("franka_emika_panda", "hand"),  # a body as the end frame
+        ("trs_so_arm100", "Fixed_Jaw"),  # bodies turned with euler="..."
+    ],
 )
 def test_simulated_robot_without_perturbation_is_the_model(robot: str, frame: str | None) -> None:
     """The simulation edits the model with MjSpec and poses it with mj_forward: unperturbed it
@@ -166,6 +172,15 @@ def test_simulated_robot_differs_by_about_what_was_asked() -> None:
     # the encoders' offsets: the joints stand at q + offsets
     unoffset = simulate_robot(seed=3, offset_rad=0.0)
     assert_close("offsets", unoffset.poses(q + sim.offsets), sim.poses(q), 1e-13)
+    target = np.eye(4)
+    target[:3, 3] = [0.0, 0.0, 0.1]  # a target 10 cm along the flange's z
+    on_flange = simulate_robot(seed=3, target=target, tool_m=0.0, tool_rad=0.0)
+    shifted = (on_flange.poses(q) @ np.linalg.inv(target))[:, :3, 3]
+    assert_close("target", shifted, sim.poses(q)[:, :3, 3], 5e-3)  # ~1 mm tool change apart
+    with pytest.raises(poekin.InputError, match=r"target must be a \(4, 4\) pose"):
+        simulate_robot(target=np.eye(3))
+    with pytest.raises(poekin.InputError, match="needs a site"):
+        simulate_robot("franka_emika_panda", "hand", target=np.eye(4))
     noisy = sim.measure(q[:50], noise_m=1e-4, noise_rad=1e-4, seed=1)
     pos, ori = pose_errors(noisy, sim.poses(q[:50]))
     assert 0.5e-4 < np.sqrt(np.mean(pos**2)) / np.sqrt(3) < 2e-4

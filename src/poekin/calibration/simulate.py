@@ -186,12 +186,12 @@ def simulate_robot(
     """
 
     from poekin.import_mujoco import find_frame
-    from poekin.loading import load_tree
+    from poekin.loading import default_frame, load_tree
     from poekin.sources import kinematics_spec, load_model
 
     loaded = load_model(source)
     tree = load_tree(loaded)
-    chain = tree.chain(frame if frame is not None else _default(tree))
+    chain = tree.chain(frame if frame is not None else default_frame(tree))
     kind, frame_id, _ = find_frame(loaded.model, chain.frame)
     rng = random_generator(seed)
     spec = kinematics_spec(source)
@@ -231,9 +231,3 @@ def simulate_robot(
     offsets = rng.normal(size=chain.n_joints) * np.where(revolute, offset_rad, offset_m)
     model = spec.compile()
     return SimulatedRobot(model, chain, offsets, base, kind, frame_id)
-
-
-def _default(tree: Any) -> str:
-    from poekin.loading import default_frame
-
-    return default_frame(tree)
