@@ -242,6 +242,7 @@ class Calibration:
         robot, nominal = self.robot, self.nominal
         tilt, offset = joint_differences(robot, nominal)
         partial = {self.model.params[k].joint for d in self.unidentified for k in d.params}
+        fitted = {self.model.params[k].joint for k in self.model.free}
         out = []
         for i, name in enumerate(nominal.joint_names):
             part = f"joint {i + 1} ({name})"
@@ -254,6 +255,8 @@ class Calibration:
             items.append(f"encoder offset {enc:+.3g} {unit}")
             if i in partial:
                 items.append("not all identified")
+            if i not in fitted:  # joint 1: nothing of it is fitted, the base takes it
+                items = ["its axis and encoder zero are the base's (no data tell them apart)"]
             out.append(
                 Change(
                     part,
@@ -274,6 +277,31 @@ class Calibration:
             turn = float("nan")
         out.append(Change("tool", None, turn, dp, 0.0, "", text))
         return out
+
+    def _std_line(self) -> str:
+        """The largest standard error of each kind of correction, in mm and mrad."""
+        std = self.std()
+        kinds = (
+            ("encoder offsets", "offset"),
+            ("axis tilts", "tilt"),
+            ("axis shifts", "shift"),
+            ("tool", "tool"),
+            ("base", "base"),
+        )
+        parts = []
+        for label, group in kinds:
+            by_unit: dict[str, float] = {}
+            for p in self.model.params:
+                if p.group == group and p.key in std:
+                    by_unit[p.unit] = max(by_unit.get(p.unit, 0.0), std[p.key])
+            if by_unit:
+                values = [
+                    f"{by_unit[u] * 1e3:.2g} {'mm' if u == 'm' else 'mrad'}"
+                    for u in ("m", "rad")
+                    if u in by_unit
+                ]
+                parts.append(f"{label} {', '.join(values)}")
+        return "; ".join(parts)
 
     # --- output ------------------------------------------------------------------------------
 
@@ -363,6 +391,7 @@ class Calibration:
         )
         lines.append("changes from the model (mm, mrad):")
         lines += [f"  {c.message}" for c in self.changes()]
+        lines.append(f"largest standard errors: {self._std_line()}")
         for d in self.unidentified:
             lines.append(f"unidentified: {describe(self.model, d)}")
         if self.outliers:
