@@ -307,3 +307,32 @@ def test_model_by_name_and_given_sigmas(ur5e: Setup) -> None:
     assert 0.8 < by_name.fitted.sigma < 1.2  # the weighted residuals' sigma
     assert by_name.nominal.robot == "universal_robots_ur5e"
     assert poekin.calibrate is calibrate
+
+
+RPRR = """<mujoco><worldbody>
+<body name="b1" pos="0 0 0.1"><joint name="j1" type="hinge" axis="0 0 1"/><geom size="0.05"/>
+ <body name="b2" pos="0.1 0 0.2">
+  <joint name="j2" type="slide" axis="0 0 1" range="-0.2 0.2" limited="true"/><geom size="0.05"/>
+  <body name="b3" pos="0.3 0.05 0"><joint name="j3" type="hinge" axis="0 1 0"/><geom size="0.05"/>
+   <body name="b4" pos="0.2 0 0.1"><joint name="j4" type="hinge" axis="1 0 0"/><geom size="0.05"/>
+    <site name="tip" pos="0.1 0.05 0.02"/>
+</body></body></body></body></worldbody></mujoco>"""
+
+
+def test_a_prismatic_joint_counts_two(tmp_path: Any) -> None:
+    """An RPRR arm: 4 R + 2 P + 6 = 20 parameters (17 with positions), fitted exactly."""
+    path = tmp_path / "rprr.xml"
+    path.write_text(RPRR)
+    chain = poekin.load(path)
+    sim = simulate_robot(path, seed=1)
+    assert chain.limits is not None
+    limits = np.where(np.isfinite(chain.limits), chain.limits, [[-np.pi, np.pi]])
+    rng = np.random.default_rng(0)
+    q, q_test = (rng.uniform(limits[:, 0], limits[:, 1], (n, 4)) for n in (40, 100))
+    result = calibrate(chain, q, sim.poses(q), folds=0)
+    assert result.identifiable == result.expected_identifiable == 20
+    pos, ori = pose_errors(sim.poses(q_test), result.chain.fk(q_test))
+    assert pos.max() <= 1e-9 and ori.max() <= 1e-9
+    positions = calibrate(chain, q, sim.poses(q)[:, :3, 3], folds=0)
+    assert positions.expected_identifiable == 17
+    assert [c.encoder_unit for c in result.changes()[:4]] == ["mrad", "mm", "mrad", "mrad"]
