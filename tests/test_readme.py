@@ -6,6 +6,7 @@ code blocks of README and of every page of ``docs/``).
 from __future__ import annotations
 
 import contextlib
+import functools
 import io
 import pathlib
 import re
@@ -51,8 +52,22 @@ def _examples() -> list[tuple[str, str]]:
 EXAMPLES = _examples()
 
 
+@functools.cache
+def _tracker() -> tuple[np.ndarray, np.ndarray]:
+    """Joint readings and tracker poses of a simulated UR5e (MuJoCo on a perturbed model)."""
+    from poekin.calibration.simulate import simulate_robot
+
+    chain = poekin.load("universal_robots_ur5e")
+    q = poekin.sample_joint_values(chain, 40, seed=1)
+    return q, simulate_robot("universal_robots_ur5e", seed=1).measure(q, seed=2)
+
+
 def _fixtures(folder: pathlib.Path) -> None:
-    """The files the examples read: joint values for the UR5e and the go2, parameter files."""
+    """The files the examples read: joint values for the UR5e and the go2, a parameter file,
+    and a calibration's measurements (tracker.csv)."""
+    from poekin.calibration.files import write_measurements
+
+    write_measurements(folder / "tracker.csv", poekin.load("universal_robots_ur5e"), *_tracker())
     rng = np.random.default_rng(0)
     np.save(folder / "q.npy", rng.uniform(-3, 3, (20, 6)))
     tree = poekin.load_tree("unitree_go2")

@@ -9,7 +9,8 @@ exactly what MuJoCo stores in ``qpos``.
 >>> T_world_ee = chain.fk([0.0, -1.57, 1.57, 0.0, 0.0, 0.0])
 
 ``poekin.view`` (the browser viewer, the extra ``view``) and ``poekin.draw`` (the same
-scene as a matplotlib figure) are imported when first used, so ``import poekin`` stays fast.
+scene as a matplotlib figure), and ``poekin.calibrate`` and ``poekin.plan_poses``
+(:mod:`poekin.calibration`) are imported when first used, so ``import poekin`` stays fast.
 """
 
 from typing import TYPE_CHECKING, Any
@@ -74,6 +75,8 @@ from poekin.tree import Mimic, Tree, TreeJointType, TreeParams
 from poekin.verify import VerifyReport, pose_errors, sample_joint_values, sample_qpos, verify
 
 if TYPE_CHECKING:
+    from poekin.calibration import calibrate as calibrate
+    from poekin.calibration import plan_poses as plan_poses
     from poekin.viewer.app import view as view
     from poekin.viewer.draw import draw as draw
 
@@ -157,7 +160,8 @@ __all__ = [
 
 
 def __getattr__(name: str) -> Any:
-    """``poekin.view`` and ``poekin.draw``, imported at first use (viser, matplotlib)."""
+    """``poekin.view`` and ``poekin.draw``, imported at first use (viser, matplotlib), and
+    ``poekin.calibrate`` and ``poekin.plan_poses`` (:mod:`poekin.calibration`)."""
     if name == "view":
         from poekin._extras import require_view
 
@@ -169,4 +173,8 @@ def __getattr__(name: str) -> Any:
         from poekin.viewer.draw import draw as draw
 
         return draw
+    if name in ("calibrate", "plan_poses"):
+        from poekin import calibration
+
+        return getattr(calibration, name)
     raise AttributeError(f"module 'poekin' has no attribute {name!r}")

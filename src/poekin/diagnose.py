@@ -50,7 +50,7 @@ if TYPE_CHECKING:
     from poekin.sources import LoadedModel
     from poekin.tree import Tree
 
-__all__ = ["BisectStep", "Diagnosis", "Finding", "diagnose"]
+__all__ = ["BisectStep", "Diagnosis", "Finding", "diagnose", "joint_differences"]
 
 FloatArray = NDArray[np.float64]
 
@@ -466,13 +466,29 @@ def _base_findings(B: FloatArray, tol_p: float, tol_r: float) -> list[Finding]:
     return out
 
 
+def joint_differences(yours: Chain, model: Chain) -> tuple[FloatArray, FloatArray]:
+    """Per joint, ``(n,)`` each: the angle between your axis and the model's (rad, in
+    ``[0, pi]``), and the distance from the model's joint point to your axis line (m; 0 for a
+    prismatic joint, whose line has no place), both chains in the same base frame."""
+    du, pu = joint_lines(yours)
+    dk, pk = joint_lines(model)
+    tilt, offset = np.zeros(model.n_joints), np.zeros(model.n_joints)
+    for i in range(model.n_joints):
+        tilt[i] = _angle(du[i], dk[i])
+        if model.joint_types[i] == "revolute":
+            r = pk[i] - pu[i]
+            offset[i] = float(np.linalg.norm(r - du[i] * (r @ du[i])))
+    return tilt, offset
+
+
 def _joint_findings(
     aligned: Chain, model: Chain, tol_p: float, tol_r: float
 ) -> tuple[list[Finding], set[int]]:
     out: list[Finding] = []
     flipped: set[int] = set()
-    du, pu = joint_lines(aligned)
-    dk, pk = joint_lines(model)
+    du, _ = joint_lines(aligned)
+    dk, _ = joint_lines(model)
+    angles, offsets = joint_differences(aligned, model)
     for i, name in enumerate(model.joint_names):
         label = f"joint {i + 1} ({name})"
         if aligned.joint_types[i] != model.joint_types[i]:
@@ -486,7 +502,7 @@ def _joint_findings(
                 )
             )
             continue
-        angle = _angle(du[i], dk[i])
+        angle = float(angles[i])
         if angle > np.pi - _FLIP_ANGLE:
             flipped.add(i)
             out.append(
@@ -510,8 +526,7 @@ def _joint_findings(
                 )
             )
         if model.joint_types[i] == "revolute":
-            r = pk[i] - pu[i]
-            offset = float(np.linalg.norm(r - du[i] * (r @ du[i])))
+            offset = float(offsets[i])
             if offset > tol_p:
                 out.append(
                     Finding(

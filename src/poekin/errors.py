@@ -11,6 +11,7 @@ from collections.abc import Iterable
 
 __all__ = [
     "AnalyticIKError",
+    "CalibrationWarning",
     "InputError",
     "MenagerieUnavailableError",
     "MetricsFileError",
@@ -95,3 +96,8 @@ class MissingExtraError(PoekinError, ImportError):
 
 class UnitWarning(UserWarning):
     """Values that look like another unit than the one they are read in (degrees as radians)."""
+
+
+class CalibrationWarning(UserWarning):
+    """A calibration's data leave parameters unidentified (too few or too similar poses), or its
+    fit did not converge; the message says what to measure."""

@@ -54,6 +54,7 @@ __all__ = [
     "read_array",
     "save_figure",
     "write_array",
+    "write_text",
 ]
 
 #: Array file suffixes and what they hold.
@@ -389,4 +390,13 @@ def save_figure(
     p = pathlib.Path(path)
     with _replacing(p, f"the {what}") as f:
         figure.savefig(f, format=file_format, dpi=dpi)
+    return p
+
+
+def write_text(path: str | os.PathLike[str], text: str, *, what: str = "file") -> pathlib.Path:
+    """Write ``text`` (UTF-8) to ``path``, replacing any file there in one step (see the module
+    docstring). Returns the path written."""
+    p = pathlib.Path(path)
+    with _replacing(p, f"the {what}") as f:
+        f.write(text.encode())
     return p

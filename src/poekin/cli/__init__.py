@@ -1,5 +1,5 @@
 """The ``poekin`` command line: ``verify``, ``diagnose``, ``screws``, ``dh``, ``fk``,
-``jacobian``, ``view`` and ``draw``.
+``jacobian``, ``view``, ``draw`` and ``calibrate``.
 
 Exit codes: 0 success (verify: within tolerance; diagnose: parameters match), 1 verify out of
 tolerance or diagnose found differences, 2 bad input. Every expected failure prints one
@@ -16,7 +16,7 @@ import warnings
 from collections.abc import Callable, Sequence
 from typing import Any
 
-from poekin.cli import _describe, _fk, _verify, _view
+from poekin.cli import _calibrate, _describe, _fk, _verify, _view
 from poekin.cli._args import EXIT_USAGE, Parser
 from poekin.errors import PoekinError
 
@@ -70,6 +70,7 @@ def _build_parser() -> argparse.ArgumentParser:
     _describe.register(sub, fmt)
     _fk.register(sub, fmt)
     _view.register(sub, fmt)
+    _calibrate.register(sub, fmt)
     return parser
 
 

@@ -1,0 +1,415 @@
+"""The fit: register, then Levenberg-Marquardt over the identifiable combinations.
+
+Steps (:func:`fit`):
+
+1. **Register.** The measuring frame may be anywhere: the measured positions are registered to
+   the model's (Kabsch: the rotation and shift that fit them best in least squares), with the
+   measured point's offset from the model's end frame solved in turn, a few rounds; with full
+   poses the tool's turn is the mean of what is left.
+2. **Levenberg-Marquardt** on the weighted residuals, with the analytic PoE Jacobian
+   (:meth:`CalibrationModel.jacobian`): the base is updated as a pose, the other corrections
+   additively in the model's own coordinates (so the fixed ones stay exactly 0). poekin's own
+   solver rather than ``scipy.optimize.least_squares``: it steps on the base's pose, restricts
+   every step to the identifiable subspace, reweights poses for a robust loss, and needs no
+   SciPy; for this small, well-started problem (30 parameters, a few hundred residuals) it
+   converges in a few iterations.
+3. **Weights.** Position residuals are divided by ``sigma_pos`` (m), orientation residuals by
+   ``sigma_ori`` (rad). Either not given is estimated from the residuals (variance
+   components: each group's residual sum of squares over its degrees of freedom, the traces of
+   the hat matrix taken off), and the fit repeated until they settle.
+4. **Identifiable combinations only.** With the base profiled out, the robot's corrections (in
+   units of ``prior_m`` and ``prior_rad``, the size of the differences a robot may have from
+   its model) are split by the SVD of the weighted Jacobian. A combination whose standard
+   error would exceed one prior unit (singular value below the residual sigma), or that is
+   numerically null, is not fitted: it keeps the model's value, and the fit is repeated in the
+   subspace that is left. So noise is never fitted as geometry.
+5. **Robust loss**: poses are reweighted by their normalised residual ``u`` (RMS over their
+   numbers, in sigmas; the sigmas then from the median absolute residual), iteratively
+   (IRLS), as SciPy's losses of the same names with ``f_scale`` in sigmas: ``huber`` and
+   ``soft_l1`` bound an outlier's pull, ``cauchy`` lets it fade (best for gross outliers).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import Literal
+
+import numpy as np
+from numpy.typing import NDArray
+
+from poekin import lie
+from poekin.calibration.model import CalibrationModel, State
+from poekin.errors import InputError
+
+__all__ = ["LOSSES", "Fit", "Loss", "fit", "register", "residuals"]
+
+FloatArray = NDArray[np.float64]
+Loss = Literal["linear", "huber", "soft_l1", "cauchy"]
+LOSSES: tuple[Loss, ...] = ("linear", "huber", "soft_l1", "cauchy")
+
+_MAX_ITER = 60
+_STEP_TOL = 1e-11  # stop when a step moves every correction by less than this many prior units
+_NULL = 1e-9  # singular values below this times the largest are null
+_SIGMA_ROUNDS = 6
+_SIGMA_SETTLED = 1e-3  # relative change of the sigmas that ends the rounds
+_SIGMA_FLOOR = 1e-15  # m or rad: noise-free data still gets finite weights
+_MAD = 1.482602218505602  # sigma of a normal distribution per median absolute deviation
+_REGISTER_ROUNDS = 6  # registration: rounds of Kabsch and the measured point's offset
+_REGISTERED = 1e-5  # m: a round that moves the point less ends them (the fit does the rest)
+
+
+@dataclasses.dataclass(frozen=True)
+class Fit:
+    """What :func:`fit` found.
+
+    Attributes:
+        state: the fitted base and corrections.
+        basis: ``(F, K)`` the identifiable combinations of the free corrections that were
+            fitted (columns, in the corrections' own units; the base's 6 included first).
+        singular: the singular values of the robot part (before truncation), in prior units
+            and residual sigmas (the base profiled out).
+        directions: ``(R, R)`` the matching right singular vectors (rows), over the free
+            robot corrections (in prior units).
+        sigma_pos, sigma_ori: the weights used (m, rad): given, or estimated.
+        sigma: the residual sigma of the weighted fit (about 1 when the weights are right).
+        weights: ``(N,)`` the robust loss's weight of each pose (all 1 for ``linear``).
+        cov: ``(F, F)`` covariance of the free corrections (the base's as a turn and a shift).
+        iterations: Levenberg-Marquardt iterations, all rounds together.
+        converged: whether the last round's steps became small.
+    """
+
+    state: State
+    basis: FloatArray
+    singular: FloatArray
+    directions: FloatArray
+    sigma_pos: float
+    sigma_ori: float
+    sigma: float
+    weights: FloatArray
+    cov: FloatArray
+    iterations: int
+    converged: bool
+
+
+def residuals(model: CalibrationModel, T: FloatArray, measured: FloatArray) -> FloatArray:
+    """``(N, m)`` measured minus model: the rotation ``log(R_meas R^T)`` (rad; pose data
+    only), then the position (m), in the measuring frame."""
+    dp = measured[:, :3, 3] - T[:, :3, 3] if measured.ndim == 3 else measured - T[:, :3, 3]
+    if model.measure == "position":
+        return np.asarray(dp, dtype=np.float64)
+    dR = measured[:, :3, :3] @ np.swapaxes(T[:, :3, :3], 1, 2)
+    return np.concatenate([lie.log_so3(dR), dp], axis=1)
+
+
+def _rows(model: CalibrationModel, D: FloatArray) -> FloatArray:
+    """The derivatives of :meth:`CalibrationModel.jacobian` for the measured numbers."""
+    return D[:, 3:] if model.measure == "position" else D
+
+
+def register(points: FloatArray, measured: FloatArray) -> FloatArray:
+    """``(4, 4)`` the rigid motion that best maps ``points`` ``(N, 3)`` onto ``measured``
+    (least squares; Kabsch/Horn via the SVD of the cross-covariance)."""
+    cp, cm = points.mean(axis=0), measured.mean(axis=0)
+    H = (points - cp).T @ (measured - cm)
+    U, _, Vt = np.linalg.svd(H)
+    d = np.sign(np.linalg.det(Vt.T @ U.T))
+    R = Vt.T @ np.diag([1.0, 1.0, d if d != 0 else 1.0]) @ U.T
+    T = np.eye(4)
+    T[:3, :3] = R
+    T[:3, 3] = cm - R @ cp
+    return T
+
+
+def initial_state(model: CalibrationModel, q: FloatArray, measured: FloatArray) -> State:
+    """Register the model to the measurements (step 1 of the module docstring)."""
+    x = np.zeros(model.n_params)
+    shift = list(model.tool_shift_index)
+    turn = list(model.tool_turn_index)
+    p_meas = measured[:, :3, 3] if measured.ndim == 3 else measured
+    base = np.eye(4)
+    for _ in range(_REGISTER_ROUNDS):
+        state = State(np.eye(4), x)
+        T_r = model.poses(state, q)
+        base = register(T_r[:, :3, 3], p_meas)
+        if turn:  # the tool's turn: the chordal mean of what is left
+            left = np.swapaxes(base[:3, :3] @ T_r[:, :3, :3], 1, 2) @ measured[:, :3, :3]
+            U, _, Vt = np.linalg.svd(left.mean(axis=0))
+            mean = U @ np.diag([1.0, 1.0, np.sign(np.linalg.det(U @ Vt))]) @ Vt
+            R_tool = lie.exp_so3(x[turn]) @ mean
+            x[turn] = lie.log_so3(R_tool)
+            T_r = model.poses(State(np.eye(4), x), q)
+        # the measured point's offset in the model's end frame: p = B (P_n p_M + P_n R_M t)
+        A = base[:3, :3] @ T_r[:, :3, :3] @ lie.exp_so3(-x[turn] if turn else np.zeros(3))
+        b = p_meas - (base[:3, :3] @ T_r[:, :3, 3, None])[:, :, 0] - base[:3, 3]
+        dt = np.linalg.lstsq(A.reshape(-1, 3), b.reshape(-1), rcond=None)[0]
+        x[shift] += dt
+        if np.linalg.norm(dt) < _REGISTERED:
+            break
+    state = State(np.eye(4), x)
+    base = register(model.poses(state, q)[:, :3, 3], p_meas)
+    return to_free(model, State(base, x), q)
+
+
+def to_free(model: CalibrationModel, state: State, q: FloatArray) -> State:
+    """The same robot (the same poses at ``q``) with the corrections that are not free at 0:
+    Gauss-Newton on the free ones towards the poses of ``state`` (the dropped corrections are
+    redundant, so the minimal set reproduces them exactly)."""
+    dropped = [r.param for r in model.redundant]
+    if not np.any(state.x[dropped]):
+        return state
+    target = model.poses(state, q)
+    x = state.x.copy()
+    x[dropped] = 0.0
+    free = list(model.free)
+    current = State(state.base, x)
+    for _ in range(_MAX_ITER):
+        T, D = model.jacobian(current, q)
+        turn = lie.log_so3(target[:, :3, :3] @ np.swapaxes(T[:, :3, :3], 1, 2))
+        r = np.concatenate([turn, target[:, :3, 3] - T[:, :3, 3]], axis=1)
+        J = D[:, :, free].reshape(-1, len(free))
+        dx = np.linalg.lstsq(J, r.reshape(-1), rcond=None)[0]
+        current = _retract(model, current, free, dx)
+        if np.max(np.abs(dx)) < 1e-13:  # m or rad: converged (the fit refines from here)
+            break
+    return current
+
+
+def _retract(model: CalibrationModel, state: State, free: list[int], dx: FloatArray) -> State:
+    """The state moved by ``dx`` over the free corrections: the base (its first 6) turned about
+    its own axes and shifted along them, the others added."""
+    step = np.zeros(model.n_params)
+    step[free] = dx
+    G = np.eye(4)
+    G[:3, :3] = lie.exp_so3(step[:3])
+    G[:3, 3] = step[3:6]
+    x = state.x + step
+    x[:6] = 0.0
+    return State(state.base @ G, x)
+
+
+def _robust(loss: Loss, u: FloatArray, f_scale: float) -> FloatArray:
+    """Each pose's weight for its normalised residual ``u`` (IRLS)."""
+    if loss == "huber":
+        return np.minimum(1.0, f_scale / np.maximum(u, 1e-300))
+    if loss == "soft_l1":
+        return 1.0 / np.sqrt(1.0 + (u / f_scale) ** 2)
+    if loss == "cauchy":
+        return 1.0 / (1.0 + (u / f_scale) ** 2)
+    return np.ones_like(u)
+
+
+def _weighted(
+    model: CalibrationModel,
+    state: State,
+    q: FloatArray,
+    measured: FloatArray,
+    free: list[int],
+    sig: FloatArray,
+) -> tuple[FloatArray, FloatArray]:
+    """Weighted residuals ``(N, m)`` and their Jacobian ``(N, m, F)`` with respect to ``-dx``
+    (the model's change): a step ``dx`` leaves ``r - J dx``."""
+    T, D = model.jacobian(state, q)
+    r = residuals(model, T, measured) / sig
+    J = _rows(model, D)[:, :, free] / sig[:, None]
+    return r, J
+
+
+def _cost(
+    model: CalibrationModel,
+    state: State,
+    q: FloatArray,
+    measured: FloatArray,
+    sig: FloatArray,
+    loss: Loss,
+    f_scale: float,
+) -> float:
+    r = residuals(model, model.poses(state, q), measured) / sig
+    w = _robust(loss, np.sqrt(np.mean(r * r, axis=1)), f_scale)
+    return float(np.sum(w[:, None] * r * r))
+
+
+@dataclasses.dataclass(frozen=True)
+class _Problem:
+    """What stays fixed while fitting: the data, the free corrections and the loss."""
+
+    model: CalibrationModel
+    q: FloatArray
+    measured: FloatArray
+    free: list[int]
+    units: FloatArray
+    loss: Loss
+    f_scale: float
+
+    def linearise(self, state: State, sig: FloatArray, Z: FloatArray) -> tuple[FloatArray, ...]:
+        """Weighted residuals ``(N, m)``, the robust weights ``(N,)`` and the Jacobian ``A``
+        ``(N m, K)`` of the weighted residuals (times the square roots of the robust weights)
+        with respect to ``-dy``, ``dx = Z dy``."""
+        r, J = _weighted(self.model, state, self.q, self.measured, self.free, sig)
+        w = _robust(self.loss, np.sqrt(np.mean(r * r, axis=1)), self.f_scale)
+        A = (J * np.sqrt(w)[:, None, None]).reshape(-1, J.shape[-1]) @ Z
+        return r, w, A
+
+    def lm(self, state: State, sig: FloatArray, Z: FloatArray) -> tuple[State, int, bool]:
+        """Levenberg-Marquardt in ``dx = Z dy`` (Marquardt's scaling: the damping grows the
+        diagonal of the normal equations)."""
+        lam = 1e-4
+        r, w, A = self.linearise(state, sig, Z)
+        cost = float(np.sum(w[:, None] * r * r))
+        for it in range(1, _MAX_ITER + 1):
+            b = (r * np.sqrt(w)[:, None]).reshape(-1)
+            H, g = A.T @ A, A.T @ b
+            d = np.maximum(np.diag(H), 1e-300)
+            while True:
+                dy = np.linalg.lstsq(H + lam * np.diag(d), g, rcond=None)[0]
+                dx = Z @ dy
+                small = float(np.max(np.abs(dx) / self.units, initial=0.0)) < _STEP_TOL
+                trial = _retract(self.model, state, self.free, dx)
+                cost_t = _cost(
+                    self.model, trial, self.q, self.measured, sig, self.loss, self.f_scale
+                )
+                if cost_t <= cost or small:
+                    break
+                lam *= 4.0
+                if lam > 1e14:  # no step lowers the cost: a minimum, to rounding
+                    return state, it, True
+            state, cost = trial, cost_t
+            if small:
+                return state, it, True
+            lam = max(lam / 3.0, 1e-12)
+            r, w, A = self.linearise(state, sig, Z)
+        return state, _MAX_ITER, False
+
+    def sigmas(
+        self, state: State, sig: FloatArray, Z: FloatArray, given: tuple[float | None, ...]
+    ) -> FloatArray:
+        """The weights estimated from the residuals (step 3): per group of rows (orientation,
+        position), the weighted residual sum of squares over its degrees of freedom (the
+        robust losses: the median absolute residual)."""
+        r, w, A = self.linearise(state, sig, Z)
+        m = r.shape[1]
+        groups = [np.arange(m) < 3] if m == 6 else []
+        groups.append(np.arange(m) >= (3 if m == 6 else 0))
+        masks = [np.tile(g, len(r)) for g in groups]
+        traces = _hat_traces(A, masks)
+        raw = (r * sig).reshape(-1)
+        weights = np.repeat(w, m)
+        out = sig.copy()
+        for g, mask, tr, fixed in zip(groups, masks, traces, given, strict=True):
+            if fixed is not None:
+                continue
+            dof = max(float(mask.sum()) - tr, 1.0)
+            if self.loss == "linear":
+                s = float(np.sqrt(np.sum(weights[mask] * raw[mask] ** 2) / dof))
+            else:
+                s = _MAD * float(np.median(np.abs(raw[mask]))) * float(np.sqrt(mask.sum() / dof))
+            out[g] = max(s, _SIGMA_FLOOR)
+        return np.asarray(out, dtype=np.float64)
+
+    def settle(
+        self, state: State, sig: FloatArray, Z: FloatArray, given: tuple[float | None, ...]
+    ) -> tuple[State, FloatArray, int, bool]:
+        """Fit, re-estimating the weights not given until they settle."""
+        iterations = 0
+        for _ in range(_SIGMA_ROUNDS):
+            state, it, converged = self.lm(state, sig, Z)
+            iterations += it
+            if all(s is not None for s in given):
+                break
+            new = self.sigmas(state, sig, Z, given)
+            changed = float(np.max(np.abs(new / sig - 1.0)))
+            sig = new
+            if changed < _SIGMA_SETTLED:
+                break
+        else:
+            state, it, converged = self.lm(state, sig, Z)
+            iterations += it
+        return state, sig, iterations, converged
+
+
+def fit(
+    model: CalibrationModel,
+    q: FloatArray,
+    measured: FloatArray,
+    *,
+    sigma_pos: float | None,
+    sigma_ori: float | None,
+    loss: Loss,
+    f_scale: float,
+    prior_m: float,
+    prior_rad: float,
+    start: State | None = None,
+) -> Fit:
+    """Fit ``model`` to encoder readings ``q`` ``(N, n)`` and measurements ``(N, 4, 4)`` or
+    ``(N, 3)`` (validated by the caller); see the module docstring."""
+    if loss not in LOSSES:
+        raise InputError(f"unknown loss {loss!r}; use one of {', '.join(LOSSES)}")
+    free = list(model.free)
+    units = np.array([prior_m if model.params[k].unit == "m" else prior_rad for k in free])
+    problem = _Problem(model, q, measured, free, units, loss, f_scale)
+    pose = model.measure == "pose"
+    given = (sigma_ori, sigma_pos) if pose else (sigma_pos,)
+    guess = [1e-4 if s is None else float(s) for s in given]
+    sig = np.repeat(guess, 3)
+    state = initial_state(model, q, measured) if start is None else start
+    Z = np.eye(len(free))
+    state, sig, iterations, converged = problem.settle(state, sig, Z, given)
+    r, w, A = problem.linearise(state, sig, Z)
+    Zn, singular, directions = _identifiable(A, units, _residual_sigma(r, w, A.shape[1]))
+    if Zn.shape[1] < len(free):
+        # keep only the identifiable part of what was fitted, then fit within it
+        robot = Zn[6:, 6:] / units[6:, None]  # orthonormal columns, in prior units
+        y = state.x[free[6:]] / units[6:]
+        x = state.x.copy()
+        x[free[6:]] = (robot @ (robot.T @ y)) * units[6:]
+        Z = Zn
+        state, sig, more, converged = problem.settle(State(state.base, x), sig, Z, given)
+        iterations += more
+        r, w, A = problem.linearise(state, sig, Z)
+    sigma = _residual_sigma(r, w, A.shape[1])
+    cov = Z @ (sigma**2 * np.linalg.pinv(A.T @ A, hermitian=True)) @ Z.T
+    return Fit(
+        state=state,
+        basis=Z,
+        singular=singular,
+        directions=directions,
+        sigma_pos=float(sig[-1]),
+        sigma_ori=float(sig[0]) if pose else float("nan"),
+        sigma=sigma,
+        weights=w,
+        cov=cov,
+        iterations=iterations,
+        converged=converged,
+    )
+
+
+def _hat_traces(A: FloatArray, groups: list[NDArray[np.bool_]]) -> list[float]:
+    """Traces of the hat matrix ``A (A^T A)^-1 A^T`` over each group of rows (masks)."""
+    Q, R = np.linalg.qr(A)
+    keep = np.abs(np.diag(R)) > _NULL * np.max(np.abs(np.diag(R)), initial=0.0)
+    h = np.sum(Q[:, keep] ** 2, axis=1)
+    return [float(np.sum(h[g])) for g in groups]
+
+
+def _residual_sigma(r: FloatArray, w: FloatArray, p: int) -> float:
+    """The weighted residuals' sigma, ``sqrt(sum w r^2 / (N m - p))``."""
+    dof = max(r.size - p, 1)
+    return float(np.sqrt(np.sum(w[:, None] * r * r) / dof))
+
+
+def _identifiable(
+    A: FloatArray, units: FloatArray, sigma: float
+) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """The basis ``Z`` of the base and the identifiable robot combinations (step 4), in the
+    corrections' units; the robot part's singular values and right singular vectors (rows),
+    in prior units."""
+    Ab, Ar = A[:, :6], A[:, 6:] * units[None, 6:]
+    Qb, _ = np.linalg.qr(Ab)
+    Ar = Ar - Qb @ (Qb.T @ Ar)
+    _, s, Vt = np.linalg.svd(Ar, full_matrices=False)
+    top = float(s[0]) if s.size else 0.0
+    keep = (s > _NULL * top) & (s >= sigma)
+    n = A.shape[1]
+    Z = np.zeros((n, 6 + int(keep.sum())))
+    Z[:6, :6] = np.eye(6)
+    Z[6:, 6:] = units[6:, None] * Vt[keep].T
+    return Z, s, Vt
