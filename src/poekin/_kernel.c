@@ -180,6 +180,8 @@ static void aligned_free(unsigned char *p) {
 #define X86_DISPATCH 1
 #endif
 
+#include "_ik_common.h"
+
 #define LANES 2 /* SSE2 on x86-64, NEON on arm64: every CPU these run on */
 #define TARGET
 #include "_kernel_core.h"
@@ -202,6 +204,8 @@ static void aligned_free(unsigned char *p) {
 
 typedef void (*TaskFn)(Task *);
 static TaskFn g_run_task = run_task_2;
+typedef void (*IKTaskFn)(IKTask *);
+static IKTaskFn g_ik_run_task = ik_run_task_2;
 static int g_lanes = 2;
 
 /* The widest kernel this CPU runs; widest = 0 picks the best, else 2, 4 or 8. -1: not here. */
@@ -220,6 +224,7 @@ static int choose_width(int widest) {
     g_lanes = w;
 #ifdef X86_DISPATCH
     g_run_task = w == 8 ? run_task_8 : w == 4 ? run_task_4 : run_task_2;
+    g_ik_run_task = w == 8 ? ik_run_task_8 : w == 4 ? ik_run_task_4 : ik_run_task_2;
 #endif
     return w;
 }
@@ -511,6 +516,11 @@ static PyTypeObject KernelType = {
 };
 
 /* ------------------------------------------------------------------------------------------ */
+/* Python type: IKSolver, a chain's inverse kinematics */
+
+#include "_ik_type.h"
+
+/* ------------------------------------------------------------------------------------------ */
 /* Python type: FastMethod(kernel_attr, fallback, names), a method that runs the kernel first */
 
 /* A method whose call `obj.m(q, out, form)` (or `obj.m(q)`) first runs `getattr(obj,
@@ -725,12 +735,20 @@ PyMODINIT_FUNC PyInit__kernel(void) {
     static const char *FORM_NAMES[3] = {"4x4", "3x4", "pos_quat"};
     for (int k = 0; k < 3; ++k)
         if ((g_form_names[k] = PyUnicode_InternFromString(FORM_NAMES[k])) == NULL) return NULL;
-    if (PyType_Ready(&KernelType) < 0 || PyType_Ready(&FastMethodType) < 0) return NULL;
+    if (PyType_Ready(&KernelType) < 0 || PyType_Ready(&FastMethodType) < 0 ||
+        PyType_Ready(&IKSolverType) < 0)
+        return NULL;
     PyObject *m = PyModule_Create(&module_def);
     if (m == NULL) return NULL;
     Py_INCREF(&KernelType);
     if (PyModule_AddObject(m, "Kernel", (PyObject *)&KernelType) < 0) {
         Py_DECREF(&KernelType);
+        Py_DECREF(m);
+        return NULL;
+    }
+    Py_INCREF(&IKSolverType);
+    if (PyModule_AddObject(m, "IKSolver", (PyObject *)&IKSolverType) < 0) {
+        Py_DECREF(&IKSolverType);
         Py_DECREF(m);
         return NULL;
     }
