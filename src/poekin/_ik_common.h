@@ -39,6 +39,7 @@ typedef struct {
     const double *q0; /* (N, n), or NULL */
     npy_intp N;
     npy_intp *next; /* the next target to start, shared by the threads */
+    int group;      /* lanes per target (a power of two, dividing the width): see _ik_core.h */
     double *q;      /* (N, n) */
     npy_bool *success;
     double *pos_err, *ori_err;

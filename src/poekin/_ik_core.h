@@ -4,10 +4,16 @@
  * every sum are those of poekin/ik/numerical.py, the NumPy reference, so both give the same
  * bits; the functions below name the reference's function they repeat.
  *
- * Each lane solves one target at a time: its attempts one after another, and when the target
- * is done (solved, or its attempts spent) the lane takes the next target of the batch, so the
- * vector stays full. A target's answer depends only on its own numbers (its random starts are
- * keyed by its bits), never on its lane, its neighbours, the thread or the width.
+ * A group of G lanes (a power of two) solves one target at a time, and when the target is done
+ * (solved, or its attempts spent) the group takes the next target of the batch, so the vector
+ * stays full. G is 1 for batches of at least LANES targets: each lane runs its target's
+ * attempts one after another. For fewer targets the lanes of a group run G attempts side by
+ * side, in rounds (attempts rG .. rG + G - 1), and commit them in attempt order: the answer is
+ * the first successful attempt, its iterations those of every attempt up to it, as if they had
+ * run one after another (solve_reference); without success, the least-cost iterate of all of
+ * them, the earlier attempt's on a tie. A target's answer therefore depends only on its own
+ * numbers (its random starts are keyed by its bits), never on G, its lane, its neighbours, the
+ * thread or the width.
  */
 #define IKState GLUE(IKState, LANES)
 #define ik_state GLUE(ik_state, LANES)
@@ -21,6 +27,8 @@
 #define ik_residual GLUE(ik_residual, LANES)
 #define ik_finish GLUE(ik_finish, LANES)
 #define ik_load GLUE(ik_load, LANES)
+#define ik_attempt GLUE(ik_attempt, LANES)
+#define ik_commit GLUE(ik_commit, LANES)
 #define ik_run_task GLUE(ik_run_task, LANES)
 
 typedef struct {
@@ -39,8 +47,14 @@ typedef struct {
     /* per lane */
     npy_intp target[LANES]; /* -1: idle */
     uint64_t key[LANES];
-    int64_t attempt[LANES], it[LANES], stall[LANES], total[LANES];
+    int64_t attempt[LANES], it[LANES], stall[LANES];
+    int64_t best_attempt[LANES]; /* the attempt of the lane's least-cost iterate */
+    int running[LANES];          /* an attempt runs; else it has ended, or the round has none */
+    int converged[LANES];        /* the attempt that ended succeeded */
     double stall_ref[LANES];
+    /* per group: lanes [g G, g G + G) */
+    int G;
+    int64_t round[LANES], total[LANES];
 } IKState;
 
 /* An IKState for n joints with its arrays after it, in one aligned block; NULL if out of
@@ -240,9 +254,11 @@ AI vd ik_residual(IKState *S, const Pose *cur, const IKOptions *o, int n, vd *r,
     return cost;
 }
 
-/* Lane l's target is done: its answer (the iterate if it converged, else the least-cost one),
- * the errors at it (errors), the success flag, the counts. */
-TARGET static void ik_finish(IKState *S, const IKTask *task, const Pose *cur, int l, int conv) {
+/* Lane l's target is done: its answer (the iterate if it converged, else its least-cost one),
+ * the errors at it (errors), the success flag, the counts (of lane l's group, attempts up to
+ * `last`). */
+TARGET static void ik_finish(IKState *S, const IKTask *task, const Pose *cur, int l, int conv,
+                             int64_t last) {
     const IKModel *m = task->model;
     const IKOptions *o = task->opt;
     const npy_intp t = S->target[l];
@@ -270,41 +286,97 @@ TARGET static void ik_finish(IKState *S, const IKTask *task, const Pose *cur, in
     task->ori_err[t] = ori;
     task->success[t] =
         conv && inside && pos <= o->pos_tol && (o->position_only || ori <= o->ori_tol);
-    task->iterations[t] = S->total[l];
-    task->attempts[t] = S->attempt[l] + 1;
+    task->iterations[t] = S->total[l / S->G];
+    task->attempts[t] = last + 1;
 }
 
-/* Give lane l the batch's next target and its first start; 0 if there is none left (the lane
- * idles on a harmless problem). */
-TARGET static int ik_load(IKState *S, IKTask *task, int l) {
+/* Start attempt a of lane l's target: q0 brought into the limits for attempt 0 if given
+ * (first_start), else the attempt's random start; a lane of a round with no attempt a (beyond
+ * max_attempts) keeps its last iterate, whose cost it has seen, and does not run. */
+TARGET static void ik_attempt(IKState *S, const IKTask *task, int l, int64_t a, const double *q0) {
+    const IKModel *m = task->model;
+    S->attempt[l] = a;
+    S->it[l] = S->stall[l] = 0;
+    S->stall_ref[l] = INFINITY;
+    S->converged[l] = 0;
+    S->running[l] = a < task->opt->max_attempts;
+    if (!S->running[l]) return;
+    for (int j = 0; j < m->n; ++j)
+        S->q[j][l] = a == 0 && q0 != NULL
+                         ? ik_clamp(ik_wrap(q0[j], m->lo[j], m->hi[j], m->flags[j]), m->lo[j], m->hi[j])
+                         : ik_start(m, S->key[l], a, j);
+}
+
+/* Give group g the batch's next target and its first round; 0 if there is none left (the
+ * group's lanes idle on a harmless problem). */
+TARGET static int ik_load(IKState *S, IKTask *task, int g) {
     const IKModel *m = task->model;
     const npy_intp t = __atomic_fetch_add(task->next, 1, __ATOMIC_RELAXED);
-    const int n = m->n;
+    const int n = m->n, G = S->G;
     if (t >= task->N) {
-        S->target[l] = -1;
-        for (int k = 0; k < 9; ++k) S->Rt[k][l] = (k % 4 == 0) ? 1.0 : 0.0;
-        for (int i = 0; i < 3; ++i) S->pt[i][l] = 0.0;
-        for (int j = 0; j < n; ++j) S->q[j][l] = m->base[j];
+        for (int l = g * G; l < g * G + G; ++l) {
+            S->target[l] = -1;
+            S->running[l] = 0;
+            for (int k = 0; k < 9; ++k) S->Rt[k][l] = (k % 4 == 0) ? 1.0 : 0.0;
+            for (int i = 0; i < 3; ++i) S->pt[i][l] = 0.0;
+            for (int j = 0; j < n; ++j) S->q[j][l] = m->base[j];
+        }
         return 0;
     }
     const double *T = task->T + 16 * t;
     const double *q0 = task->q0 != NULL ? task->q0 + n * t : NULL;
-    S->target[l] = t;
-    S->key[l] = ik_key(task->seed, T, q0, n);
-    for (int i = 0; i < 3; ++i) {
-        for (int j = 0; j < 3; ++j) S->Rt[3 * i + j][l] = T[4 * i + j];
-        S->pt[i][l] = T[4 * i + 3];
+    const uint64_t key = ik_key(task->seed, T, q0, n);
+    S->round[g] = S->total[g] = 0;
+    for (int l = g * G; l < g * G + G; ++l) {
+        S->target[l] = t;
+        S->key[l] = key;
+        for (int i = 0; i < 3; ++i) {
+            for (int j = 0; j < 3; ++j) S->Rt[3 * i + j][l] = T[4 * i + j];
+            S->pt[i][l] = T[4 * i + 3];
+        }
+        S->best_cost[l] = INFINITY;
+        S->best_attempt[l] = -1;
+        ik_attempt(S, task, l, l - g * G, q0);
     }
-    S->attempt[l] = S->it[l] = S->stall[l] = S->total[l] = 0;
-    S->stall_ref[l] = INFINITY;
-    S->best_cost[l] = INFINITY;
-    for (int j = 0; j < n; ++j) /* first_start, or the random start of attempt 0 */
-        S->q[j][l] = q0 != NULL ? ik_clamp(ik_wrap(q0[j], m->lo[j], m->hi[j], m->flags[j]), m->lo[j], m->hi[j])
-                                : ik_start(m, S->key[l], 0, j);
     return 1;
 }
 
-/* solve_reference's loop, LANES targets at a time, until the batch is done. */
+/* Group g's round, committed in attempt order as far as its attempts have ended: done (1) at
+ * the first success or when the last round fails, else the next round starts once this one
+ * has ended (0). */
+TARGET static int ik_commit(IKState *S, IKTask *task, const Pose *cur, int g) {
+    const int G = S->G, first = g * G;
+    const int64_t max_attempts = task->opt->max_attempts;
+    int64_t total = S->total[g];
+    for (int l = first; l < first + G; ++l) {
+        const int64_t a = S->attempt[l];
+        if (a >= max_attempts) break; /* the last round has no more attempts */
+        if (S->running[l]) return 0;  /* wait for it: an earlier attempt decides first */
+        total += S->it[l];
+        if (S->converged[l]) {
+            S->total[g] = total;
+            ik_finish(S, task, cur, l, 1, a);
+            return 1;
+        }
+    }
+    S->total[g] = total;
+    const int64_t next = (S->round[g] + 1) * G;
+    if (next >= max_attempts) { /* the least-cost iterate of every lane, earlier attempt first */
+        int best = first;
+        for (int l = first + 1; l < first + G; ++l)
+            if (S->best_attempt[l] >= 0 &&
+                (S->best_cost[l] < S->best_cost[best] ||
+                 (S->best_cost[l] == S->best_cost[best] && S->best_attempt[l] < S->best_attempt[best])))
+                best = l;
+        ik_finish(S, task, cur, best, 0, max_attempts - 1);
+        return 1;
+    }
+    S->round[g] += 1;
+    for (int l = first; l < first + G; ++l) ik_attempt(S, task, l, next + (l - first), NULL);
+    return 0;
+}
+
+/* solve_reference's loop, LANES / G targets at a time, until the batch is done. */
 TARGET static void ik_run_task(IKTask *task) {
     const IKModel *m = task->model;
     const IKOptions *o = task->opt;
@@ -314,8 +386,10 @@ TARGET static void ik_run_task(IKTask *task) {
         task->bad = -1;
         return;
     }
+    const int G = task->group, groups = LANES / G;
+    S->G = G;
     int active = 0;
-    for (int l = 0; l < LANES; ++l) active += ik_load(S, task, l);
+    for (int g = 0; g < groups; ++g) active += ik_load(S, task, g);
     const vd huge_q = (vd){0} + m->prog->huge_q;
     const vl magnitude = (vl){0} + INT64_MAX;
     while (active > 0) {
@@ -328,14 +402,18 @@ TARGET static void ik_run_task(IKTask *task) {
         run_ops(m->prog, NULL, S->q, S->ang, S->jac, NULL, FORM_4X4, LANES, huge, &cur);
         vd r[6], ep2, eo2;
         const vd cost = ik_residual(S, &cur, o, n, r, &ep2, &eo2);
+        /* a lane that does not run keeps an iterate it has seen: never strictly better */
         const vl better = cost < S->best_cost;
         S->best_cost = vselect(better, cost, S->best_cost);
         for (int j = 0; j < n; ++j) S->best_q[j] = vselect(better, S->q[j], S->best_q[j]);
         for (int k = 0; k < 9; ++k) S->best_R[k] = vselect(better, cur.R[k], S->best_R[k]);
         for (int i = 0; i < 3; ++i) S->best_p[i] = vselect(better, cur.t[i], S->best_p[i]);
+        for (int l = 0; l < LANES; ++l)
+            if (better[l]) S->best_attempt[l] = S->attempt[l];
         ik_step(S, m, o, r, cost, rows);
+        int ended = 0;
         for (int l = 0; l < LANES; ++l) {
-            if (S->target[l] < 0) continue;
+            if (!S->running[l]) continue;
             if (cost[l] < S->stall_ref[l] * o->stall_factor) {
                 S->stall_ref[l] = cost[l];
                 S->stall[l] = 0;
@@ -343,24 +421,20 @@ TARGET static void ik_run_task(IKTask *task) {
                 S->stall[l] += 1;
             }
             S->it[l] += 1;
-            S->total[l] += 1;
             /* per lane: a vector mask kept across ik_step crashes GCC 12 (SSE2 kernel) */
-            const int converged =
+            S->converged[l] =
                 ep2[l] <= o->pos_tol2 && (o->position_only || eo2[l] <= o->ori_tol2);
-            const int end = converged || S->stall[l] >= o->stall_iterations ||
-                            S->it[l] >= o->max_iterations;
-            if (!end) {
+            if (S->converged[l] || S->stall[l] >= o->stall_iterations || S->it[l] >= o->max_iterations) {
+                S->running[l] = 0; /* the attempt has ended; q stays the iterate it ended at */
+                ended = 1;
+            } else {
                 for (int j = 0; j < n; ++j) S->q[j][l] = S->qn[j][l];
-            } else if (converged || S->attempt[l] + 1 >= o->max_attempts) {
-                ik_finish(S, task, &cur, l, converged);
-                active += ik_load(S, task, l) - 1;
-            } else { /* the next attempt, from its random start */
-                S->attempt[l] += 1;
-                S->it[l] = S->stall[l] = 0;
-                S->stall_ref[l] = INFINITY;
-                for (int j = 0; j < n; ++j) S->q[j][l] = ik_start(m, S->key[l], S->attempt[l], j);
             }
         }
+        if (!ended) continue;
+        for (int g = 0; g < groups; ++g)
+            if (S->target[g * G] >= 0 && ik_commit(S, task, &cur, g))
+                active += ik_load(S, task, g) - 1;
     }
     aligned_free((unsigned char *)S);
 }
@@ -377,4 +451,6 @@ TARGET static void ik_run_task(IKTask *task) {
 #undef ik_residual
 #undef ik_finish
 #undef ik_load
+#undef ik_attempt
+#undef ik_commit
 #undef ik_run_task

@@ -152,9 +152,14 @@ static int ik_run(IKTask *proto, int threads) {
     pthread_t handles[MAX_THREADS];
 #endif
     int started[MAX_THREADS];
+    /* fewer targets than lanes: a target's attempts side by side, on G lanes each, G at most
+     * the attempts there are (every lane of a group runs at least one) */
+    int group = 1;
+    while (2 * group * proto->N <= g_lanes && 2 * group <= proto->opt->max_attempts) group *= 2;
     for (int k = 0; k < nt; ++k) {
         tasks[k] = *proto;
         tasks[k].next = &next;
+        tasks[k].group = group;
     }
     for (int k = 1; k < nt; ++k) {
 #ifdef _WIN32
@@ -237,6 +242,7 @@ static PyObject *IKSolver_solve(IKSolverObject *self, PyObject *const *args, Py_
                    q0d,
                    N,
                    NULL,
+                   1,
                    PyArray_DATA((PyArrayObject *)out[0]),
                    PyArray_DATA((PyArrayObject *)out[1]),
                    PyArray_DATA((PyArrayObject *)out[2]),
