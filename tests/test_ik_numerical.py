@@ -309,10 +309,13 @@ def test_the_kernel_gives_the_reference_bits_for_unlimited_and_prismatic_joints(
 def test_without_the_kernel_the_reference_answers(
     ur5e: Chain, monkeypatch: pytest.MonkeyPatch
 ) -> None:
+    """An installation without a C compiler: the same bits from the NumPy reference."""
     T = ur5e.fk(uniform_q(ur5e, 10, seed=11)).reshape(2, 5, 4, 4)
     expected = fields(ur5e.ik(T))
-    monkeypatch.setattr(numerical, "_ik_kernel", lambda chain: None)
-    assert_same_bits(fields(ur5e.ik(T)), expected, "the NumPy path")
+    monkeypatch.setattr(_fast, "_kernel", None)
+    chain = Chain(ur5e.joint_names, ur5e.joint_types, ur5e.screws, ur5e.home, ur5e.limits)
+    assert_same_bits(fields(chain.ik(T)), expected, "the NumPy path")
+    assert chain._ik_cache["kernel"] is None
 
 
 def test_a_target_gets_the_same_bits_alone_in_any_batch_and_position(ur5e: Chain) -> None:
@@ -426,6 +429,7 @@ def _last_row() -> np.ndarray:
         (np.eye(4), {"pos_tol": 0.0}, r"pos_tol must be a finite number > 0 \(m\)"),
         (np.eye(4), {"ori_tol": -1e-3}, r"ori_tol must be a finite number > 0 \(rad\)"),
         (np.eye(4), {"ori_tol": "1e-6"}, "ori_tol must be a number"),
+        (np.eye(4), {"pos_tol": [1e-6]}, "pos_tol must be a number"),
         (np.eye(4), {"orientation_weight": np.inf}, "orientation_weight must be a finite"),
         (np.eye(4), {"max_attempts": 0}, "max_attempts must be an integer from 1"),
         (np.eye(4), {"max_iterations": 2.5}, "max_iterations must be an integer"),

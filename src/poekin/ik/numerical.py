@@ -136,11 +136,6 @@ class Settings:
     max_attempts: int
 
     @property
-    def rows(self) -> int:
-        """Rows of the residual: 3 (position) or 6 (orientation, then position)."""
-        return 3 if self.position_only else 6
-
-    @property
     def pos_tol2(self) -> float:
         """The stopping test's bound on ``|e_p|^2``."""
         return self.pos_tol * self.pos_tol * TOL_MARGIN
@@ -613,6 +608,7 @@ def solve(
         assert done is not None, "validated arguments were refused by the kernel"
         return IKResult(*done)
     batch = arr.shape[:-2]
+    _fast._note_slow_path(batch)  # once a process, for a big batch without the kernel
     flat_q0 = None if start is None else start.reshape(-1, chain.n_joints)
     out = solve_reference(chain, arr.reshape(-1, 4, 4), flat_q0, seed, options)
     q, success, pos_err, ori_err, iterations, attempts = out
