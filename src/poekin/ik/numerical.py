@@ -629,17 +629,25 @@ def _inputs(chain: Chain, T: ArrayLike, q0: ArrayLike | None) -> tuple[FloatArra
     arr = check_targets(T)
     if q0 is None:
         return arr, None
-    start = as_joint_values(q0, chain.n_joints, what="q0 values")
+    return broadcast_together(arr, as_joint_values(q0, chain.n_joints, what="q0 values"), "q0")
+
+
+def broadcast_together(
+    targets: FloatArray, values: FloatArray, name: str
+) -> tuple[FloatArray, FloatArray]:
+    """``(..., 4, 4)`` targets and ``(..., n)`` values (``name`` in the message) broadcast to
+    one batch shape, C-contiguous; :class:`InputError` if their batch axes do not broadcast."""
     try:
-        batch = np.broadcast_shapes(arr.shape[:-2], start.shape[:-1])
+        batch = np.broadcast_shapes(targets.shape[:-2], values.shape[:-1])
     except ValueError:
         raise InputError(
-            f"q0 of shape {start.shape} does not broadcast against targets of shape "
-            f"{arr.shape}: their batch axes must broadcast"
+            f"{name} of shape {values.shape} does not broadcast against targets of shape "
+            f"{targets.shape}: their batch axes must broadcast"
         ) from None
-    arr = np.ascontiguousarray(np.broadcast_to(arr, (*batch, 4, 4)))
-    start = np.ascontiguousarray(np.broadcast_to(start, (*batch, chain.n_joints)))
-    return arr, start
+    return (
+        np.ascontiguousarray(np.broadcast_to(targets, (*batch, 4, 4))),
+        np.ascontiguousarray(np.broadcast_to(values, (*batch, values.shape[-1]))),
+    )
 
 
 def _ik_kernel(chain: Chain) -> Any:

@@ -17,7 +17,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from poekin import lie
 from poekin.errors import InputError
-from poekin.ik.numerical import IKResult, Settings, check_targets, solve
+from poekin.ik.numerical import IKResult, Settings, broadcast_together, check_targets, solve
 
 if TYPE_CHECKING:
     from poekin.chain import Chain
@@ -96,17 +96,8 @@ def solve_tree(
     how = plan(tree, frame)
     if not isinstance(warm_start, bool | np.bool_):
         raise InputError(f"warm_start must be True or False, got {warm_start!r:.40}")
-    targets = check_targets(T)
     q = tree.qpos0 if qpos is None else tree._as_qpos(qpos)
-    try:
-        batch = np.broadcast_shapes(targets.shape[:-2], q.shape[:-1])
-    except ValueError:
-        raise InputError(
-            f"qpos of shape {q.shape} does not broadcast against targets of shape "
-            f"{targets.shape}: their batch axes must broadcast"
-        ) from None
-    q = np.broadcast_to(q, (*batch, tree.nq))
-    targets = np.broadcast_to(targets, (*batch, 4, 4))
+    targets, q = broadcast_together(check_targets(T), q, "qpos")
     if how.base is not None:
         targets = lie.inverse(tree.pose(q, how.base)) @ targets
     start: Any = q[..., list(how.indices)] if warm_start else None
