@@ -39,9 +39,14 @@ own numbers only: alone, in any batch, at any position, on any thread or vector 
 Without success the answer is the iterate of least cost over all attempts.
 
 The reference runs every target of a batch in lock-step, with masks: the per-iteration maths
-(:func:`evaluate`, :func:`residual`, :func:`step`) uses ``+ - * / sqrt`` and ``where`` on
-entries, and only :func:`solve_reference`'s bookkeeping (dropping finished targets, writing
-results) indexes NumPy arrays.
+(:func:`evaluate`, :func:`residual`, :func:`jacobian_rows`, :func:`damped_step`, :func:`step`)
+uses ``+ - * / sqrt floor`` and ``where`` on entries, with the array library's namespace
+``xp``; it runs as it is on PyTorch tensors, to the same bits. Two places are NumPy's only:
+:func:`wrapped` (the projection inside :func:`step`), which calls
+:func:`~poekin.ik._angles.wrap_into_limits`, and :func:`solve_reference`'s bookkeeping
+(dropping finished targets, writing results, the random starts in ``uint64``). A
+fixed-iteration solve for JAX or PyTorch replaces the bookkeeping with masks and gives
+``wrap_into_limits`` an ``xp``.
 """
 
 from __future__ import annotations
