@@ -40,6 +40,7 @@ __all__ = [
     "evaluate",
     "fast_method",
     "get_threads",
+    "ik_kernel",
     "kernel_description",
     "result_shape",
     "run_checked",
@@ -431,6 +432,24 @@ def tree_jacobian_program(
         p.const(t.site_rot[frame - nb], t.site_pos[frame - nb])
     p.op(_JEMIT, params=[_JACOBIAN_CODES[convention], nv])
     return p.kernel(t.nq, 0, 1, frame_axis=False)
+
+
+def ik_kernel(
+    jacobian: Any,
+    limits: FloatArray,
+    revolute: NDArray[np.bool_],
+    cyclic: NDArray[np.bool_],
+    start_base: FloatArray,
+    start_span: FloatArray,
+) -> Any:
+    """The compiled inverse kinematics solver of a chain (see ``poekin.ik.numerical``): its
+    world-Jacobian program ``jacobian`` (:func:`chain_jacobian_program`), ``(n, 2)`` limits,
+    which joints are revolute and which of those unlimited (``cyclic``), and the random
+    starts' ``base + u span``. None if not compiled."""
+    if _kernel is None or jacobian is None:
+        return None
+    flags = revolute.astype(np.int32) + 2 * cyclic.astype(np.int32)
+    return _kernel.IKSolver(jacobian, limits, flags, start_base, start_span)
 
 
 # --- evaluation -----------------------------------------------------------------------------

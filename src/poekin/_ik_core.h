@@ -1,441 +1,456 @@
 /*
- * The compiled twin of poekin.ik.analytic (the NumPy reference): every closed-form IK branch of
- * LANES targets side by side. _kernel.c includes it once per width after _kernel_core.h, with
- * LANES and TARGET defined; every name gets the width as a suffix (ik_task_8, ...).
+ * The inverse kinematics solver for one vector width: included at the end of _kernel_core.h,
+ * with its LANES, TARGET and names (vd, Pose, run_ops, ...). The algorithm and the order of
+ * every sum are those of poekin/ik/numerical.py, the NumPy reference, so both give the same
+ * bits; the functions below name the reference's function they repeat.
  *
- * Each function below is the reference function of the same name (poekin.ik.subproblems,
- * poekin.ik.analytic) with the same operations in the same order, so that both give the same
- * bits but for atan2 (ours, fdlibm's polynomial: within an ulp or two of NumPy's) and what
- * follows from it (the whole turns that wrap_into_limits adds). A constant of the model is
- * broadcast to all lanes as it is (x - 0 keeps the sign of zero), so that an operation on two
- * constants, done in Python floats by the reference, is the same double operation here.
+ * A group of G lanes (a power of two) solves one target at a time, and when the target is done
+ * (solved, or its attempts spent) the group takes the next target of the batch, so the vector
+ * stays full. G is 1 for batches of at least LANES targets: each lane runs its target's
+ * attempts one after another. For fewer targets the lanes of a group run G attempts side by
+ * side, in rounds (attempts rG .. rG + G - 1), and commit them in attempt order: the answer is
+ * the first successful attempt, its iterations those of every attempt up to it, as if they had
+ * run one after another (solve_reference); without success, the least-cost iterate of all of
+ * them, the earlier attempt's on a tie. A target's answer therefore depends only on its own
+ * numbers (its random starts are keyed by its bits), never on G, its lane, its neighbours, the
+ * thread or the width.
  */
-#define GLUE_(a, b) a##_##b
-#define GLUE(a, b) GLUE_(a, b)
-#define vd GLUE(vd, LANES)
-#define vl GLUE(vl, LANES)
-#define vselect GLUE(vselect, LANES)
-#define V3 GLUE(IkV3, LANES)
-#define CS GLUE(IkCS, LANES)
-#define Quad GLUE(IkQuad, LANES)
-#define Shoulder GLUE(IkShoulder, LANES)
-#define Branches GLUE(IkBranches, LANES)
-#define bc GLUE(ik_bc, LANES)
-#define bc3 GLUE(ik_bc3, LANES)
-#define vsqrt GLUE(ik_sqrt, LANES)
-#define dot GLUE(ik_dot, LANES)
-#define cross GLUE(ik_cross, LANES)
-#define add3 GLUE(ik_add, LANES)
-#define sub3 GLUE(ik_sub, LANES)
-#define unit GLUE(ik_unit, LANES)
-#define rotate GLUE(ik_rotate, LANES)
-#define sp1 GLUE(ik_sp1, LANES)
-#define sp4 GLUE(ik_sp4, LANES)
-#define sp3 GLUE(ik_sp3, LANES)
-#define mat_vec GLUE(ik_mat_vec, LANES)
-#define angle_plus GLUE(ik_plus, LANES)
-#define angle_minus GLUE(ik_minus, LANES)
-#define angle_half GLUE(ik_half, LANES)
-#define pick GLUE(ik_pick, LANES)
-#define atan2v GLUE(ik_atan2, LANES)
-#define three_parallel GLUE(ik_three_parallel, LANES)
-#define split_two_parallel GLUE(ik_two_parallel, LANES)
-#define split_one_two_meet GLUE(ik_one_two_meet, LANES)
-#define split_two_three_meet GLUE(ik_two_three_meet, LANES)
-#define spherical GLUE(ik_spherical, LANES)
-#define wrist_root GLUE(ik_wrist_root, LANES)
-#define finish GLUE(ik_finish, LANES)
-#define ik_block GLUE(ik_block, LANES)
-#define ik_task GLUE(ik_task, LANES)
+#define IKState GLUE(IKState, LANES)
+#define ik_state GLUE(ik_state, LANES)
+#define ik_dot_rows GLUE(ik_dot_rows, LANES)
+#define ik_cholesky_solve GLUE(ik_cholesky_solve, LANES)
+#define ik_damped_step GLUE(ik_damped_step, LANES)
+#define ik_capped GLUE(ik_capped, LANES)
+#define ik_wrapped GLUE(ik_wrapped, LANES)
+#define ik_clamped GLUE(ik_clamped, LANES)
+#define ik_step GLUE(ik_step, LANES)
+#define ik_residual GLUE(ik_residual, LANES)
+#define ik_finish GLUE(ik_finish, LANES)
+#define ik_load GLUE(ik_load, LANES)
+#define ik_attempt GLUE(ik_attempt, LANES)
+#define ik_commit GLUE(ik_commit, LANES)
+#define ik_run_task GLUE(ik_run_task, LANES)
 
 typedef struct {
-    vd v[3];
-} V3;
+    /* n entries each, in the memory after the struct (ik_state) */
+    vd *q;                              /* the iterate */
+    vd *qn;                             /* the next one */
+    vd *best_q;                         /* the least-cost iterate */
+    vd *d, *v, *w, *fixed, *df, *v2, *w2;
+    vl *blocked;
+    Angle *ang;                         /* run_ops' angles (n rounded up to even) */
+    vd *jac;                            /* the space Jacobian's columns (6 n) */
+    vd *J[6];                           /* the residual's Jacobian, rows */
+    vd *Jf[6];                          /* the same, blocked joints' columns zeroed */
+    vd best_R[9], best_p[3], best_cost; /* the least-cost iterate's pose and cost */
+    vd Rt[9], pt[3];                    /* the targets */
+    /* per lane */
+    npy_intp target[LANES]; /* -1: idle */
+    uint64_t key[LANES];
+    int64_t attempt[LANES], it[LANES], stall[LANES];
+    int64_t best_attempt[LANES]; /* the attempt of the lane's least-cost iterate */
+    int running[LANES];          /* an attempt runs; else it has ended, or the round has none */
+    int converged[LANES];        /* the attempt that ended succeeded */
+    double stall_ref[LANES];
+    /* per group: lanes [g G, g G + G) */
+    int G;
+    int64_t round[LANES], total[LANES];
+} IKState;
 
-typedef struct {
-    vd c, s; /* an angle's cosine and sine */
-} CS;
-
-typedef struct {
-    CS root[2]; /* the + root, then the - root */
-    vl exists, degenerate;
-} Quad;
-
-/* the first three joints' angles on two branch axes [i1][i2], and whether each exists */
-typedef struct {
-    CS a[3][2][2];
-    vl exists[2][2];
-} Shoulder;
-
-/* the six angles of the 8 branches, [branch][joint], and whether each exists */
-typedef struct {
-    CS a[8][6];
-    vl exists[8];
-} Branches;
-
-AI vd bc(double x) { return x - (vd){0}; }
-
-AI V3 bc3(const double *x) { return (V3){{bc(x[0]), bc(x[1]), bc(x[2])}}; }
-
-AI vd vsqrt(vd x) {
-    for (int l = 0; l < LANES; ++l) x[l] = sqrt(x[l]);
-    return x;
+/* An IKState for n joints with its arrays after it, in one aligned block; NULL if out of
+ * memory. */
+static IKState *ik_state(int n) {
+    const size_t angles = (size_t)(n + 1) / 2 * 2, per = (size_t)n;
+    const size_t head = (sizeof(IKState) + sizeof(vd) - 1) / sizeof(vd) * sizeof(vd);
+    size_t bytes = head + sizeof(vd) * per * (10 + 1 + 6 + 12) + sizeof(Angle) * angles;
+    unsigned char *block = aligned_malloc(bytes);
+    if (block == NULL) return NULL;
+    IKState *S = (IKState *)block;
+    vd *next = (vd *)(block + head);
+    vd **arrays[10] = {&S->q, &S->qn, &S->best_q, &S->d, &S->v, &S->w, &S->fixed, &S->df, &S->v2, &S->w2};
+    for (int k = 0; k < 10; ++k, next += per) *arrays[k] = next;
+    S->blocked = (vl *)next, next += per;
+    S->jac = next, next += 6 * per;
+    for (int k = 0; k < 6; ++k, next += per) S->J[k] = next;
+    for (int k = 0; k < 6; ++k, next += per) S->Jf[k] = next;
+    S->ang = (Angle *)next;
+    return S;
 }
 
-AI vd dot(V3 a, V3 b) { return (a.v[0] * b.v[0] + a.v[1] * b.v[1]) + a.v[2] * b.v[2]; }
-
-AI V3 cross(V3 a, V3 b) {
-    return (V3){{a.v[1] * b.v[2] - a.v[2] * b.v[1], a.v[2] * b.v[0] - a.v[0] * b.v[2],
-                 a.v[0] * b.v[1] - a.v[1] * b.v[0]}};
+/* sum over k < m of A[k][i] B[k][j], as the reference's _dot: the first product, then the
+ * others added in order. */
+AI vd ik_dot_rows(vd *const *A, int i, vd *const *B, int j, int m) {
+    vd t = A[0][i] * B[0][j];
+    for (int k = 1; k < m; ++k) t = t + A[k][i] * B[k][j];
+    return t;
 }
 
-AI V3 add3(V3 a, V3 b) { return (V3){{a.v[0] + b.v[0], a.v[1] + b.v[1], a.v[2] + b.v[2]}}; }
-
-AI V3 sub3(V3 a, V3 b) { return (V3){{a.v[0] - b.v[0], a.v[1] - b.v[1], a.v[2] - b.v[2]}}; }
-
-/* subproblems.unit */
-AI CS unit(vd x, vd y) {
-    const vd one = bc(1.0);
-    vd r = vsqrt(x * x + y * y);
-    vl zero = r == 0.0;
-    vd safe = vselect(zero, one, r);
-    return (CS){vselect(zero, one, x / safe), y / safe};
+/* _cholesky_solve: A x = b for s <= 6, lower triangle of A read, pivots below tiny taken as
+ * tiny. */
+AI void ik_cholesky_solve(vd A[6][6], const vd *b, vd *x, int s, double tiny) {
+    vd L[6][6], y[6];
+    const vd t0 = (vd){0} + tiny;
+    for (int j = 0; j < s; ++j) {
+        for (int i = j; i < s; ++i) {
+            vd acc = A[i][j];
+            for (int k = 0; k < j; ++k) acc = acc - L[i][k] * L[j][k];
+            if (i == j) {
+                acc = vselect(acc > tiny, acc, t0);
+                for (int l = 0; l < LANES; ++l) acc[l] = sqrt(acc[l]);
+                L[j][j] = acc;
+            } else {
+                L[i][j] = acc / L[j][j];
+            }
+        }
+    }
+    for (int i = 0; i < s; ++i) {
+        vd acc = b[i];
+        for (int k = 0; k < i; ++k) acc = acc - L[i][k] * y[k];
+        y[i] = acc / L[i][i];
+    }
+    for (int i = s - 1; i >= 0; --i) {
+        vd acc = y[i];
+        for (int k = i + 1; k < s; ++k) acc = acc - L[k][i] * x[k];
+        x[i] = acc / L[i][i];
+    }
 }
 
-/* subproblems.rotate */
-AI V3 rotate(V3 k, CS a, V3 p) {
-    vd kp = dot(k, p);
-    V3 kxp = cross(k, p), o;
+/* damped_step: d = (J^T J + lam I)^-1 J^T r for n <= m, else J^T (J J^T + lam I)^-1 r. */
+AI void ik_damped_step(vd *const *J, const vd *r, vd lam, double tiny, int m, int n,
+                       vd *d) {
+    vd A[6][6], b[6], z[6];
+    if (n <= m) {
+        for (int i = 0; i < n; ++i)
+            for (int j = 0; j <= i; ++j) A[i][j] = ik_dot_rows(J, i, J, j, m);
+        for (int i = 0; i < n; ++i) A[i][i] = A[i][i] + lam;
+        for (int i = 0; i < n; ++i) {
+            vd t = J[0][i] * r[0];
+            for (int k = 1; k < m; ++k) t = t + J[k][i] * r[k];
+            b[i] = t;
+        }
+        ik_cholesky_solve(A, b, d, n, tiny);
+        return;
+    }
+    for (int a = 0; a < m; ++a)
+        for (int c = 0; c <= a; ++c) {
+            vd t = J[a][0] * J[c][0];
+            for (int i = 1; i < n; ++i) t = t + J[a][i] * J[c][i];
+            A[a][c] = t;
+        }
+    for (int a = 0; a < m; ++a) A[a][a] = A[a][a] + lam;
+    ik_cholesky_solve(A, r, z, m, tiny);
+    for (int i = 0; i < n; ++i) {
+        vd t = J[0][i] * z[0];
+        for (int a = 1; a < m; ++a) t = t + J[a][i] * z[a];
+        d[i] = t;
+    }
+}
+
+/* _capped: d scaled so that its largest entry is at most step_max in size. */
+AI void ik_capped(vd *d, int n, double step_max) {
+    const vl magnitude = (vl){0} + INT64_MAX;
+    vd largest = (vd)((vl)d[0] & magnitude);
+    for (int j = 1; j < n; ++j) {
+        vd a = (vd)((vl)d[j] & magnitude);
+        largest = vselect(largest >= a, largest, a);
+    }
+    const vd one = (vd){0} + 1.0;
+    vd factor = vselect(largest > step_max, step_max / vselect(largest > 0, largest, one), one);
+    for (int j = 0; j < n; ++j) d[j] = d[j] * factor;
+}
+
+/* wrapped: each value turned into its limits where whole turns help (ik_wrap), lanes already
+ * inside untouched. */
+AI void ik_wrapped(const IKModel *m, const vd *v, vd *w) {
+    for (int j = 0; j < m->n; ++j) {
+        const int flags = m->flags[j];
+        const vd x = v[j];
+        w[j] = x;
+        if (!(flags & IK_REVOLUTE)) continue;
+        vl inside = (flags & IK_CYCLIC) ? (x > -IK_PI) & (x <= IK_PI) : (x >= m->lo[j]) & (x <= m->hi[j]);
+        for (int l = 0; l < LANES; ++l)
+            if (!inside[l]) w[j][l] = ik_wrap(x[l], m->lo[j], m->hi[j], flags);
+    }
+}
+
+/* numpy.minimum(numpy.maximum(x, lo), hi) */
+AI vd ik_clamped(vd x, double lo, double hi) {
+    vd a = vselect(x >= lo, x, (vd){0} + lo);
+    return vselect(a <= hi, a, (vd){0} + hi);
+}
+
+/* step: the next iterate S->qn from S->q, the residual r (rows) and its Jacobian S->J. */
+AI void ik_step(IKState *S, const IKModel *m, const IKOptions *o, const vd *r, vd cost, int rows) {
+    const int n = m->n;
+    vd lam = o->damping * cost + o->floor;
+    lam = vselect(lam <= o->ceiling, lam, (vd){0} + o->ceiling);
+    ik_damped_step(S->J, r, lam, o->floor, rows, n, S->d);
+    ik_capped(S->d, n, o->step_max);
+    for (int j = 0; j < n; ++j) S->v[j] = S->q[j] + S->d[j];
+    ik_wrapped(m, S->v, S->w);
+    vl anything = (vl){0};
+    for (int j = 0; j < n; ++j) {
+        S->blocked[j] = (S->w[j] < m->lo[j]) | (S->w[j] > m->hi[j]);
+        anything |= S->blocked[j];
+    }
+    int some = 0;
+    for (int l = 0; l < LANES; ++l) some |= anything[l] != 0;
+    if (some) { /* the active set: blocked joints to their limit, the others solved again */
+        const vd zero = {0};
+        vd rf[6];
+        for (int j = 0; j < n; ++j)
+            S->fixed[j] = vselect(S->blocked[j], ik_clamped(S->v[j], m->lo[j], m->hi[j]) - S->q[j], zero);
+        for (int k = 0; k < rows; ++k) {
+            vd t = S->J[k][0] * S->fixed[0];
+            for (int j = 1; j < n; ++j) t = t + S->J[k][j] * S->fixed[j];
+            rf[k] = r[k] - t;
+            for (int j = 0; j < n; ++j) S->Jf[k][j] = vselect(S->blocked[j], zero, S->J[k][j]);
+        }
+        ik_damped_step(S->Jf, rf, lam, o->floor, rows, n, S->df);
+        for (int j = 0; j < n; ++j) S->df[j] = vselect(S->blocked[j], S->fixed[j], S->df[j]);
+        ik_capped(S->df, n, o->step_max);
+        for (int j = 0; j < n; ++j) S->v2[j] = S->q[j] + S->df[j];
+        ik_wrapped(m, S->v2, S->w2);
+        for (int j = 0; j < n; ++j) S->w[j] = vselect(anything, S->w2[j], S->w[j]);
+    }
+    for (int j = 0; j < n; ++j) S->qn[j] = ik_clamped(S->w[j], m->lo[j], m->hi[j]);
+}
+
+/* residual: r (rows), |r|^2, |e_p|^2, |e_o|^2 at the pose cur; the Jacobian's rows in S->J from
+ * the space columns in S->jac and the quaternion of R_t R^T (jacobian_rows). */
+AI vd ik_residual(IKState *S, const Pose *cur, const IKOptions *o, int n, vd *r, vd *ep2,
+                  vd *eo2) {
+    const vd *R = cur->R;
+    vd ep[3], M[9], quat[4], eo[3];
+    for (int i = 0; i < 3; ++i) ep[i] = S->pt[i] - cur->t[i];
     for (int i = 0; i < 3; ++i)
-        o.v[i] = (kp * k.v[i] + a.c * (p.v[i] - kp * k.v[i])) + a.s * kxp.v[i];
-    return o;
+        for (int j = 0; j < 3; ++j)
+            M[3 * i + j] = (S->Rt[3 * i] * R[3 * j] + S->Rt[3 * i + 1] * R[3 * j + 1]) +
+                           S->Rt[3 * i + 2] * R[3 * j + 2];
+    rotation_quat(M, quat);
+    for (int i = 0; i < 3; ++i) eo[i] = 2.0 * quat[1 + i];
+    const double k = o->weight;
+    int rows = 0;
+    if (!o->position_only)
+        for (int i = 0; i < 3; ++i) r[rows++] = k * eo[i];
+    for (int i = 0; i < 3; ++i) r[rows++] = ep[i];
+    vd cost = r[0] * r[0];
+    for (int i = 1; i < rows; ++i) cost = cost + r[i] * r[i];
+    *ep2 = (ep[0] * ep[0] + ep[1] * ep[1]) + ep[2] * ep[2];
+    *eo2 = (eo[0] * eo[0] + eo[1] * eo[1]) + eo[2] * eo[2];
+    const vd w = quat[0], *u = quat + 1;
+    for (int j = 0; j < n; ++j) {
+        const vd *a = S->jac + 6 * j;
+        vd v[3];
+        world_velocity(a, cur->t, v);
+        int row = 0;
+        if (!o->position_only) { /* k (w a + u x a): d e_o = -(w I + [u]) a dt */
+            const vd ua[3] = {u[1] * a[2] - u[2] * a[1], u[2] * a[0] - u[0] * a[2],
+                              u[0] * a[1] - u[1] * a[0]};
+            for (int i = 0; i < 3; ++i) S->J[row++][j] = k * (w * a[i] + ua[i]);
+        }
+        for (int i = 0; i < 3; ++i) S->J[row++][j] = v[i];
+    }
+    return cost;
 }
 
-/* subproblems.sp1_cs */
-AI CS sp1(V3 p1, V3 p2, V3 k) {
-    V3 kxp1 = cross(k, p1), kxp2 = cross(k, p2);
-    return unit(dot(kxp1, kxp2), dot(kxp1, p2));
-}
-
-/* subproblems.sp4_cs */
-AI Quad sp4(V3 h, V3 p, V3 k, vd d, vd tol, vd tiny) {
-    vd kp = dot(k, p), hk = dot(h, k);
-    vd a = dot(h, p) - hk * kp;
-    vd b = dot(h, cross(k, p));
-    vd c = d - hk * kp;
-    vd r2 = a * a + b * b;
-    vd r = vsqrt(r2);
-    vd e2 = r2 - c * c;
-    vd e = vsqrt(vselect(e2 >= 0.0, e2, (vd){0})); /* np.maximum(e2, 0.0) */
-    vd abs_c = vselect(c < 0.0, -c, c);
-    Quad q;
-    q.exists = abs_c - r <= tol;
-    q.degenerate = r <= tiny;
-    const vd zero = {0};
-    q.root[0] = unit(vselect(q.degenerate, bc(1.0), a * c - b * e),
-                     vselect(q.degenerate, zero, b * c + a * e));
-    q.root[1] = unit(vselect(q.degenerate, bc(-1.0), a * c + b * e),
-                     vselect(q.degenerate, zero, b * c - a * e));
-    return q;
-}
-
-/* subproblems.sp3_cs */
-AI Quad sp3(V3 p1, V3 p2, V3 k, vd dist2, vd tol, vd tiny) {
-    vd d = ((dot(p1, p1) + dot(p2, p2)) - dist2) * 0.5;
-    return sp4(p2, p1, k, d, tol, tiny);
-}
-
-/* _pose.mat_vec with a target's rotation R (row-major entries) */
-AI V3 mat_vec(const vd *R, V3 v) {
-    V3 o;
+/* Lane l's target is done: its answer (the iterate if it converged, else its least-cost one),
+ * the errors at it (errors), the success flag, the counts (of lane l's group, attempts up to
+ * `last`). */
+TARGET static void ik_finish(IKState *S, const IKTask *task, const Pose *cur, int l, int conv,
+                             int64_t last) {
+    const IKModel *m = task->model;
+    const IKOptions *o = task->opt;
+    const npy_intp t = S->target[l];
+    double R[9], p[3], Rt[9], e[3], M[9];
+    for (int k = 0; k < 9; ++k) R[k] = conv ? cur->R[k][l] : S->best_R[k][l];
+    for (int i = 0; i < 3; ++i) p[i] = conv ? cur->t[i][l] : S->best_p[i][l];
+    for (int k = 0; k < 9; ++k) Rt[k] = S->Rt[k][l];
+    int inside = 1;
+    double *q = task->q + t * m->n;
+    for (int j = 0; j < m->n; ++j) {
+        q[j] = conv ? S->q[j][l] : S->best_q[j][l];
+        inside &= q[j] >= m->lo[j] && q[j] <= m->hi[j];
+    }
+    for (int i = 0; i < 3; ++i) e[i] = S->pt[i][l] - p[i];
+    double sq = (e[0] * e[0] + e[1] * e[1]) + e[2] * e[2];
+    const double pos = sq > 0 ? sqrt(sq) : 0.0;
     for (int i = 0; i < 3; ++i)
-        o.v[i] = (R[4 * i] * v.v[0] + R[4 * i + 1] * v.v[1]) + R[4 * i + 2] * v.v[2];
-    return o;
+        for (int j = 0; j < 3; ++j)
+            M[3 * i + j] =
+                (Rt[3 * i] * R[3 * j] + Rt[3 * i + 1] * R[3 * j + 1]) + Rt[3 * i + 2] * R[3 * j + 2];
+    const double vee[3] = {(M[7] - M[5]) / 2, (M[2] - M[6]) / 2, (M[3] - M[1]) / 2};
+    sq = (vee[0] * vee[0] + vee[1] * vee[1]) + vee[2] * vee[2];
+    const double ori = atan2(sq > 0 ? sqrt(sq) : 0.0, (((M[0] + M[4]) + M[8]) - 1) / 2);
+    task->pos_err[t] = pos;
+    task->ori_err[t] = ori;
+    task->success[t] =
+        conv && inside && pos <= o->pos_tol && (o->position_only || ori <= o->ori_tol);
+    task->iterations[t] = S->total[l / S->G];
+    task->attempts[t] = last + 1;
 }
 
-/* analytic._plus, _minus, _half, _pick */
-AI CS angle_plus(CS a, CS b, vd sign) {
-    return (CS){a.c * b.c - sign * (a.s * b.s), a.s * b.c + sign * (a.c * b.s)};
+/* Start attempt a of lane l's target: q0 brought into the limits for attempt 0 if given
+ * (first_start), else the attempt's random start; a lane of a round with no attempt a (beyond
+ * max_attempts) keeps its last iterate, whose cost it has seen, and does not run. */
+TARGET static void ik_attempt(IKState *S, const IKTask *task, int l, int64_t a, const double *q0) {
+    const IKModel *m = task->model;
+    S->attempt[l] = a;
+    S->it[l] = S->stall[l] = 0;
+    S->stall_ref[l] = INFINITY;
+    S->converged[l] = 0;
+    S->running[l] = a < task->opt->max_attempts;
+    if (!S->running[l]) return;
+    for (int j = 0; j < m->n; ++j)
+        S->q[j][l] = a == 0 && q0 != NULL
+                         ? ik_clamp(ik_wrap(q0[j], m->lo[j], m->hi[j], m->flags[j]), m->lo[j], m->hi[j])
+                         : ik_start(m, S->key[l], a, j);
 }
 
-AI CS angle_minus(CS a, CS b) { return (CS){a.c * b.c + a.s * b.s, a.s * b.c - a.c * b.s}; }
-
-AI CS angle_half(CS a) {
-    vd flip = vselect(a.s < 0.0, bc(-1.0), bc(1.0));
-    vl front = a.c >= 0.0;
-    return unit(vselect(front, 1.0 + a.c, flip * a.s), vselect(front, a.s, flip * (1.0 - a.c)));
+/* Give group g the batch's next target and its first round; 0 if there is none left (the
+ * group's lanes idle on a harmless problem). */
+TARGET static int ik_load(IKState *S, IKTask *task, int g) {
+    const IKModel *m = task->model;
+    const npy_intp t = __atomic_fetch_add(task->next, 1, __ATOMIC_RELAXED);
+    const int n = m->n, G = S->G;
+    if (t >= task->N) {
+        for (int l = g * G; l < g * G + G; ++l) {
+            S->target[l] = -1;
+            S->running[l] = 0;
+            for (int k = 0; k < 9; ++k) S->Rt[k][l] = (k % 4 == 0) ? 1.0 : 0.0;
+            for (int i = 0; i < 3; ++i) S->pt[i][l] = 0.0;
+            for (int j = 0; j < n; ++j) S->q[j][l] = m->base[j];
+        }
+        return 0;
+    }
+    const double *T = task->T + 16 * t;
+    const double *q0 = task->q0 != NULL ? task->q0 + n * t : NULL;
+    const uint64_t key = ik_key(task->seed, T, q0, n);
+    S->round[g] = S->total[g] = 0;
+    for (int l = g * G; l < g * G + G; ++l) {
+        S->target[l] = t;
+        S->key[l] = key;
+        for (int i = 0; i < 3; ++i) {
+            for (int j = 0; j < 3; ++j) S->Rt[3 * i + j][l] = T[4 * i + j];
+            S->pt[i][l] = T[4 * i + 3];
+        }
+        S->best_cost[l] = INFINITY;
+        S->best_attempt[l] = -1;
+        ik_attempt(S, task, l, l - g * G, q0);
+    }
+    return 1;
 }
 
-AI CS pick(vl where, CS yes, CS no) {
-    return (CS){vselect(where, yes.c, no.c), vselect(where, yes.s, no.s)};
+/* Group g's round, committed in attempt order as far as its attempts have ended: done (1) at
+ * the first success or when the last round fails, else the next round starts once this one
+ * has ended (0). */
+TARGET static int ik_commit(IKState *S, IKTask *task, const Pose *cur, int g) {
+    const int G = S->G, first = g * G;
+    const int64_t max_attempts = task->opt->max_attempts;
+    int64_t total = S->total[g];
+    for (int l = first; l < first + G; ++l) {
+        const int64_t a = S->attempt[l];
+        if (a >= max_attempts) break; /* the last round has no more attempts */
+        if (S->running[l]) return 0;  /* wait for it: an earlier attempt decides first */
+        total += S->it[l];
+        if (S->converged[l]) {
+            S->total[g] = total;
+            ik_finish(S, task, cur, l, 1, a);
+            return 1;
+        }
+    }
+    S->total[g] = total;
+    const int64_t next = (S->round[g] + 1) * G;
+    if (next >= max_attempts) { /* the least-cost iterate of every lane, earlier attempt first */
+        int best = first;
+        for (int l = first + 1; l < first + G; ++l)
+            if (S->best_attempt[l] >= 0 &&
+                (S->best_cost[l] < S->best_cost[best] ||
+                 (S->best_cost[l] == S->best_cost[best] && S->best_attempt[l] < S->best_attempt[best])))
+                best = l;
+        ik_finish(S, task, cur, best, 0, max_attempts - 1);
+        return 1;
+    }
+    S->round[g] += 1;
+    for (int l = first; l < first + G; ++l) ik_attempt(S, task, l, next + (l - first), NULL);
+    return 0;
 }
 
-/* atan2(y, x) for (x, y) not both 0: fdlibm's atan of t = min / max of |x|, |y| in [0, 1]
- * (its reduction to 0, 0.5 or 1 and its polynomial), then the octant. */
-AI vd atan2v(vd y, vd x) {
-    static const double aT[11] = {
-        3.33333333333329318027e-01,  -1.99999999998764832476e-01, 1.42857142725034663711e-01,
-        -1.11111104054623557880e-01, 9.09088713343650656196e-02,  -7.69187620504482999495e-02,
-        6.66107313738753120669e-02,  -5.83357013379057348645e-02, 4.97687799461593236017e-02,
-        -3.65315727442169155270e-02, 1.62858201153657823623e-02};
-    const vd zero = {0};
-    vd ax = vselect(x < 0.0, -x, x), ay = vselect(y < 0.0, -y, y);
-    vl swap = ay > ax;
-    vd t = vselect(swap, ax, ay) / vselect(swap, ay, ax);
-    vl mid = t >= 0.4375, top = t >= 0.6875;
-    vd num = vselect(top, t - 1.0, vselect(mid, t * 2.0 - 1.0, t));
-    vd den = vselect(top, t + 1.0, vselect(mid, 2.0 + t, bc(1.0)));
-    vd hi = vselect(top, bc(7.85398163397448278999e-01),
-                    vselect(mid, bc(4.63647609000806093515e-01), zero));
-    vd lo = vselect(top, bc(3.06161699786838301793e-17),
-                    vselect(mid, bc(2.26987774529616870924e-17), zero));
-    vd r = num / den;
-    vd z = r * r, w = z * z;
-    vd s1 = z * (aT[0] + w * (aT[2] + w * (aT[4] + w * (aT[6] + w * (aT[8] + w * aT[10])))));
-    vd s2 = w * (aT[1] + w * (aT[3] + w * (aT[5] + w * (aT[7] + w * aT[9]))));
-    vd a = hi - ((r * (s1 + s2) - lo) - r); /* atan(t) */
-    const double pio2_hi = 1.57079632679489655800e+00, pio2_lo = 6.12323399573676603587e-17;
-    const double pi_hi = 3.14159265358979311600e+00, pi_lo = 1.22464679914735317723e-16;
-    a = vselect(swap, pio2_hi - (a - pio2_lo), a);
-    a = vselect(x < 0.0, pi_hi - (a - pi_lo), a);
-    vl negative = (vl)y < 0; /* the sign bit: atan2(-0, -1) = -pi */
-    return vselect(negative, -a, a);
-}
-
-/* --- the splits: analytic._solve_three_parallel and the shoulders of _solve_spherical --- */
-
-/* analytic._wrist for one root `first` of turn = sp4(h5, v, minus_axis, ...): q5, q6, sign
- * and phi. x0 is the normal x turned back through the joints before. */
-AI void wrist_root(const IkWrist *W, V3 axis, V3 minus_axis, CS first, V3 v, V3 x0, CS *a5,
-                   CS *a6, vd *sign, CS *phi) {
-    V3 u = rotate(minus_axis, first, v); /* = rot(h5, q5) h6 */
-    *a5 = sp1(bc3(W->h[5]), u, bc3(W->h[4]));
-    V3 x = rotate(bc3(W->minus[4]), *a5, rotate(minus_axis, first, x0));
-    *a6 = sp1(bc3(W->x6), x, bc3(W->h[5]));
-    *sign = vselect(dot(axis, u) < 0.0, bc(-1.0), bc(1.0));
-    *phi = angle_plus(first, *a6, *sign);
-}
-
-AI void three_parallel(const IkThreeParallel *P, const vd *T, Branches *out) {
-    const IkWrist *W = &P->w;
-    const V3 h = bc3(P->h), minus_h = bc3(P->minus_h), h3 = bc3(P->h3);
-    const V3 minus_h1 = bc3(W->minus[0]), r1 = bc3(P->r1), r2 = bc3(P->r2);
-    const V3 c56_r4 = bc3(P->c56_r4), p43 = bc3(P->p43), p23 = bc3(P->p23), p32 = bc3(P->p32);
-    const V3 p = {{T[3], T[7], T[11]}};
-    const vd sign3 = bc(P->sign3), sign4 = bc(P->sign4);
-    V3 y1 = sub3(add3(mat_vec(T, bc3(P->c56_end)), p), r1);
-    Quad shoulder = sp4(h, y1, minus_h1, bc(P->d1), bc(P->tol), bc(P->tiny));
-    V3 Rh6 = mat_vec(T, bc3(W->h6_end)), Rx6 = mat_vec(T, bc3(W->x6_end));
-    for (int i1 = 0; i1 < 2; ++i1) {
-        CS a1 = shoulder.root[i1];
-        V3 v = rotate(minus_h1, a1, Rh6);
-        V3 x1 = rotate(minus_h1, a1, Rx6);
-        Quad turn = sp4(bc3(W->h[4]), v, minus_h, bc(W->d56), bc(W->tol), bc(W->tiny));
-        V3 back = add3(rotate(minus_h1, a1, y1), r1);
-        CS fold = sp1(c56_r4, sub3(back, r2), h);
-        for (int i2 = 0; i2 < 2; ++i2) {
-            CS theta = turn.root[i2], a5, a6, phi;
-            vd sign;
-            wrist_root(W, h, minus_h, theta, v, x1, &a5, &a6, &sign, &phi);
-            CS ends = i2 == 0 ? (CS){fold.c * 1.0, fold.s * 1.0} : (CS){fold.c * -1.0, fold.s * -1.0};
-            theta = pick(turn.degenerate, ends, theta);
-            CS rest = angle_minus(phi, theta);
-            a6 = pick(turn.degenerate, (CS){rest.c, sign * rest.s}, a6);
-            V3 zr = sub3(sub3(back, rotate(h, theta, c56_r4)), r2);
-            Quad elbow = sp3(p43, p23, h3, dot(zr, zr), bc(P->tol2), bc(P->tiny2));
-            for (int i3 = 0; i3 < 2; ++i3) {
-                CS a3 = elbow.root[i3];
-                CS a2 = sp1(add3(p32, rotate(h3, a3, p43)), zr, h);
-                vd c23 = a2.c * a3.c - sign3 * (a2.s * a3.s);
-                vd s23 = a2.s * a3.c + sign3 * (a2.c * a3.s);
-                CS a4 = {theta.c * c23 + theta.s * s23, sign4 * (theta.s * c23 - theta.c * s23)};
-                const int b = 4 * i1 + 2 * i2 + i3;
-                CS *a = out->a[b];
-                a[0] = a1, a[1] = a2, a[2] = a3, a[3] = a4, a[4] = a5, a[5] = a6;
-                out->exists[b] = shoulder.exists & turn.exists & elbow.exists;
+/* solve_reference's loop, LANES / G targets at a time, until the batch is done. */
+TARGET static void ik_run_task(IKTask *task) {
+    const IKModel *m = task->model;
+    const IKOptions *o = task->opt;
+    const int n = m->n, rows = o->position_only ? 3 : 6;
+    IKState *S = ik_state(n);
+    if (S == NULL) {
+        task->bad = -1;
+        return;
+    }
+    const int G = task->group, groups = LANES / G;
+    S->G = G;
+    int active = 0;
+    for (int g = 0; g < groups; ++g) active += ik_load(S, task, g);
+    const vd huge_q = (vd){0} + m->prog->huge_q;
+    const vl magnitude = (vl){0} + INT64_MAX;
+    while (active > 0) {
+        /* evaluate: the pose and the space columns, with the kernel's sin and cos */
+        vl below = (vl){0} - 1;
+        for (int j = 0; j < n; ++j) below &= (vd)((vl)S->q[j] & magnitude) < huge_q;
+        int huge = 0;
+        for (int l = 0; l < LANES; ++l) huge |= below[l] == 0;
+        Pose cur;
+        run_ops(m->prog, NULL, S->q, S->ang, S->jac, NULL, FORM_4X4, LANES, huge, &cur);
+        vd r[6], ep2, eo2;
+        const vd cost = ik_residual(S, &cur, o, n, r, &ep2, &eo2);
+        /* a lane that does not run keeps an iterate it has seen: never strictly better */
+        const vl better = cost < S->best_cost;
+        S->best_cost = vselect(better, cost, S->best_cost);
+        for (int j = 0; j < n; ++j) S->best_q[j] = vselect(better, S->q[j], S->best_q[j]);
+        for (int k = 0; k < 9; ++k) S->best_R[k] = vselect(better, cur.R[k], S->best_R[k]);
+        for (int i = 0; i < 3; ++i) S->best_p[i] = vselect(better, cur.t[i], S->best_p[i]);
+        for (int l = 0; l < LANES; ++l)
+            if (better[l]) S->best_attempt[l] = S->attempt[l];
+        ik_step(S, m, o, r, cost, rows);
+        int ended = 0;
+        for (int l = 0; l < LANES; ++l) {
+            if (!S->running[l]) continue;
+            if (cost[l] < S->stall_ref[l] * o->stall_factor) {
+                S->stall_ref[l] = cost[l];
+                S->stall[l] = 0;
+            } else {
+                S->stall[l] += 1;
+            }
+            S->it[l] += 1;
+            /* per lane: a vector mask kept across ik_step crashes GCC 12 (SSE2 kernel) */
+            S->converged[l] =
+                ep2[l] <= o->pos_tol2 && (o->position_only || eo2[l] <= o->ori_tol2);
+            if (S->converged[l] || S->stall[l] >= o->stall_iterations || S->it[l] >= o->max_iterations) {
+                S->running[l] = 0; /* the attempt has ended; q stays the iterate it ended at */
+                ended = 1;
+            } else {
+                for (int j = 0; j < n; ++j) S->q[j][l] = S->qn[j][l];
             }
         }
+        if (!ended) continue;
+        for (int g = 0; g < groups; ++g)
+            if (S->target[g * G] >= 0 && ik_commit(S, task, &cur, g))
+                active += ik_load(S, task, g) - 1;
     }
+    aligned_free((unsigned char *)S);
 }
 
-AI void split_two_parallel(const IkTwoParallel *P, V3 y, Shoulder *out) {
-    const V3 h2 = bc3(P->h2), h3 = bc3(P->h3), minus_h1 = bc3(P->minus_h1), r1 = bc3(P->r1);
-    const V3 r2 = bc3(P->r2), pw3 = bc3(P->pw3), p23 = bc3(P->p23), p32 = bc3(P->p32);
-    V3 y1 = sub3(y, r1);
-    Quad shoulder = sp4(h2, y1, minus_h1, bc(P->d1), bc(P->tol), bc(P->tiny));
-    for (int i1 = 0; i1 < 2; ++i1) {
-        V3 zr = sub3(add3(rotate(minus_h1, shoulder.root[i1], y1), r1), r2);
-        Quad elbow = sp3(pw3, p23, h3, dot(zr, zr), bc(P->tol2), bc(P->tiny2));
-        for (int i2 = 0; i2 < 2; ++i2) {
-            out->a[0][i1][i2] = shoulder.root[i1];
-            out->a[1][i1][i2] = sp1(add3(p32, rotate(h3, elbow.root[i2], pw3)), zr, h2);
-            out->a[2][i1][i2] = elbow.root[i2];
-            out->exists[i1][i2] = shoulder.exists & elbow.exists;
-        }
-    }
-}
-
-AI void split_one_two_meet(const IkOneTwoMeet *P, V3 y, Shoulder *out) {
-    const V3 h2 = bc3(P->h2), h3 = bc3(P->h3), minus_h1 = bc3(P->minus_h1), c = bc3(P->c);
-    const V3 pw3 = bc3(P->pw3), pc3 = bc3(P->pc3), p3c = bc3(P->p3c);
-    V3 yc = sub3(y, c);
-    Quad elbow = sp3(pw3, pc3, h3, dot(yc, yc), bc(P->tol2), bc(P->tiny2));
-    for (int i1 = 0; i1 < 2; ++i1) {
-        V3 xc = add3(p3c, rotate(h3, elbow.root[i1], pw3));
-        Quad shoulder = sp4(h2, yc, minus_h1, dot(h2, xc), bc(P->tol), bc(P->tiny));
-        for (int i2 = 0; i2 < 2; ++i2) {
-            out->a[0][i1][i2] = shoulder.root[i2];
-            out->a[1][i1][i2] = sp1(xc, rotate(minus_h1, shoulder.root[i2], yc), h2);
-            out->a[2][i1][i2] = elbow.root[i1];
-            out->exists[i1][i2] = elbow.exists & shoulder.exists;
-        }
-    }
-}
-
-AI void split_two_three_meet(const IkTwoThreeMeet *P, V3 y, Shoulder *out) {
-    const V3 h3 = bc3(P->h3), minus_h1 = bc3(P->minus_h1), minus_h2 = bc3(P->minus_h2);
-    const V3 r1 = bc3(P->r1), pc1 = bc3(P->pc1), pwc = bc3(P->pwc), c = bc3(P->c);
-    V3 y1 = sub3(y, r1);
-    Quad shoulder = sp3(y1, pc1, minus_h1, bc(P->dist2), bc(P->tol2), bc(P->tiny2));
-    for (int i1 = 0; i1 < 2; ++i1) {
-        V3 zc = sub3(add3(rotate(minus_h1, shoulder.root[i1], y1), r1), c);
-        Quad upper = sp4(h3, zc, minus_h2, bc(P->d3), bc(P->tol), bc(P->tiny));
-        for (int i2 = 0; i2 < 2; ++i2) {
-            out->a[0][i1][i2] = shoulder.root[i1];
-            out->a[1][i1][i2] = upper.root[i2];
-            out->a[2][i1][i2] = sp1(pwc, rotate(minus_h2, upper.root[i2], zc), h3);
-            out->exists[i1][i2] = shoulder.exists & upper.exists;
-        }
-    }
-}
-
-AI void spherical(const IkSpherical *P, int kind, const vd *T, Branches *out) {
-    const IkWrist *W = &P->w;
-    V3 h[6], m[6];
-    for (int j = 0; j < 6; ++j) h[j] = bc3(W->h[j]), m[j] = bc3(W->minus[j]);
-    const V3 p = {{T[3], T[7], T[11]}};
-    V3 y = add3(mat_vec(T, bc3(P->pw_end)), p);
-    Shoulder first;
-    if (kind == IK_TWO_PARALLEL)
-        split_two_parallel(&P->s.two_parallel, y, &first);
-    else if (kind == IK_ONE_TWO_MEET)
-        split_one_two_meet(&P->s.one_two_meet, y, &first);
-    else
-        split_two_three_meet(&P->s.two_three_meet, y, &first);
-    V3 Rh6 = mat_vec(T, bc3(W->h6_end)), Rx6 = mat_vec(T, bc3(W->x6_end));
-    for (int i1 = 0; i1 < 2; ++i1) {
-        for (int i2 = 0; i2 < 2; ++i2) {
-            CS a1 = first.a[0][i1][i2], a2 = first.a[1][i1][i2], a3 = first.a[2][i1][i2];
-            V3 v = rotate(m[2], a3, rotate(m[1], a2, rotate(m[0], a1, Rh6)));
-            V3 x0 = rotate(m[2], a3, rotate(m[1], a2, rotate(m[0], a1, Rx6)));
-            Quad turn = sp4(h[4], v, m[3], bc(W->d56), bc(W->tol), bc(W->tiny));
-            for (int i3 = 0; i3 < 2; ++i3) {
-                CS a4 = turn.root[i3], a5, a6, phi;
-                vd sign;
-                wrist_root(W, h[3], m[3], a4, v, x0, &a5, &a6, &sign, &phi);
-                CS hf = angle_half(phi);
-                CS on6 = i3 == 0 ? hf : phi;
-                a4 = pick(turn.degenerate, i3 == 0 ? hf : (CS){bc(1.0), bc(0.0)}, a4);
-                a6 = pick(turn.degenerate, (CS){on6.c, sign * on6.s}, a6);
-                const int b = 4 * i1 + 2 * i2 + i3;
-                CS *a = out->a[b];
-                a[0] = a1, a[1] = a2, a[2] = a3, a[3] = a4, a[4] = a5, a[5] = a6;
-                out->exists[b] = first.exists[i1][i2] & turn.exists;
-            }
-        }
-    }
-}
-
-/* The angles of a block into its rows of q (n, 8, 6) and valid (n, 8): atan2, then
- * ik._angles.wrap_into_limits and within_limits. An angle that several branches share (the
- * reference's broadcast axes: IK_SHARED) is computed once. A joint with finite limits whose
- * angles are all inside them (the usual case) is settled in vectors; the others lane by lane. */
-AI void finish(const Branches *br, int kind, const double *limits, int lanes, double *q,
-               uint8_t *valid) {
-    vd angle[8][6];
-    for (int b = 0; b < 8; ++b)
-        for (int j = 0; j < 6; ++j) {
-            const int from = b & ~IK_SHARED[kind][j];
-            angle[b][j] = from == b ? atan2v(br->a[b][j].s, br->a[b][j].c) : angle[from][j];
-        }
-    for (int b = 0; b < 8; ++b) {
-        vl inside_all = br->exists[b];
-        for (int j = 0; j < 6; ++j) {
-            const double lo = limits[2 * j], hi = limits[2 * j + 1];
-            vd v = angle[b][j];
-            vl inside = (v >= lo) & (v <= hi);
-            int all_inside = isfinite(lo) && isfinite(hi);
-            for (int l = 0; l < LANES; ++l) all_inside &= inside[l] != 0;
-            if (!all_inside) {
-                for (int l = 0; l < LANES; ++l) v[l] = ik_wrap(v[l], lo, hi);
-                inside = (v >= lo) & (v <= hi);
-                angle[b][j] = v;
-            }
-            inside_all &= inside;
-        }
-        for (int l = 0; l < lanes; ++l) {
-            double *row = q + ((npy_intp)l * 8 + b) * 6;
-            for (int j = 0; j < 6; ++j) row[j] = angle[b][j][l];
-            valid[(npy_intp)l * 8 + b] = (uint8_t)(inside_all[l] != 0);
-        }
-    }
-}
-
-/* One block of LANES targets T (n, 16), rows past the end repeating the last. */
-AI void ik_block(const IkTask *task, npy_intp i) {
-    const int lanes = task->hi - i < LANES ? (int)(task->hi - i) : LANES;
-    vd T[16];
-    for (int e = 0; e < 16; ++e) {
-        vd v;
-        for (int l = 0; l < LANES; ++l) v[l] = task->T[(i + (l < lanes ? l : lanes - 1)) * 16 + e];
-        T[e] = v;
-    }
-    Branches br;
-    if (task->kind == IK_THREE_PARALLEL)
-        three_parallel((const IkThreeParallel *)task->params, T, &br);
-    else
-        spherical((const IkSpherical *)task->params, task->kind, T, &br);
-    finish(&br, task->kind, task->limits, lanes, task->q + i * 48, task->valid + i * 8);
-}
-
-TARGET static void ik_task(IkTask *task) {
-    for (npy_intp i = task->lo; i < task->hi; i += LANES) ik_block(task, i);
-}
-
-#undef vd
-#undef vl
-#undef vselect
-#undef V3
-#undef CS
-#undef Quad
-#undef Shoulder
-#undef Branches
-#undef bc
-#undef bc3
-#undef vsqrt
-#undef dot
-#undef cross
-#undef add3
-#undef sub3
-#undef unit
-#undef rotate
-#undef sp1
-#undef sp4
-#undef sp3
-#undef mat_vec
-#undef angle_plus
-#undef angle_minus
-#undef angle_half
-#undef pick
-#undef atan2v
-#undef three_parallel
-#undef split_two_parallel
-#undef split_one_two_meet
-#undef split_two_three_meet
-#undef spherical
-#undef wrist_root
-#undef finish
-#undef ik_block
-#undef ik_task
-#undef GLUE
-#undef GLUE_
+#undef IKState
+#undef ik_state
+#undef ik_dot_rows
+#undef ik_cholesky_solve
+#undef ik_damped_step
+#undef ik_capped
+#undef ik_wrapped
+#undef ik_clamped
+#undef ik_step
+#undef ik_residual
+#undef ik_finish
+#undef ik_load
+#undef ik_attempt
+#undef ik_commit
+#undef ik_run_task

@@ -173,6 +173,8 @@ static void aligned_free(unsigned char *p) {
 }
 
 
+#include "_ik_common.h" /* both IK solvers' scalar helpers (ik_wrap) */
+
 /* ------------------------------------------------------------------------------------------ */
 /* analytic IK (poekin.ik.analytic): the constants of each closed-form split, as the reference
  * writes them (analytic._flat: its dataclasses' fields in order, all doubles) */
@@ -239,28 +241,7 @@ typedef struct {
     double *q;          /* (n, 8, 6) */
     uint8_t *valid;     /* (n, 8) */
     npy_intp lo, hi;
-} IkTask;
-
-#define IK_TWO_PI (2.0 * 3.14159265358979311600e+00)
-
-/* ik._angles.wrap_into_limits for one revolute angle: np.mod as NumPy's divmod does it. */
-static inline double ik_wrap(double q, double lo, double hi) {
-    if (isinf(lo) && lo < 0 && isinf(hi) && hi > 0) {
-        double a = 3.14159265358979311600e+00 - q;
-        double mod = fmod(a, IK_TWO_PI);
-        if (mod != 0.0) {
-            if ((IK_TWO_PI < 0) != (mod < 0)) mod += IK_TWO_PI;
-        } else {
-            mod = 0.0;
-        }
-        return 3.14159265358979311600e+00 - mod;
-    }
-    if (q >= lo && q <= hi) return q;
-    double up = ceil((lo - q) / IK_TWO_PI), down = floor((hi - q) / IK_TWO_PI);
-    double raised = q + up * IK_TWO_PI, lowered = q + down * IK_TWO_PI;
-    double moved = (q < lo && raised <= hi) ? raised : q;
-    return (q > hi && lowered >= lo) ? lowered : moved;
-}
+} IkAllTask;
 
 /* Whether target T (16 numbers) is not a rigid transform as poekin.ik.analytic._targets
  * decides: NaN or inf, R^T R off the identity by more than 1e-6, det R < 0, or a last row
@@ -289,7 +270,7 @@ static int ik_bad_target(const double *T) {
 #define LANES 2 /* SSE2 on x86-64, NEON on arm64: every CPU these run on */
 #define TARGET
 #include "_kernel_core.h"
-#include "_ik_core.h"
+#include "_ik_all.h"
 #undef LANES
 #undef TARGET
 
@@ -297,22 +278,24 @@ static int ik_bad_target(const double *T) {
 #define LANES 4
 #define TARGET __attribute__((target("avx2,fma")))
 #include "_kernel_core.h"
-#include "_ik_core.h"
+#include "_ik_all.h"
 #undef LANES
 #undef TARGET
 
 #define LANES 8
 #define TARGET __attribute__((target("avx512f,avx512dq,avx512vl,avx512bw,avx2,fma")))
 #include "_kernel_core.h"
-#include "_ik_core.h"
+#include "_ik_all.h"
 #undef LANES
 #undef TARGET
 #endif
 
 typedef void (*TaskFn)(Task *);
 static TaskFn g_run_task = run_task_2;
-typedef void (*IkTaskFn)(IkTask *);
-static IkTaskFn g_ik_task = ik_task_2;
+typedef void (*IkAllTaskFn)(IkAllTask *);
+static IkAllTaskFn g_ik_all_task = ik_all_task_2;
+typedef void (*IKTaskFn)(IKTask *);
+static IKTaskFn g_ik_run_task = ik_run_task_2;
 static int g_lanes = 2;
 
 /* The widest kernel this CPU runs; widest = 0 picks the best, else 2, 4 or 8. -1: not here. */
@@ -331,7 +314,8 @@ static int choose_width(int widest) {
     g_lanes = w;
 #ifdef X86_DISPATCH
     g_run_task = w == 8 ? run_task_8 : w == 4 ? run_task_4 : run_task_2;
-    g_ik_task = w == 8 ? ik_task_8 : w == 4 ? ik_task_4 : ik_task_2;
+    g_ik_all_task = w == 8 ? ik_all_task_8 : w == 4 ? ik_all_task_4 : ik_all_task_2;
+    g_ik_run_task = w == 8 ? ik_run_task_8 : w == 4 ? ik_run_task_4 : ik_run_task_2;
 #endif
     return w;
 }
@@ -648,6 +632,11 @@ static PyTypeObject KernelType = {
 };
 
 /* ------------------------------------------------------------------------------------------ */
+/* Python type: IKSolver, a chain's inverse kinematics */
+
+#include "_ik_type.h"
+
+/* ------------------------------------------------------------------------------------------ */
 /* Python type: FastMethod(kernel_attr, fallback, names), a method that runs the kernel first */
 
 /* A method whose call `obj.m(q, out, form)` (or `obj.m(q)`) first runs `getattr(obj,
@@ -818,10 +807,10 @@ static PyObject *expose_python(PyObject *Py_UNUSED(mod), PyObject *args) {
 /* Targets per thread below which another thread does not pay for its start. */
 #define IK_MIN_PER_THREAD 2048
 
-static void ik_share(void *task) { g_ik_task((IkTask *)task); }
+static void ik_share(void *task) { g_ik_all_task((IkAllTask *)task); }
 
-static void ik_run(IkTask proto, npy_intp n, int threads) {
-    IkTask tasks[MAX_THREADS];
+static void ik_all_run(IkAllTask proto, npy_intp n, int threads) {
+    IkAllTask tasks[MAX_THREADS];
     Share shares[MAX_THREADS];
     npy_intp chunk;
     int nt = split_batch(n, IK_MIN_PER_THREAD, threads, &chunk);
@@ -836,20 +825,20 @@ static void ik_run(IkTask proto, npy_intp n, int threads) {
 
 /* A batch smaller than the kernel's width on the narrowest width that holds it: a block costs
  * about the same whatever it holds. Every width gives the same bits. */
-static void ik_run_small(IkTask task, npy_intp n) {
+static void ik_run_small(IkAllTask task, npy_intp n) {
     task.lo = 0;
     task.hi = n;
 #ifdef X86_DISPATCH
     if (n <= 2) {
-        ik_task_2(&task);
+        ik_all_task_2(&task);
         return;
     }
     if (n <= 4 && g_lanes >= 4) {
-        ik_task_4(&task);
+        ik_all_task_4(&task);
         return;
     }
 #endif
-    g_ik_task(&task);
+    g_ik_all_task(&task);
 }
 
 /* ik_all(kind, params, T, limits) -> (q, valid, bad): q (n, 8, 6) and valid (n, 8) for the n
@@ -902,16 +891,16 @@ static PyObject *ik_all(PyObject *Py_UNUSED(mod), PyObject *args) {
         return NULL;
     }
     if (n > 0) {
-        IkTask proto = {kind, PyArray_DATA(params), Td, PyArray_DATA(limits), PyArray_DATA(q),
+        IkAllTask proto = {kind, PyArray_DATA(params), Td, PyArray_DATA(limits), PyArray_DATA(q),
                         PyArray_DATA(valid), 0, 0};
         if (n >= 64) {
             int threads = g_threads;
-            Py_BEGIN_ALLOW_THREADS ik_run(proto, n, threads);
+            Py_BEGIN_ALLOW_THREADS ik_all_run(proto, n, threads);
             Py_END_ALLOW_THREADS
         } else if (n < g_lanes) {
             ik_run_small(proto, n);
         } else {
-            ik_run(proto, n, 1);
+            ik_all_run(proto, n, 1);
         }
     }
     Py_DECREF(params);
@@ -971,12 +960,20 @@ PyMODINIT_FUNC PyInit__kernel(void) {
     static const char *FORM_NAMES[3] = {"4x4", "3x4", "pos_quat"};
     for (int k = 0; k < 3; ++k)
         if ((g_form_names[k] = PyUnicode_InternFromString(FORM_NAMES[k])) == NULL) return NULL;
-    if (PyType_Ready(&KernelType) < 0 || PyType_Ready(&FastMethodType) < 0) return NULL;
+    if (PyType_Ready(&KernelType) < 0 || PyType_Ready(&FastMethodType) < 0 ||
+        PyType_Ready(&IKSolverType) < 0)
+        return NULL;
     PyObject *m = PyModule_Create(&module_def);
     if (m == NULL) return NULL;
     Py_INCREF(&KernelType);
     if (PyModule_AddObject(m, "Kernel", (PyObject *)&KernelType) < 0) {
         Py_DECREF(&KernelType);
+        Py_DECREF(m);
+        return NULL;
+    }
+    Py_INCREF(&IKSolverType);
+    if (PyModule_AddObject(m, "IKSolver", (PyObject *)&IKSolverType) < 0) {
+        Py_DECREF(&IKSolverType);
         Py_DECREF(m);
         return NULL;
     }

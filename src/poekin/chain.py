@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import dataclasses
 import functools
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from typing import TYPE_CHECKING, Any, Literal, NamedTuple
 
 import numpy as np
@@ -28,6 +28,7 @@ from poekin.errors import InputError, did_you_mean
 
 if TYPE_CHECKING:
     from poekin.ik.analytic import IKSolutions
+    from poekin.ik.numerical import IKResult
 
 __all__ = [
     "JACOBIAN_CONVENTIONS",
@@ -216,12 +217,16 @@ def _turn(pose: _pose.Pose, screw: _Screw, th: Any, s: Any, c: Any) -> _pose.Pos
     return _pose.compose(pose, R_j, t_j)
 
 
+Trig = Callable[[Sequence[Any], Any], tuple[list[Any], list[Any]]]
+
+
 def _turns(
-    screws: Sequence[_Screw], q: Sequence[Any], xp: Any
+    screws: Sequence[_Screw], q: Sequence[Any], xp: Any, trig: Trig = _pose.sincos
 ) -> list[tuple[_Screw, Any, Any, Any]]:
-    """Each screw with its angle, sine and cosine (computed once: :func:`_pose.sincos`)."""
+    """Each screw with its angle, sine and cosine (computed once by ``trig``:
+    :func:`_pose.sincos`, or the compiled kernel's own, :func:`poekin._sincos.sincos`)."""
     turning = [i for i, screw in enumerate(screws) if not screw.prismatic]
-    sines, cosines = _pose.sincos([q[i] for i in turning], xp)
+    sines, cosines = trig([q[i] for i in turning], xp)
     s: list[Any] = [None] * len(screws)
     c: list[Any] = [None] * len(screws)
     for i, si, ci in zip(turning, sines, cosines, strict=True):
@@ -270,16 +275,17 @@ def space_jacobian(
     q: Sequence[Any],
     xp: Any,
     home: _pose.Pose,
+    trig: Trig = _pose.sincos,
 ) -> tuple[list[Column], _pose.Pose]:
     """The space Jacobian's columns and the end pose ``T = exp([S_1] q_1) ... M``.
 
     Column ``i`` is ``Ad(T_{i-1}) S_i = [R w; p x R w + R v]`` with ``T_{i-1} = (R, p) =
     exp([S_1] q_1) ... exp([S_{i-1}] q_{i-1})``, rows ``[w; v]``; the partial products are
-    those of :func:`poe`.
+    those of :func:`poe`. ``trig`` computes the sines and cosines (see :func:`_turns`).
     """
     pose: _pose.Pose = (_pose.IDENTITY, _pose.ORIGIN)
     columns: list[Column] = []
-    for (screw, th, s, c), S_i in zip(_turns(screws, q, xp), S, strict=True):
+    for (screw, th, s, c), S_i in zip(_turns(screws, q, xp, trig), S, strict=True):
         R, p = pose
         a = _pose.mat_vec(R, S_i[:3])
         lever, Rv = _pose.cross(p, a), _pose.mat_vec(R, S_i[3:])
@@ -496,6 +502,8 @@ class Chain:
     _jacobian_space_kernel: Any = dataclasses.field(init=False, repr=False)
     _jacobian_body_kernel: Any = dataclasses.field(init=False, repr=False)
     _jacobian_world_kernel: Any = dataclasses.field(init=False, repr=False)
+    # what inverse kinematics derives from the chain, at first use (poekin.ik.numerical)
+    _ik_cache: dict[Any, Any] = dataclasses.field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         n = len(self.joint_names)
@@ -525,6 +533,7 @@ class Chain:
         set_(self, "_body", body)
         rows = [tuple(float(x) for x in row) for row in self.screws]
         set_(self, "_constants", _Model(space.joints(), rows, pose_of(self.home), body.joints()))
+        set_(self, "_ik_cache", {})
         terms = dataclasses.astuple
         set_(self, "_space_kernel", _fast.chain_program(*terms(space), left=None, right=self.home))
         set_(self, "_body_kernel", _fast.chain_program(*terms(body), left=self.home, right=None))
@@ -762,6 +771,75 @@ class Chain:
         th = [q[..., i] for i in range(self.n_joints)]
         pose = poe(self._constants.body, th, np, left=self._constants.home)
         return _pose.to_array(pose, "4x4", np, zeros_like_batch(q, np))  # type: ignore[no-any-return]
+
+    def ik(
+        self,
+        T: ArrayLike,
+        q0: ArrayLike | None = None,
+        *,
+        seed: int = 0,
+        pos_tol: float = 1e-10,
+        ori_tol: float = 1e-10,
+        position_only: bool = False,
+        orientation_weight: float = 0.3,
+        max_iterations: int = 50,
+        max_attempts: int = 100,
+    ) -> IKResult:
+        """Joint values that put the end frame at ``T``: numerical inverse kinematics, inside
+        the joint limits, batched (:mod:`poekin.ik.numerical` describes the algorithm).
+
+        Args:
+            T: ``(..., 4, 4)`` targets ``T_world_frame``, in the chain's base (world) frame:
+                rigid transforms (rotation orthonormal to 1e-6; the orientation is met to
+                ``ori_tol`` only if it is orthonormal to about that).
+            q0: ``(..., n)`` starts, broadcast against the targets' batch axes (rad, m): the
+                first attempt starts there (brought into the limits), so that a trajectory
+                solved target by target stays on its branch. None: every attempt starts at a
+                seeded random configuration within the limits.
+            seed: the random starts' seed, an integer from 0 to 2**64 - 1. The same targets,
+                ``q0``, seed and options give the same bits, whatever the batch, the
+                target's place in it, the thread count or the vector width.
+            pos_tol: success needs the frame's origin within this distance of the target's
+                (m, > 0).
+            ori_tol: and its rotation within this geodesic angle of the target's (rad, > 0).
+            position_only: reach the target's position only, whatever the orientation (for
+                5-joint arms and point targets); success on ``pos_tol`` alone.
+            orientation_weight: metres per radian: how much one radian of orientation error
+                weighs against one metre of position error in the least-squares residual
+                (it shapes the path to a solution and the best fit of an unreachable
+                target, not the tolerances).
+            max_iterations: iterations per attempt (each one FK and Jacobian).
+            max_attempts: attempts per target; the solve stops at the first success.
+
+        Returns:
+            An :class:`~poekin.ik.IKResult`: ``q`` ``(..., n)`` (always within the joint
+            limits; a revolute angle is moved by whole turns into them, an unlimited one
+            comes back in ``(-pi, pi]``), ``success``, ``pos_err`` (m), ``ori_err`` (rad),
+            ``iterations`` and ``attempts`` ``(...,)``. An unreachable target gets
+            ``success`` False and the least-squares best ``q`` found; it never raises.
+
+        Raises:
+            InputError: targets of the wrong shape, not finite or not rigid transforms, ``q0``
+                of the wrong length or batch shape, a tolerance or weight that is not > 0, a
+                count below 1, a bad seed.
+
+        Example:
+            >>> chain = poekin.load("universal_robots_ur5e")
+            >>> found = chain.ik(chain.fk([0.3, -1.2, 1.4, -0.5, 1.1, 0.2]))
+            >>> bool(found.success), found.q.shape
+            (True, (6,))
+        """
+        from poekin.ik.numerical import settings, solve
+
+        options = settings(
+            pos_tol=pos_tol,
+            ori_tol=ori_tol,
+            position_only=position_only,
+            orientation_weight=orientation_weight,
+            max_iterations=max_iterations,
+            max_attempts=max_attempts,
+        )
+        return solve(self, T, q0, seed=seed, options=options)
 
     def ik_all(self, T: ArrayLike) -> IKSolutions:
         """Every closed-form inverse kinematics solution: the joint values that put the end

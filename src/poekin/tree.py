@@ -25,7 +25,7 @@ from __future__ import annotations
 
 import dataclasses
 from collections.abc import Sequence
-from typing import Any, Literal, NamedTuple
+from typing import TYPE_CHECKING, Any, Literal, NamedTuple
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -48,6 +48,9 @@ from poekin.chain import (
     zeros_like_batch,
 )
 from poekin.errors import InputError, ModelError, UnknownFrameError, did_you_mean
+
+if TYPE_CHECKING:
+    from poekin.ik.numerical import IKResult
 
 __all__ = ["Mimic", "Tree", "TreeJointType", "TreeParams"]
 
@@ -288,6 +291,8 @@ class Tree:
     _jacobian_kernels: dict[tuple[str, str], Any] = dataclasses.field(
         init=False, repr=False, compare=False
     )
+    # frame name -> how Tree.ik solves for it (poekin.ik.trees.TreePlan), built at first use
+    _ik_cache: dict[str, Any] = dataclasses.field(init=False, repr=False, compare=False)
     _layout_text: str = dataclasses.field(init=False, repr=False, compare=False)
     _constants: _TreeModel = dataclasses.field(init=False, repr=False, compare=False)
     _static: _TreeLayout = dataclasses.field(init=False, repr=False, compare=False)
@@ -347,6 +352,7 @@ class Tree:
         set_(self, "_spec", spec)
         set_(self, "_kernel", _fast.tree_program(spec))
         set_(self, "_jacobian_kernels", {})
+        set_(self, "_ik_cache", {})
         # computed now, not cached at first use: torch.compile cannot trace a cache's lock
         set_(self, "_layout_text", self._layout_words())
         set_(self, "_constants", self._model_constants())
@@ -952,27 +958,31 @@ class Tree:
 
     def path_joints(self, frame: str) -> tuple[int, ...]:
         """Indices of the joints between the world and ``frame``, base to tip."""
-        body = self._frame_body(self.frame_index(frame))
-        path = []
-        while body >= 0:
-            path.append(body)
-            body = int(self.body_parents[body])
-        return tuple(k for b in reversed(path) for k in self._body_joints[b])
+        return self._path_joints_of_body(self._frame_body(self.frame_index(frame)))
 
-    def chain(self, frame: str) -> Chain:
-        """The serial PoE chain from the world to ``frame`` (a body or site name).
+    def chain(self, frame: str, base: str | None = None) -> Chain:
+        """The serial PoE chain from the world (or the body ``base``) to ``frame``, a body or
+        site name.
 
         The chain's joint values are the positions of the joints on the path, as stored in
         ``qpos`` (a mimic joint becomes an independent joint of the chain). Joints off the path
-        do not move ``frame``.
+        do not move ``frame``. With ``base``, the chain starts in that body's frame: its screws
+        and home pose are in the base's coordinates, its joints those between the base and
+        ``frame`` (``T_base_frame``; e.g. a leg from a floating base, whose own free joint the
+        chain leaves out).
 
         Raises:
-            UnknownFrameError: no such frame.
+            UnknownFrameError: no such frame, or no body ``base``.
             ModelError: a ball or free joint lies on the path (PoE chains are hinge/slide);
-                use :meth:`fk` for such frames.
+                use :meth:`fk` for such frames, or a ``base`` below it; ``base`` is not on the
+                path to ``frame``.
         """
         index = self.frame_index(frame)
         joints = self.path_joints(frame)
+        start = -1
+        if base is not None:
+            start = self._base_body(base, frame)
+            joints = joints[len(self._path_joints_of_body(start)) :]
         for k in joints:
             if self.joint_types[k] in ("ball", "free"):
                 raise ModelError(
@@ -988,6 +998,11 @@ class Tree:
         frame_pose = self._frames(bodies, self._constants)[index]
         home = _pose.to_array(frame_pose, "4x4", np, np.zeros(()))
         axes, anchors = np.array(axes_w, dtype=np.float64), np.array(anchors_w, dtype=np.float64)
+        if start >= 0:  # everything in the base's frame: T_base_world = (R^T, -R^T p)
+            T_world_base = _pose.to_array(bodies[start], "4x4", np, np.zeros(()))
+            R, p = T_world_base[:3, :3], T_world_base[:3, 3]
+            home = lie.inverse(T_world_base) @ home
+            axes, anchors = axes @ R, (anchors - p) @ R
         screws = np.zeros((len(joints), 6))
         types: list[JointType] = []
         for row, k in enumerate(joints):
@@ -1009,6 +1024,94 @@ class Tree:
             robot=self.robot,
             qpos_indices=tuple(int(self.qpos_adr[k]) for k in joints) if independent else None,
         )
+
+    def ik(
+        self,
+        T: ArrayLike,
+        frame: str,
+        qpos: ArrayLike | None = None,
+        *,
+        warm_start: bool = False,
+        seed: int = 0,
+        pos_tol: float = 1e-10,
+        ori_tol: float = 1e-10,
+        position_only: bool = False,
+        orientation_weight: float = 0.3,
+        max_iterations: int = 50,
+        max_attempts: int = 100,
+    ) -> IKResult:
+        """The ``qpos`` that puts ``frame`` at ``T``: numerical inverse kinematics over the
+        hinge and slide joints on the path to ``frame``, every other joint held at ``qpos``.
+
+        One arm of a two-armed robot or one leg of a quadruped: the other arm, the other legs
+        and a floating base keep their values. A ball or free joint on the path is held too,
+        and the joints below it are solved in its body's frame. The options, the algorithm and
+        the result are those of :meth:`poekin.Chain.ik`.
+
+        Args:
+            T: ``(..., 4, 4)`` targets ``T_world_frame`` (world frame).
+            frame: the body or site to place.
+            qpos: ``(..., nq)`` the values of every joint (MuJoCo's layout), broadcast against
+                the targets; default :attr:`qpos0`.
+            warm_start: start the first attempt at ``qpos``'s values of the solved joints
+                (a trajectory stays on its branch), rather than at a random configuration.
+            seed, pos_tol, ori_tol, position_only, orientation_weight, max_iterations,
+            max_attempts: as for :meth:`poekin.Chain.ik`.
+
+        Returns:
+            An :class:`~poekin.ik.IKResult` whose ``q`` is the whole ``(..., nq)`` qpos: the
+            solved joints' values (within their limits), every other entry as given.
+
+        Raises:
+            UnknownFrameError: no such frame.
+            InputError: bad targets, ``qpos`` or options; a mimic joint on the path, or a ball
+                or free joint below a hinge or slide one (Tree.ik solves independent hinge and
+                slide joints below the last ball or free joint only).
+
+        Example:
+            >>> tree = poekin.load_tree("aloha")
+            >>> qpos = poekin.sample_qpos(tree, 1, seed=1, within_limits=True)[0]
+            >>> T = tree.pose(qpos, "left/gripper")
+            >>> found = tree.ik(T, "left/gripper")  # the right arm stays at qpos0
+            >>> bool(found.success), found.q.shape
+            (True, (16,))
+        """
+        from poekin.ik.numerical import settings
+        from poekin.ik.trees import solve_tree
+
+        options = settings(
+            pos_tol=pos_tol,
+            ori_tol=ori_tol,
+            position_only=position_only,
+            orientation_weight=orientation_weight,
+            max_iterations=max_iterations,
+            max_attempts=max_attempts,
+        )
+        return solve_tree(self, T, frame, qpos, warm_start=warm_start, seed=seed, options=options)
+
+    def _path_joints_of_body(self, body: int) -> tuple[int, ...]:
+        path = []
+        while body >= 0:
+            path.append(body)
+            body = int(self.body_parents[body])
+        return tuple(k for b in reversed(path) for k in self._body_joints[b])
+
+    def _base_body(self, base: str, frame: str) -> int:
+        """The index of body ``base``, which must lie on the path from the world to ``frame``."""
+        if base not in self.body_names:
+            raise UnknownFrameError(
+                f"no body named {base!r}: {did_you_mean(base, list(self.body_names))}"
+            )
+        b = self.body_names.index(base)
+        body = self._frame_body(self.frame_index(frame))
+        while body >= 0 and body != b:
+            body = int(self.body_parents[body])
+        if body != b:
+            raise ModelError(
+                f"body {base!r} is not on the path from the world to {frame!r}: a chain's base "
+                "must be the frame's body or one of its ancestors"
+            )
+        return b
 
     def __repr__(self) -> str:
         source = f"{self.robot!r}, " if self.robot else ""

@@ -27,15 +27,16 @@ def wrap_into_limits(q: FloatArray, limits: FloatArray, revolute: BoolArray) -> 
         ``(..., n)`` float64: an angle already within its limits stays as it is (bit for bit);
         one outside moves by the fewest turns that bring it inside; one that no whole turn
         brings inside stays as it is (the caller reports it). A joint without limits on either
-        side comes back in ``(-pi, pi]``.
+        side comes back in ``(-pi, pi]`` (one there already stays as it is).
     """
     q = np.array(q, dtype=np.float64)  # a copy: the caller's array is never changed
     lo, hi = limits[:, 0], limits[:, 1]
     unlimited = revolute & np.isneginf(lo) & np.isposinf(hi)
     limited = revolute & ~unlimited
-    # (-pi, pi]: pi - ((pi - q) mod 2 pi) lies in (-pi, pi] for every finite q
+    # (-pi, pi]: pi - ((pi - q) mod 2 pi) lies in (-pi, pi] for every finite q; an angle there
+    # already stays as it is, bit for bit
     free = np.pi - np.mod(np.pi - q, TWO_PI)
-    q = np.where(unlimited, free, q)
+    q = np.where(unlimited & ~((q > -np.pi) & (q <= np.pi)), free, q)
     inside = (q >= lo) & (q <= hi)
     with np.errstate(invalid="ignore"):  # inf limits: the turn counts are not used there
         up = np.ceil((lo - q) / TWO_PI)  # fewest whole turns up to reach lo
