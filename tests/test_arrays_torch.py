@@ -67,6 +67,7 @@ def test_torch_func_vmap_jacrev_and_grad(torch: Any, ur5e: Chain, go2: Tree) -> 
     assert isinstance(grads, ChainParams) and tuple(grads.home.shape) == (4, 4)
 
 
+@pytest.mark.slow
 def test_compile_fullgraph_has_no_graph_break(torch: Any, ur5e: Chain, go2: Tree) -> None:
     """torch.compile(fullgraph=True) raises at the first graph break. chain.fk and a Jacobian,
     forward and backward, through Dynamo and AOTAutograd (the aot_eager backend); tree.fk and
@@ -95,6 +96,7 @@ def test_compile_fullgraph_has_no_graph_break(torch: Any, ur5e: Chain, go2: Tree
     assert_close("tree.jacobian", got[1].numpy(), go2.jacobian(qpos.numpy(), "FL_calf"), LIB_TOL)
 
 
+@pytest.mark.slow
 def test_compile_fullgraph_as_the_first_torch_call() -> None:
     """torch.compile(fullgraph=True) of chain.fk and tree.fk as a process's first torch
     computation (issue #20): poekin then resolves PyTorch's array-API namespace inside Dynamo's
