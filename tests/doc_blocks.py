@@ -24,6 +24,9 @@ An HTML comment on the line before a fence changes how it is run:
   runs (the install and test commands);
 * ``<!-- readme: offline -->``: run without ``MENAGERIE_ROOT``, with an empty Menagerie download
   cache and no address to download from, as on a fresh machine;
+* no directive: run with ``MENAGERIE_ROOT`` as the tests set it (``tests/data/menagerie``, XML
+  only). The UR5e there loads with a kinematics-only note that the reader never sees (poekin's
+  built-in copy, or a clone with the meshes, loads silently): that note is ignored;
 * ``<!-- readme: file NAME -->``: the block (a parameter file, say) is written to ``NAME`` in the
   scratch folder, for the commands after it;
 * ``<!-- readme: not run -->``: shown only (a server that runs until stopped); say why beside it.
@@ -163,14 +166,24 @@ def scratch(folder: pathlib.Path) -> pathlib.Path:
 
 @contextlib.contextmanager
 def environment(offline: bool, scratch: pathlib.Path) -> Iterator[None]:
-    """Variables for a block: offline (no MENAGERIE_ROOT, no cache, nowhere to download from)."""
+    """Variables for a block: offline (no MENAGERIE_ROOT, no cache, nowhere to download from);
+    else the tests' Menagerie copies, without the note of their UR5e's missing meshes (for the
+    commands run in this process): a reader loads poekin's built-in UR5e, or a clone with the
+    meshes, and sees no note."""
+    import poekin
+
     saved = dict(os.environ)
     try:
-        if offline:
-            os.environ.pop("MENAGERIE_ROOT", None)
-            os.environ["MENAGERIE_CACHE_DIR"] = str(scratch / ".menagerie-cache")
-            os.environ["MENAGERIE_BASE_URL"] = (scratch / ".nowhere").as_uri()
-        yield
+        with warnings.catch_warnings():
+            if offline:
+                os.environ.pop("MENAGERIE_ROOT", None)
+                os.environ["MENAGERIE_CACHE_DIR"] = str(scratch / ".menagerie-cache")
+                os.environ["MENAGERIE_BASE_URL"] = (scratch / ".nowhere").as_uri()
+            else:
+                warnings.filterwarnings(
+                    "ignore", r"ur5e\.xml: loaded for kinematics only", poekin.AssetsStrippedWarning
+                )
+            yield
     finally:
         os.environ.clear()
         os.environ.update(saved)
@@ -206,8 +219,9 @@ def run(command: str, cwd: pathlib.Path) -> tuple[int, str]:
             warnings.catch_warnings(),
         ):
             # as in a new process: a note shown to an earlier command is shown again (a change
-            # of the filters empties every module's record of the warnings it has shown)
-            warnings.simplefilter("default")
+            # of the filters empties every module's record of the warnings it has shown;
+            # appended, it overrides none of the filters in force)
+            warnings.simplefilter("default", append=True)
             try:
                 code = main(shlex.split(command, comments=True)[1:])
             except SystemExit as e:  # argparse: --help, usage errors

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import importlib
 import os
+import pathlib
 import warnings
 from typing import Any
 
@@ -128,3 +129,23 @@ def assert_labels_apart(fig: Any) -> None:
         for j, (b, box_b) in enumerate(boxes):
             if j != i and (id(b) not in labels or j > i):
                 assert not box_a.overlaps(box_b), f"{a.get_text()!r} overlaps {b.get_text()!r}"
+
+
+def mesh_menagerie() -> pathlib.Path:
+    """A Menagerie clone with the UR5e's meshes, for the few tests that draw or hash them
+    (tests/data/menagerie is XML only): ``POEKIN_MESH_MENAGERIE`` if set, else
+    ``../shared/menagerie`` beside the checkout. Without one the test skips, saying how to
+    enable it; with ``POEKIN_REQUIRE_MESHES=1`` (CI) it fails instead."""
+    root = pathlib.Path(__file__).resolve().parents[1]
+    folder = pathlib.Path(
+        os.environ.get("POEKIN_MESH_MENAGERIE") or root.parent / "shared" / "menagerie"
+    )
+    if (folder / "universal_robots_ur5e" / "assets" / "base_0.obj").is_file():
+        return folder
+    why = (
+        f"needs the UR5e's meshes, not found under {folder}: set POEKIN_MESH_MENAGERIE to a "
+        "mujoco_menagerie clone with them"
+    )
+    if os.environ.get("POEKIN_REQUIRE_MESHES") == "1":
+        pytest.fail(f"{why} (POEKIN_REQUIRE_MESHES=1)")
+    pytest.skip(why)

@@ -272,6 +272,7 @@ def test_gradients_through_quaternions_are_finite(lib: Lib) -> None:
 LOG_ANGLES = [0.0, 1e-12, 1e-7, 1e-3, 0.3, 2.0, np.pi - 1e-3, np.pi - 1e-6, np.pi - 1e-9, np.pi]
 
 
+@pytest.mark.slow
 def test_gradients_through_log_near_zero_and_pi(lib: Lib) -> None:
     """d log(exp(w)) / dw is the identity for |w| < pi, near 0 (Taylor branch) and near pi
     (the symmetric-part branch) alike; exactly at pi, where log jumps, it is finite. So is the
@@ -330,6 +331,7 @@ def test_parameters_round_trip(lib: Lib, ur5e: Chain, features: Tree) -> None:
     assert np.array_equal(features.with_parameters(tparams).body_rot, features.body_rot)
 
 
+@pytest.mark.slow
 def test_chain_parameter_gradients_equal_central_differences(lib: Lib, ur5e: Chain) -> None:
     """d fk / d screws and d fk / d home, space and body form, with the general formulas (the
     UR5e's axes are coordinate axes: a shortcut there would get the axis derivative wrong)."""
@@ -354,6 +356,7 @@ def test_chain_parameter_gradients_equal_central_differences(lib: Lib, ur5e: Cha
         assert_close(f"{method} d/dhome", got, fd, FD_TOL)
 
 
+@pytest.mark.slow
 def test_tree_parameter_gradients_equal_central_differences(lib: Lib, features: Tree) -> None:
     """Every field of TreeParams at once (a pytree): body offsets, joint axes (hinge and slide),
     anchors (hinge and ball), site offsets; a scalar loss of all frames, reverse mode."""

@@ -492,12 +492,7 @@ def test_argparse_errors_are_one_line(
     assert err.count("\n") == 1 and message in err and "--help" in err
 
 
-def test_no_network_menagerie(
-    capsys: pytest.CaptureFixture[str], tmp_path: pathlib.Path, monkeypatch: pytest.MonkeyPatch
-) -> None:
-    monkeypatch.delenv("MENAGERIE_ROOT")
-    monkeypatch.setenv("MENAGERIE_CACHE_DIR", str(tmp_path))
-    monkeypatch.setenv("MENAGERIE_BASE_URL", (tmp_path / "offline").as_uri())
+def test_no_network_menagerie(capsys: pytest.CaptureFixture[str], fresh_machine: None) -> None:
     code, _, err = run(capsys, "verify", "franka_fr3")
     assert code == 2
     assert_one_error_line(
@@ -517,7 +512,7 @@ def test_every_command_has_help_with_an_example(
     assert f"poekin {command}" in capsys.readouterr().out.split("example")[1]
 
 
-def test_console_script_runs_without_traceback() -> None:
+def test_console_script_runs_without_traceback(fresh_machine: None) -> None:
     """The installed entry point, in a real process: exit code and stderr as a user sees them."""
     proc = subprocess.run(
         [sys.executable, "-m", "poekin.cli", "fk", "universal_robots_ur5e", "--q", "1"],
@@ -543,9 +538,9 @@ NOT_FOR_VERIFY = [
 ]
 
 
-def test_verify_imports_only_what_it_needs() -> None:
-    """``import poekin`` imports no MuJoCo, and ``poekin verify`` none of the modules it does not
-    use; MUJOCO_GL is left as the user had it."""
+def test_verify_imports_only_what_it_needs(fresh_machine: None) -> None:
+    """``import poekin`` imports no MuJoCo, and ``poekin verify`` (the built-in UR5e) none of the
+    modules it does not use; MUJOCO_GL is left as the user had it."""
     code = (
         "import os, sys\n"
         "import poekin\n"
@@ -979,7 +974,10 @@ def test_diagnose_a_table_typed_with_four_decimals(
     assert errors == sorted(errors, reverse=True) and len(set(errors)) == len(errors)
 
 
-def test_degrees_with_deg_and_a_note_without(capsys: pytest.CaptureFixture[str]) -> None:
+def test_degrees_with_deg_and_a_note_without(
+    capsys: pytest.CaptureFixture[str], fresh_machine: None
+) -> None:
+    """The built-in UR5e, which loads without a note of its own: only --deg's note is left."""
     chain = load("universal_robots_ur5e")
     degrees = ["0", "-90", "90", "0", "45", "0"]
     code, out, err = run(capsys, "fk", "universal_robots_ur5e", "--deg", "--json", "--q", *degrees)

@@ -107,7 +107,16 @@ def _serve_then_stop(example: str, folder: pathlib.Path) -> tuple[int, str]:
 
 
 @pytest.mark.filterwarnings("ignore::poekin.AssetsStrippedWarning")
-@pytest.mark.parametrize(("command", "example"), EXAMPLES, ids=[e for _, e in EXAMPLES])
+# `poekin view` examples take port 8080 (or the next free one) and 8081: one xdist worker runs
+# them all (pytest -n 2 --dist loadgroup), one after the other
+@pytest.mark.parametrize(
+    ("command", "example"),
+    [
+        pytest.param(c, e, marks=[pytest.mark.xdist_group("view ports")] if c == "view" else [])
+        for c, e in EXAMPLES
+    ],
+    ids=[e for _, e in EXAMPLES],
+)
 def test_help_example_runs(command: str, example: str, tmp_path: pathlib.Path) -> None:
     _fixtures(tmp_path)
     if command == "view":

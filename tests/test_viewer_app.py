@@ -12,7 +12,7 @@ from collections.abc import Iterator
 
 import numpy as np
 import pytest
-from helpers import assert_close, load_quiet
+from helpers import assert_close, load_quiet, mesh_menagerie
 
 import poekin
 from poekin import lie
@@ -101,14 +101,20 @@ def test_go2_floating_base_nodes_against_the_tree(go2: Viewer) -> None:
     assert "stand-in" in go2.node("/robot/b0/part0").name or go2.node_names("part")
 
 
-def test_ur5e_geometry_is_the_models_meshes(ur5e: Viewer) -> None:
-    geometry = ur5e.wait_geometry()
-    assert not geometry.stand_in and geometry.note.startswith("the model's 20 meshes")
-    assert len(ur5e.node_names("part")) == len(geometry.parts) == 20
-    # one mesh node per part, sent once, hanging on the part's body node
-    for k, part in enumerate(geometry.parts):
-        handle = ur5e.node(f"/robot/b{part.body}/part{k}")
-        assert handle.vertices.shape == part.vertices.shape
+def test_ur5e_geometry_is_the_models_meshes() -> None:
+    """The complete UR5e (the tests' copy has no meshes): its 20 meshes, each on its body."""
+    xml = mesh_menagerie() / "universal_robots_ur5e" / "ur5e.xml"
+    with view(str(xml), port=0, open_browser=False) as ur5e:
+        geometry = ur5e.wait_geometry()
+        assert not geometry.stand_in and geometry.note.startswith("the model's 20 meshes")
+        assert len(ur5e.node_names("part")) == len(geometry.parts) == 20
+        # one mesh node per part, sent once, hanging on the part's body node
+        for k, part in enumerate(geometry.parts):
+            handle = ur5e.node(f"/robot/b{part.body}/part{k}")
+            assert handle.vertices.shape == part.vertices.shape
+        tree = ur5e.subject.tree
+        assert tree is not None
+        _check_scene(ur5e, poekin.sample_qpos(tree, 1, seed=2)[0])
 
 
 def test_poe_steps_dh_frames_and_all_frames(ur5e: Viewer) -> None:
@@ -313,6 +319,9 @@ def test_opacity_and_framing(ur5e: Viewer) -> None:
     assert {ur5e.node(n).opacity for n in ur5e.node_names("part")} == {0.5}
     ur5e.set_option("robot opacity", 1.0)
     assert {ur5e.node(n).opacity for n in ur5e.node_names("part")} == {None}
+    # framing fits the robot as it stands: stretched out, the camera stands back beyond its
+    # reach (whatever pose an earlier test left, which differs when tests run in parallel)
+    ur5e.q = [0.5, 0, 0, 0, 0, 0]
     ur5e.frame_view()  # no page open: nothing to point
     position, look_at = ur5e._camera(ur5e.snapshot())
     assert np.linalg.norm(position - look_at) > ur5e.subject.extent

@@ -19,11 +19,13 @@ from typing import Any
 import matplotlib.image as mimage
 import numpy as np
 import pytest
-from helpers import assert_close
+from helpers import assert_close, mesh_menagerie
 
 import poekin
 from poekin.viewer.app import HEADLESS_CHROMIUM as CHROMIUM
 from poekin.viewer.app import HEADLESS_CHROMIUM_ARGS as CHROMIUM_ARGS
+
+pytestmark = pytest.mark.slow  # a browser per module, WebGL in software: seconds a page
 
 TIMEOUT_MS = 60_000  # WebGL in software on a shared machine is slow
 
@@ -135,7 +137,11 @@ def _printed_T(text: str, frame: str) -> np.ndarray:
     return np.array([[float(x) for x in ln.split()] for ln in rows[:4]])
 
 
-def test_ur5e_page_slider_readout_forms_and_poe_steps(browser: Any, serve: Any) -> None:
+def test_ur5e_page_slider_readout_forms_and_poe_steps(
+    browser: Any, serve: Any, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The complete UR5e, meshes drawn (the tests' copy has none)."""
+    monkeypatch.setenv("MENAGERIE_ROOT", str(mesh_menagerie()))
     page = Page(browser, serve("universal_robots_ur5e"))
     chain = poekin.load("universal_robots_ur5e")
     page.text_with("geometry: the model's 20 meshes")

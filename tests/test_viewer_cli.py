@@ -15,6 +15,9 @@ from poekin.cli import main
 
 pytest.importorskip("viser")
 
+# `poekin view` as a user on a fresh machine runs it: the built-in UR5e, which loads silently
+pytestmark = pytest.mark.usefixtures("fresh_machine")
+
 
 def _start(*argv: str) -> subprocess.Popen[str]:
     return subprocess.Popen(

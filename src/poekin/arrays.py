@@ -50,19 +50,25 @@ def kind_of(x: object) -> Kind | None:
 
 
 def namespace(kind: Kind) -> Any:
-    """The array-API namespace of ``kind``'s arrays (``jax.numpy``; array-api-compat's torch)."""
+    """The array-API namespace of ``kind``'s arrays (``jax.numpy``; array-api-compat's torch).
+
+    Imported by ``import`` statements, never ``importlib``: under ``torch.compile``, the first
+    call of a process runs inside Dynamo's trace, which executes an ``import`` statement but
+    refuses ``importlib.import_module`` (a graph break, an error with ``fullgraph=True``).
+    """
     xp = _namespaces.get(kind)
     if xp is None:
-        from poekin._extras import require
+        try:
+            import array_api_compat  # noqa: F401  # the extra's requirement, JAX's included
+        except ImportError as e:
+            from poekin._extras import missing_extra
 
-        what = "JAX arrays" if kind == "jax" else "PyTorch tensors"
-        array_api_compat = require("array_api_compat", kind, what, package="array-api-compat")
+            what = "JAX arrays" if kind == "jax" else "PyTorch tensors"
+            raise missing_extra("array-api-compat", kind, what) from e
         if kind == "jax":
             import jax.numpy as xp
         else:
-            import torch
-
-            xp = array_api_compat.array_namespace(torch.empty(0))
+            import array_api_compat.torch as xp
         _namespaces[kind] = xp
     return xp
 
