@@ -19,7 +19,13 @@ Rows (each a prefix of the same targets):
 * pytorch_kinematics ``PseudoInverseIK`` (float64 CPU, 10 retries, 50 iterations), its chain
   from the Menagerie file: one batch;
 * Pinocchio's CLIK loop (its documentation's example: damped least squares, ``DT = 0.1``,
-  1,000 iterations, 10 restarts; limits by clamping), its model from the Menagerie file: a loop.
+  1,000 iterations, 10 restarts; limits by clamping), its model from the Menagerie file: a loop;
+* poekin on JAX arrays, ``jax.jit(jax.vmap(chain.ik))`` in float64 (16 attempts side by side,
+  50 iterations each: the fixed-iteration solve of ``poekin.ik.fixed``): the first call (trace
+  and compile) and the median of later calls, with XLA's default options and with its quick
+  compile (``compiler_options``: no fusion emitters, backend optimisation level 0); poekin on
+  PyTorch tensors, ``chain.ik(tensor)`` eagerly (float64; torch.compile runs the solve eagerly
+  too): one batch. On the UR5e and the Panda unless ``--arrays-arms`` says otherwise.
 
 The anchors run on the UR5e and the Panda (the issue's table) unless ``--arms`` says otherwise;
 solvers that are not installed are skipped (``pip install -e '.[bench]'``). Timings are wall
@@ -31,6 +37,7 @@ examples:
   python benchmarks/bench_ik.py --quick                      # seconds; what CI runs
   python benchmarks/bench_ik.py --json ik.json
   python benchmarks/bench_ik.py --arms ur5e panda --skip pinocchio
+  python benchmarks/bench_ik.py --arms ur5e --skip roboticstoolbox pytorch_kinematics pinocchio
 """
 
 from __future__ import annotations
@@ -67,6 +74,9 @@ ARMS = {
     "lite6": ("ufactory_lite6", None),
 }
 ANCHOR_ARMS = ("ur5e", "panda")
+ARRAYS_ARMS = ("ur5e", "panda")  # JAX and PyTorch rows
+# XLA's quick compile on the CPU (docs/ik.md): less compile time, slower programs
+QUICK_COMPILE = {"xla_cpu_use_fusion_emitters": False, "xla_backend_optimization_level": 0}
 TOLERANCES = {"1e-9": (1e-9, 1e-9), "1e-5": (1e-5, 1e-5), "5mm/0.05rad": (5e-3, 0.05)}
 UNREACHABLE_M = 2.5  # every arm here reaches less than 1.5 m
 
@@ -82,10 +92,18 @@ class Sizes:
     rtb: int = 2_000  # Robotics Toolbox's loop
     pytorch_kinematics: int = 1_000  # its batch
     pinocchio: int = 100  # its loop (milliseconds per target)
+    arrays: int = 1_000  # poekin's JAX and PyTorch batches
 
 
 QUICK = Sizes(
-    targets=200, repeats=2, single=50, unreachable=20, rtb=20, pytorch_kinematics=20, pinocchio=5
+    targets=200,
+    repeats=2,
+    single=50,
+    unreachable=20,
+    rtb=20,
+    pytorch_kinematics=20,
+    pinocchio=5,
+    arrays=16,
 )
 
 
@@ -258,6 +276,67 @@ def unreachable_row(case: Case, sizes: Sizes) -> Row:
     )
 
 
+def arrays_rows(case: Case, sizes: Sizes) -> list[Row]:
+    """poekin's fixed-iteration solve on JAX arrays (``jit(vmap(chain.ik))``) and PyTorch
+    tensors (eager), float64, on the first ``sizes.arrays`` targets. In ``--quick`` runs (CI)
+    JAX compiles with :data:`QUICK_COMPILE` only."""
+    n = min(sizes.arrays, len(case.T))
+    T, chain = case.T[:n], case.chain
+    rows = []
+    if package_version("jax") is not None:
+        import jax
+
+        jax.config.update("jax_enable_x64", True)
+        quick = sizes.arrays == QUICK.arrays
+        for options, label in [({}, "XLA defaults"), (QUICK_COMPILE, "XLA quick compile")]:
+            if quick and not options:
+                continue
+            solve = jax.jit(jax.vmap(chain.ik), compiler_options=options)
+            targets = jax.device_put(T)
+            t0 = time.perf_counter()
+            found = jax.block_until_ready(solve(targets))
+            first = time.perf_counter() - t0
+            samples = []
+            for _ in range(sizes.repeats):
+                t0 = time.perf_counter()
+                jax.block_until_ready(solve(targets))
+                samples.append(time.perf_counter() - t0)
+            rows.append(
+                Row(
+                    "poekin jit(vmap(chain.ik)), JAX",
+                    case.arm,
+                    "batch",
+                    n,
+                    float(np.median(samples)) / n * 1e6,
+                    success=success_rates(case, np.asarray(found.q), n),
+                    note=f"{label}; first call (trace, compile, run) {first:.2f} s; "
+                    f"jax {jax.__version__} on {jax.devices()[0].platform}, float64",
+                )
+            )
+    if package_version("torch") is not None:
+        import torch
+
+        tensor = torch.from_numpy(T)
+        chain.ik(tensor[:2])  # the first call's imports
+        samples = []
+        for _ in range(max(1, sizes.repeats // 2)):
+            t0 = time.perf_counter()
+            found_t = chain.ik(tensor)
+            samples.append(time.perf_counter() - t0)
+        rows.append(
+            Row(
+                "poekin chain.ik, PyTorch eager",
+                case.arm,
+                "batch",
+                n,
+                float(np.median(samples)) / n * 1e6,
+                success=success_rates(case, found_t.q.numpy(), n),
+                note=f"torch {torch.__version__}, {torch.get_num_threads()} threads, float64",
+            )
+        )
+    return rows
+
+
 # --- anchors ----------------------------------------------------------------------------------
 
 
@@ -413,6 +492,7 @@ ANCHORS: dict[str, tuple[str, Callable[[Case, Sizes], list[Row]]]] = {
 # further solvers (Chain.ik_all) go here: name -> (distribution, rows)
 SOLVERS: dict[str, tuple[str, Callable[[Case, Sizes], list[Row]]]] = {
     "poekin": ("numpy", poekin_rows),
+    "poekin_arrays": ("array-api-compat", arrays_rows),
     **ANCHORS,
 }
 
@@ -467,7 +547,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--quick", action="store_true", help="tiny sizes (CI)")
     parser.add_argument("--arms", nargs="+", choices=list(ARMS), default=list(ARMS))
     parser.add_argument("--anchor-arms", nargs="+", choices=list(ARMS), default=list(ANCHOR_ARMS))
-    parser.add_argument("--skip", nargs="+", choices=list(ANCHORS), default=[])
+    parser.add_argument("--arrays-arms", nargs="+", choices=list(ARMS), default=list(ARRAYS_ARMS))
+    parser.add_argument("--skip", nargs="+", choices=[*ANCHORS, "poekin_arrays"], default=[])
     parser.add_argument("--json", type=pathlib.Path, help="write the rows and machine here")
     args = parser.parse_args(argv)
     sizes = QUICK if args.quick else Sizes()
@@ -483,6 +564,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         case = make_case(arm, sizes.targets)
         for name, (dist, solver) in SOLVERS.items():
             if name in args.skip or (name in ANCHORS and arm not in args.anchor_arms):
+                continue
+            if name == "poekin_arrays" and arm not in args.arrays_arms:
                 continue
             if package_version(dist) is None:
                 skipped.append(f"{name} (not installed)")

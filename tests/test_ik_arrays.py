@@ -10,24 +10,27 @@ programs, with XLA's quick options (``FAST_COMPILE``), and are marked slow."""
 
 from __future__ import annotations
 
+import contextlib
 import functools
 import json
 import os
 import subprocess
 import sys
 import textwrap
+from dataclasses import astuple
 from typing import Any
 
 import numpy as np
 import pytest
 from array_libs import LIBRARIES, Lib, load
+from helpers import load_quiet
 from test_ik_numerical import arm, check_by_mujoco, mj_poses, uniform_q
 
 import poekin
-from poekin import InputError, lie
+from poekin import InputError, arrays, lie
 from poekin.chain import Chain, ChainParams
-from poekin.ik import IKResult
-from poekin.ik._angles import within_limits
+from poekin.ik import IKResult, _rng
+from poekin.ik._angles import within_limits, wrap_into_limits
 
 REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 # XLA's quick compile on the CPU: 2-4x less compile time, slower programs (docs/ik.md)
@@ -147,6 +150,8 @@ def test_the_callers_library_dtype_and_batch_shape() -> None:
         assert found.success.dtype == torch.bool and found.iterations.dtype == torch.int64
         expected = chain.ik(T[:n].reshape(*batch, 4, 4), q[0], max_attempts=3)
         np.testing.assert_array_equal(L.numpy(found.attempts), expected.attempts)
+        flat = [x.reshape(n, *x.shape[len(batch) :]) for x in astuple(numpy_result(found, L))]
+        check_by_mujoco(loaded, chain, T[:n], IKResult(*flat))
     single = chain.ik(torch.tensor(T, dtype=torch.float32), pos_tol=3e-5, ori_tol=3e-5)
     assert single.q.dtype == torch.float32 and bool(single.success.all())
     q32 = L.numpy(single.q).astype(np.float64)
@@ -157,17 +162,20 @@ def test_the_callers_library_dtype_and_batch_shape() -> None:
 
 def test_position_only_and_q0_outside_the_limits() -> None:
     """PyTorch: a point target for the 5-joint SO-100; q0 turned and clamped into the limits."""
-    torch = lib("torch").module
-    so100 = poekin.load("trs_so_arm100", "Fixed_Jaw")
-    points = so100.fk(uniform_q(so100, 5, seed=33))
-    reach = so100.ik(torch.tensor(points), position_only=True, max_attempts=8)
+    L = lib("torch")
+    loaded = load_quiet("trs_so_arm100")
+    so100 = poekin.load(loaded, "Fixed_Jaw")
+    points = mj_poses(loaded, so100, uniform_q(so100, 5, seed=33))
+    reach = so100.ik(L.asarray(points), position_only=True, max_attempts=8)
     assert bool(reach.success.all())
-    pos = np.linalg.norm(so100.fk(reach.q.numpy())[:, :3, 3] - points[:, :3, 3], axis=-1)
-    assert pos.max() < 1e-10
-    _, chain = arm("ur5e")
-    far = np.full(6, 9.0)  # beyond every limit (the UR5e's are +-2 pi)
-    found = chain.ik(torch.tensor(chain.fk(np.zeros(6))), torch.tensor(far), max_attempts=1)
-    assert within_limits(found.q.numpy(), chain.limits)
+    check_by_mujoco(loaded, so100, points, numpy_result(reach, L), position_only=True)
+    loaded, chain = arm("ur5e")
+    far = np.full(6, 9.0)  # beyond every limit (the UR5e's are +-2 pi, the elbow's +-pi)
+    T = mj_poses(loaded, chain, far[None] - 2 * np.pi)
+    found = chain.ik(L.asarray(T), L.asarray(far), max_attempts=1)
+    check_by_mujoco(loaded, chain, T, numpy_result(found, L))
+    assert bool(found.success.all()) and int(found.iterations) == 1  # turned: the same pose
+    np.testing.assert_allclose(L.numpy(found.q), far[None] - 2 * np.pi, atol=1e-15)
 
 
 @pytest.mark.slow
@@ -202,6 +210,30 @@ def test_torch_compile_runs_the_solve_eagerly() -> None:
     T = torch.tensor(chain.fk(uniform_q(chain, 5, seed=35)))
     compiled = torch.compile(lambda t: chain.ik(t, max_attempts=2).q * 2.0)
     assert torch.equal(compiled(T), chain.ik(T, max_attempts=2).q * 2.0)
+
+
+@pytest.mark.parametrize("name", LIBRARIES)
+def test_the_random_starts_and_whole_turns_are_numpys_bits(name: str) -> None:
+    """The shared helpers on the library's arrays: the keys and uniform numbers of the random
+    starts (64-bit words), and wrap_into_limits, equal NumPy's bit for bit."""
+    L = lib(name)
+    rng = np.random.default_rng(36)
+    T = rng.normal(size=(40, 4, 4))
+    q0 = rng.normal(size=(40, 7))
+    attempt = np.arange(5)[:, None]
+    expected = _rng.uniform(_rng.target_keys(9, T, q0), attempt, 3)
+    xp = arrays.namespace(name)
+    wide = L.module.enable_x64(True) if name == "jax" else contextlib.nullcontext()
+    with wide:
+        keys = _rng.target_keys(9, L.asarray(T), L.asarray(q0), xp)
+        got = L.numpy(_rng.uniform(keys, L.asarray(attempt, "int64"), 3, xp))
+    assert np.array_equal(got.view(np.uint64), expected.view(np.uint64))
+    limits = np.array([[-np.inf, np.inf], [-1.0, 2.0], [-0.5, np.inf], [-3.0, 3.0]])
+    revolute = np.array([True, True, True, False])
+    q = rng.uniform(-40.0, 40.0, (200, 4))
+    turned = wrap_into_limits(L.asarray(q), limits, revolute, xp)
+    want = wrap_into_limits(q, limits, revolute)
+    assert np.array_equal(L.numpy(turned).view(np.uint64), want.view(np.uint64))
 
 
 # --- derivatives ------------------------------------------------------------------------------
@@ -411,6 +443,7 @@ SHARDED = textwrap.dedent(
             jax.tree.leaves(one), jax.tree.leaves(by_map))),
         "spread_over": len(by_map.q.sharding.device_set),
         "solved": float(np.asarray(by_map.success).mean()),
+        "answers": [np.asarray(x).tolist() for x in jax.tree.leaves(by_map)[:4]],
         "collectives": sorted(set(re.findall(
             r"all-reduce|all-gather|collective-permute|all-to-all|reduce-scatter", hlo))),
     }))
@@ -430,6 +463,10 @@ def test_a_batch_sharded_over_8_devices_is_one_devices_bit_for_bit() -> None:
     )
     assert done.returncode == 0, done.stderr[-3000:]
     out = json.loads(done.stdout.strip().splitlines()[-1])
+    loaded, chain = arm("ur5e")
+    q = np.random.default_rng(0).uniform(chain.limits[:, 0], chain.limits[:, 1], (64, 6))
+    answers = [np.array(x) for x in out.pop("answers")]  # q, success, pos_err, ori_err
+    check_by_mujoco(loaded, chain, chain.fk(q), IKResult(*answers, *answers[-2:]))
     assert out == {
         "devices": 8,
         "equal": True,

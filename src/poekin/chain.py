@@ -845,12 +845,25 @@ class Chain:
             >>> bool(found.success), found.q.shape
             (True, (6,))
         """
-        from poekin.ik import fixed, numerical
+        from poekin.ik.numerical import DEFAULT_MAX_ATTEMPTS, settings, solve
+
+        numpy = params is None and arrays.kind_of(T) is None
+        if numpy and (q0 is None or arrays.kind_of(q0) is None):  # the kernel's path, quickly
+            options = settings(
+                pos_tol=pos_tol,
+                ori_tol=ori_tol,
+                position_only=position_only,
+                orientation_weight=orientation_weight,
+                max_iterations=max_iterations,
+                max_attempts=DEFAULT_MAX_ATTEMPTS if max_attempts is None else max_attempts,
+            )
+            return solve(self, T, q0, seed=seed, options=options)
+        from poekin.ik import fixed
 
         kind = fixed.array_kind(T, q0, params)
         if max_attempts is None:
-            max_attempts = fixed.DEFAULT_ATTEMPTS if kind else numerical.DEFAULT_MAX_ATTEMPTS
-        options: dict[str, Any] = {
+            max_attempts = DEFAULT_MAX_ATTEMPTS if kind is None else fixed.DEFAULT_ATTEMPTS
+        given: dict[str, Any] = {
             "pos_tol": pos_tol,
             "ori_tol": ori_tol,
             "position_only": position_only,
@@ -859,9 +872,9 @@ class Chain:
             "max_attempts": max_attempts,
         }
         if kind is not None:
-            return fixed.solve_arrays(self, T, q0, kind, seed=seed, params=params, **options)
+            return fixed.solve_arrays(self, T, q0, kind, seed=seed, params=params, **given)
         chain = self if params is None else self.with_parameters(params)
-        return numerical.solve(chain, T, q0, seed=seed, options=numerical.settings(**options))
+        return solve(chain, T, q0, seed=seed, options=settings(**given))
 
     def ik_all(self, T: ArrayLike) -> IKSolutions:
         """Every closed-form inverse kinematics solution: the joint values that put the end

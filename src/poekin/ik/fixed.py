@@ -237,7 +237,13 @@ class _Backend:
     def wide(self) -> AbstractContextManager[Any]:
         """A context with 64-bit integers (JAX without ``jax_enable_x64``: switched on while
         the random starts are drawn)."""
-        return self.jax.enable_x64(True) if self.kind == "jax" else nullcontext()
+        if self.kind != "jax":
+            return nullcontext()
+        switch = getattr(self.jax, "enable_x64", None)  # jax.experimental's before JAX 0.7
+        if switch is None:
+            switch = self.jax.experimental.enable_x64
+            return switch()  # type: ignore[no-any-return]
+        return switch(True)  # type: ignore[no-any-return]
 
     def loop(self, count: int, body: Callable[[Any], Any], state: Any) -> Any:
         """``body`` applied ``count`` times: ``jax.lax.fori_loop`` (traced once), or a Python
