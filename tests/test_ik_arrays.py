@@ -505,10 +505,17 @@ def test_bad_input_is_one_clear_input_error() -> None:
         ((torch.tensor(T),), {"pos_tol": -1.0}, "pos_tol must be a finite number > 0"),
         ((torch.tensor(T),), {"seed": -1}, "seed must be an integer"),
     ]
+    cases += [
+        ((torch.tensor(T), [[1.0, 2.0], [3.0]]), {}, "targets and q0 must be arrays of numbers"),
+        ((torch.tensor(T), ["a"] * 6), {}, "expected real numbers"),
+    ]
     for args, kwargs, message in cases:
         with pytest.raises(InputError, match=None) as caught:
             chain.ik(*args, **kwargs)
         assert message in str(caught.value) and "\n" not in str(caught.value), message
+    nothing = Chain((), (), np.zeros((0, 6)), np.eye(4))
+    with pytest.raises(InputError, match="no joints"):
+        nothing.ik(torch.tensor(T))
     tree = poekin.load_tree("unitree_go2")
     with pytest.raises(InputError, match=r"Tree\.ik takes NumPy arrays"):
         tree.ik(torch.tensor(T), "FL_calf")

@@ -142,15 +142,20 @@ def _solve_arrays(
     given = [x for x in (T, q0, *leaves) if x is not None]
     xp = arrays.namespace(kind)
     anchor = next(x for x in given if arrays.kind_of(x) is not None)
-    dtype = arrays.float_dtype(xp, given)
+    try:
+        dtype = arrays.float_dtype(xp, given)
+        T = arrays.convert(T, xp, dtype, anchor)
+        q0 = None if q0 is None else arrays.convert(q0, xp, dtype, anchor)
+    except (TypeError, ValueError) as e:
+        if isinstance(e, InputError):
+            raise
+        raise InputError(f"targets and q0 must be arrays of numbers: {e}") from e
     if dtype not in (xp.float32, xp.float64):
         raise InputError(f"IK computes in float32 or float64, got {dtype}; cast the inputs")
-    T = _as_array(T, xp, dtype, anchor, "targets")
     check_shape(T, (4, 4), "targets")
     n = chain.n_joints
     shapes = [tuple(T.shape[:-2])]
     if q0 is not None:
-        q0 = _as_array(q0, xp, dtype, anchor, "q0")
         check_shape(q0, (n,), "q0")
         shapes.append(tuple(q0.shape[:-1]))
     if params is not None:
@@ -178,15 +183,6 @@ def _solve_arrays(
     if kind == "jax":
         _register_result_pytree()
     return IKResult(q_star, *out[1:])
-
-
-def _as_array(x: Any, xp: Any, dtype: Any, anchor: Any, what: str) -> Any:
-    try:
-        return arrays.convert(x, xp, dtype, anchor)
-    except (TypeError, ValueError) as e:
-        if isinstance(e, InputError):
-            raise
-        raise InputError(f"{what} must be numbers, got {x!r:.60}") from e
 
 
 # --- what the solve needs ---------------------------------------------------------------------
