@@ -402,8 +402,9 @@ def test_ik_target_solves_and_the_sliders_follow(ik_ur5e: Viewer) -> None:
         R = lie.quat_to_rotation(handle.batched_wxyzs.astype(np.float64))
         assert_close(f"{name} rotations", R, poses[:, body, :3, :3], 1e-6)  # float32 on the wire
     labels = [v.node(n).text for n in v.node_names("solution_label") if v.node(n).visible]
-    numbers = sorted(int(k) for label in labels for k in label.split(", "))
-    assert numbers == [k + 1 for k in shown.ghosts]
+    numbers = [k for label in labels for k in label.split(", ")]
+    arm = f"{shown.current + 1} (the arm)"
+    assert sorted(numbers) == sorted([arm, *(str(k + 1) for k in shown.ghosts)])
     choices = v._solution_input.options
     assert len(choices) == 9 and v._solution_input.value == choices[shown.current + 1]
 

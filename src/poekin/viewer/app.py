@@ -1386,22 +1386,27 @@ class Viewer:
             if ghosts:
                 node.handle.batched_wxyzs = quats[:, node.index]
                 node.handle.batched_positions = bodies[:, node.index, :3, 3]
-        # a number by each ghost, at the joint whose place differs most between the arm and
-        # the ghosts (a UR's elbow); ghosts whose numbers would overlap share one label
-        groups: list[tuple[FloatArray, list[int]]] = []
+        # a number by each ghost (and the arm's, if it is one of the solutions), at the joint
+        # whose place differs most between them (a UR's elbow); numbers that would overlap
+        # share one label
+        groups: list[tuple[FloatArray, list[str]]] = []
         if ghosts:
-            every = np.concatenate([joint_anchors(self.subject, snap.bodies)[None], anchors])
+            assert shown is not None
+            arm = joint_anchors(self.subject, snap.bodies)
+            every = np.concatenate([arm[None], anchors])
             spread = int(np.argmax(np.sum(np.var(every, axis=0), axis=-1)))
-        for i, k in enumerate(ghosts):
-            at = anchors[i, spread]
-            near = [g for g in groups if np.linalg.norm(g[0] - at) < 0.04 * self._extent]
-            if near:
-                near[0][1].append(k + 1)
-            else:
-                groups.append((at, [k + 1]))
+            places = [(anchors[i, spread], str(k + 1)) for i, k in enumerate(ghosts)]
+            if shown.current >= 0:
+                places.insert(0, (arm[spread], f"{shown.current + 1} (the arm)"))
+            for at, number in places:
+                near = [g for g in groups if np.linalg.norm(g[0] - at) < 0.08 * self._extent]
+                if near:
+                    near[0][1].append(number)
+                else:
+                    groups.append((at, [number]))
         for j, (at, numbers) in enumerate(groups):
             label = self._solution_label(j)
-            _set(label, "text", ", ".join(str(n) for n in numbers))
+            _set(label, "text", ", ".join(numbers))
             label.position = at
             _set(label, "visible", True)
         for name in self.node_names("solution_label"):
