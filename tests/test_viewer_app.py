@@ -401,6 +401,9 @@ def test_ik_target_solves_and_the_sliders_follow(ik_ur5e: Viewer) -> None:
         assert_close(f"{name} positions", handle.batched_positions, poses[:, body, :3, 3], 1e-6)
         R = lie.quat_to_rotation(handle.batched_wxyzs.astype(np.float64))
         assert_close(f"{name} rotations", R, poses[:, body, :3, :3], 1e-6)  # float32 on the wire
+    # framing the robot takes in the target and the ghosts
+    position, look_at = v._camera(v.snapshot())
+    assert np.linalg.norm(position - look_at) > np.linalg.norm(position - T[:3, 3]) * 0.5
     labels = [v.node(n).text for n in v.node_names("solution_label") if v.node(n).visible]
     numbers = [k for label in labels for k in label.split(", ")]
     arm = f"{shown.current + 1} (the arm)"
@@ -466,12 +469,31 @@ def test_ik_drag_pick_type_and_follow(ik_ur5e: Viewer) -> None:
         v._ik_note.content
         == "**target not set:** qw qx qy qz must be a unit quaternion; its norm is 2"
     )
+    v._target_input.value = "0.3 0.2 0.4"
+    v._on_set_target()
+    assert "the target is 7 finite numbers, x y z qw qx qy qz; got 3" in v._ik_note.content
+    v._target_input.value = "0.3 0.2 zero 0 1 0 0"
+    v._on_set_target()
+    assert "the target is 7 numbers" in v._ik_note.content
+    # a drag update for a pose already solved, or after the mode is off, changes nothing
+    before = v.reach
+    handle.wxyz, handle.position = lie.rotation_to_quat(typed[:3, :3]), typed[:3, 3]
+    v._on_target_drag()
+    assert v.reach is before
     # a slider move: the target follows the end frame
     v._sliders[0][2].value = 0.1
     assert_close("target follows", v.target, v.node_poses("end")["/end"], TOL)  # type: ignore[arg-type]
     assert v.reach.how == "follow"
-    # position only: the closed form (a whole pose) and its picker are off
+    # position only: the same target solved again for its position; the closed form (a whole
+    # pose) and its picker are off
+    T_far = v.snapshot().T
+    T_far[:3, 3] += [0.05, 0.0, 0.0]
+    T_far[:3, :3] = T_far[:3, :3] @ lie.exp_so3([0.0, 0.0, 0.4])
+    v.set_target(T_far)
     v.set_option("position only", True)
+    assert v.reach.how == "current" and v.reach.success
+    assert_close("target kept", v.target, T_far, 0.0)  # type: ignore[arg-type]
+    assert_close("position", v.node_poses("end")["/end"][:3, 3], T_far[:3, 3], 1e-10)
     assert "the closed form needs a whole pose" in v.texts()["ik"]
     assert not v._solution_input.visible and not any(
         v.node(n).visible for n in v.node_names("solution")
@@ -481,6 +503,9 @@ def test_ik_drag_pick_type_and_follow(ik_ur5e: Viewer) -> None:
     # off: every IK node hidden, no IK text
     v.set_option("IK target", False)
     assert v.reach is None and v.target is None and "ik" not in v.texts()
+    q_off = v.q
+    v._on_target_drag()  # a late drag update from the page
+    assert np.array_equal(v.q, q_off)
     hidden = ["/ik/target", "/ik/target/marker", "/ik/miss", *v.node_names("solution")]
     assert not any(v.node(n).visible for n in hidden)
     v.set_option("IK target", True)
@@ -506,8 +531,39 @@ def test_ik_mode_on_a_tree_and_a_frame_it_refuses(go2: Viewer) -> None:
     assert go2._ik_note.content == f"IK mode: not for this frame: {why}"
     with pytest.raises(InputError, match=f"no IK mode for the end frame 'base': {why}"):
         go2.set_option("IK target", True)
+    go2._ik_input.value = True  # as a page would send it, despite the disabled box
+    assert go2.options()["IK target"] is False and go2.reach is None
     with pytest.raises(InputError, match="no IK mode for the end frame 'base'"):
         go2.set_target(np.eye(4))
     go2.set_option("end frame", "FL_calf")
     assert not go2._ik_input.disabled and go2._ik_note.content == ""
     assert go2.options()["IK target"] is False  # a new end frame: on again by a click
+
+
+def test_ik_ghosts_arrive_with_the_geometry() -> None:
+    """The IK mode on before the robot's parts have loaded: the ghosts are drawn once they
+    arrive."""
+    import threading
+
+    from poekin.viewer.geometry import stand_in
+    from poekin.viewer.scene import make_subject
+
+    loaded = threading.Event()
+
+    def slow(subject: object) -> object:
+        loaded.wait(30)
+        return stand_in(subject)  # type: ignore[arg-type]
+
+    subject = make_subject(poekin.lynch_park_ur5_chain())
+    with Viewer(subject, geometry=slow, port=0) as v:  # type: ignore[arg-type]
+        try:
+            v.q = [0.3, -1.2, 1.4, -0.5, 1.1, 0.2]
+            v.set_option("IK target", True)
+            assert v.reach is not None and len(v.reach.ghosts) == 7
+            assert v.node_names("solution") == []  # no parts yet
+        finally:
+            loaded.set()
+        parts = v.wait_geometry().parts
+        names = v.node_names("solution")
+        assert len(names) == len(parts) and all(v.node(n).visible for n in names)
+        assert v.node(names[0]).batched_positions.shape == (7, 3)

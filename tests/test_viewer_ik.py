@@ -208,12 +208,26 @@ def test_ghost_bodies_and_anchors_against_mujoco() -> None:
         assert_close("joint anchors", p, data.xanchor, MJ_TOL)
 
 
+def poe(chain: poekin.Chain, q: np.ndarray) -> np.ndarray:
+    """``e^[S1]q1 ... e^[Sn]qn``, the textbook product."""
+    product = np.eye(4)
+    for S, x in zip(chain.screws, q, strict=True):
+        product = product @ lie.matrix_exp_se3(S, x)
+    return product
+
+
 def test_ghost_links_of_a_bare_chain_are_products_of_exponentials() -> None:
     chain = poekin.lynch_park_ur5_chain()
     subject = make_subject(chain)
     shown = ik.follow(subject, np.array([0.3, -1.2, 1.4, -0.5, 1.1, 0.2]))
     assert len(shown.solutions) == 8
     assert np.all([within(subject, x) for x in shown.solutions])
+    # a target 3 cm away, solved from the configuration shown
+    T = chain.fk(shown.qpos)
+    T[:3, 3] += [0.03, 0.0, 0.0]
+    moved = ik.reach(subject, shown.qpos, T)
+    assert moved.how == "current" and moved.success and within(subject, moved.qpos)
+    assert_close("reached", poe(chain, moved.qpos) @ chain.home, T, 1e-10)
     bodies, _ = ik.ghost_poses(subject, shown.solutions)
     for q, links in zip(shown.solutions, bodies, strict=True):
         product = np.eye(4)
