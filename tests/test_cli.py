@@ -358,7 +358,7 @@ BAD_INPUTS = [
     (["ik", "universal_robots_ur5e", "--pose", *POSE[:3], *"0000"], "the quaternion is zero"),
     (
         ["ik", "universal_robots_ur5e", "--pose", *POSE[:3], "0.7071", "0.7071", "0", "0"],
-        "norm 0.99999041, not 1 (|q| must be within 1e-06 of 1; poekin does not normalise it): "
+        "norm 0.99999041, not 1 (|q| must be within 1e-6 of 1; poekin does not normalise it): "
         "give a unit quaternion, such as 0.707106781 0.707106781 0 0",
     ),
     (["ik", "universal_robots_ur5e", "--pose", "nan", *POSE[1:]], "--pose holds NaN or inf"),

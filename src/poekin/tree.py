@@ -1055,8 +1055,9 @@ class Tree:
                 the targets; default :attr:`qpos0`.
             warm_start: start the first attempt at ``qpos``'s values of the solved joints
                 (a trajectory stays on its branch), rather than at a random configuration.
-            seed, pos_tol, ori_tol, position_only, orientation_weight, max_iterations,
-            max_attempts: as for :meth:`poekin.Chain.ik`.
+            seed: the random starts' seed, as for :meth:`poekin.Chain.ik`; so are
+                ``pos_tol``, ``ori_tol``, ``position_only``, ``orientation_weight``,
+                ``max_iterations`` and ``max_attempts``.
 
         Returns:
             An :class:`~poekin.ik.IKResult` whose ``q`` is the whole ``(..., nq)`` qpos: the

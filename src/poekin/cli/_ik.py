@@ -53,6 +53,7 @@ Fields = dict[str, NDArray[Any]]
 
 #: A target quaternion's norm must be within this of 1.
 QUAT_TOL = 1e-6
+_QUAT_TOL_TEXT = f"{QUAT_TOL:.0e}".replace("e-0", "e-")  # 1e-6
 #: Targets per call when a progress bar shows (the answers do not depend on the split).
 CHUNK = 10_000
 _SHOWN_ROWS = 10  # unsolved rows named in the summary
@@ -160,8 +161,8 @@ def _pose_rows(rows: FloatArray, where: Callable[[int], str]) -> FloatArray:
         unit = " ".join(f"{x:.9g}" for x in quat[k] / norm[k])
         raise InputError(
             f"{where(k)}: the quaternion QW QX QY QZ = {shown} has norm {norm[k]:.9g}, not 1 "
-            f"(|q| must be within {QUAT_TOL:g} of 1; poekin does not normalise it): give a unit "
-            f"quaternion, such as {unit}"
+            f"(|q| must be within {_QUAT_TOL_TEXT} of 1; poekin does not normalise it): give a "
+            f"unit quaternion, such as {unit}"
         )
     T[:, :3, :3] = lie.quat_to_rotation(quat / norm[:, None])
     return T
@@ -564,7 +565,7 @@ def register(sub: Any, fmt: type[argparse.HelpFormatter]) -> None:
         help="inverse kinematics: joint values for target poses",
         description="Find the joint values that put the end frame at a target pose in the world "
         "frame: --pose X Y Z QW QX QY QZ (metres, and a unit quaternion w first: |q| within "
-        f"{QUAT_TOL:g} of 1; another one is refused, not normalised), or a batch from --input "
+        f"{_QUAT_TOL_TEXT} of 1; another one is refused, not normalised), or a batch from --input "
         "FILE ((N, 4, 4) matrices, (N, 16) rows of them, or (N, 7) rows x y z qw qx qy qz, in a "
         ".npy, .npz, .csv or .txt file) with --output FILE. The numerical solver (Chain.ik) "
         "answers within the joint limits, from seeded random starts (the same bits for the same "
@@ -581,12 +582,12 @@ def register(sub: Any, fmt: type[argparse.HelpFormatter]) -> None:
         "  poekin ik universal_robots_ur5e --pose 0.4 0.2 0.3 0 1 0 0\n"
         "  poekin ik universal_robots_ur5e --pose 0.4 0.2 0.3 0 1 0 0 --deg --json\n"
         "  poekin ik universal_robots_ur5e --pose 0.4 0.2 0.3 0 1 0 0 --all\n"
-        "  poekin ik universal_robots_ur5e --pose 0.4 0.2 0.3 0 1 0 0 --q0 0 -90 90 -90 -90 0 "
-        "--deg\n"
+        "  poekin ik universal_robots_ur5e --pose -0.492 -0.134 0.438 0 0.707106781 0.707106781 "
+        "0 --q0 0 -90 90 -90 -90 0 --deg\n"
         "  poekin ik universal_robots_ur5e --input T.npy --output q_ik.npz\n"
         "  poekin ik franka_emika_panda --frame hand --pose 0.5 0 0.4 0 1 0 0\n"
-        "  poekin ik trs_so_arm100 --frame Fixed_Jaw --pose 0.2 0 0.15 --position-only\n"
-        "  poekin ik aloha --tree --frame left/gripper --pose -0.1 0.05 0.25 1 0 0 0",
+        "  poekin ik trs_so_arm100 --frame Fixed_Jaw --pose 0.2 0 0.15 --position-only --deg\n"
+        "  poekin ik aloha --tree --frame left/gripper --pose -0.1 0.05 0.25 1 0 0 0 --json",
         formatter_class=fmt,
     )
     add_source(p)
