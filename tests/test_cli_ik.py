@@ -19,6 +19,7 @@ from test_ik_trees import mj_pose
 
 import poekin
 from poekin.cli import _ik
+from poekin.cli._args import JointSpace
 from poekin.fileio import read_array
 from poekin.ik._angles import within_limits
 
@@ -285,6 +286,29 @@ def test_tree_frame_holds_the_other_joints(capsys: pytest.CaptureFixture[str]) -
     assert code == 0 and out.splitlines()[-1] == (
         "the other 10 qpos values held at qpos0 (--json gives the whole qpos)"
     )
+
+
+def test_a_tree_batch_writes_whole_qpos(
+    tmp_path: pathlib.Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    model = load_quiet("aloha").model
+    tree = poekin.load_tree(load_quiet("aloha"))
+    qpos = poekin.sample_qpos(tree, 8, seed=4, within_limits=True)
+    np.save(tmp_path / "T.npy", mj_pose(model, qpos, "right/gripper"))
+    code, out, _ = run(
+        capsys, "ik", "aloha", "--tree", "--frame", "right/gripper", "--input",
+        str(tmp_path / "T.npy"), "--output", str(tmp_path / "qpos.npz"),
+    )  # fmt: skip
+    assert code == 0 and "SOLVED: all 8 targets" in out
+    with np.load(tmp_path / "qpos.npz") as saved:
+        q = saved["q"]
+    assert q.shape == (8, tree.nq) and (q[:, :8] == tree.qpos0[:8]).all()  # the left arm held
+    limits = JointSpace.of_tree(tree).limits  # +-inf where a qpos entry has none
+    assert ((q >= limits[:, 0]) & (q <= limits[:, 1])).all()
+    pos, ori = poekin.pose_errors(
+        mj_pose(model, qpos, "right/gripper"), mj_pose(model, q, "right/gripper")
+    )
+    assert pos.max() <= TOL + MJ_TOL and ori.max() <= TOL + MJ_TOL
 
 
 def test_position_only_takes_three_numbers(capsys: pytest.CaptureFixture[str]) -> None:

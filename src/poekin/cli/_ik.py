@@ -483,7 +483,7 @@ def _write_batch(
 
     space, deg = problem.space, args.deg
     names = list(space.names)
-    units = _units(space, problem.solved, deg)
+    units = _units(space, range(len(names)), deg)  # of every entry the file holds
     print(f"{problem.robot}  frame {problem.frame!r}  {target}", file=out)
     if args.all:
         valid = got["valid"]
