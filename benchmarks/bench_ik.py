@@ -35,9 +35,10 @@ Rows (each a prefix of the same targets):
 
 The numerical anchors run on the UR5e and the Panda (the issue's table) unless
 ``--anchor-arms`` says otherwise; solvers that are not installed are skipped
-(``pip install -e '.[bench]'``). Ratios: each anchor's time per target over poekin's, batch
-against batch (``chain.ik`` for the numerical anchors, ``chain.ik_all`` for ik-geo) and single
-calls against single calls (medians). Timings are wall times of one run on a shared machine:
+(``pip install -e '.[bench]'``). Ratios: each anchor's mean time per target (the protocol's
+figure: restarts and failures included) over poekin's batch time per target (``chain.ik`` for
+the numerical anchors, ``chain.ik_all`` for ik-geo), and, for a loop of single calls, its
+median call over poekin's median single call. Timings are wall times of one run on a shared machine:
 read medians and ratios, never one sample. The CPU and its vector width are printed with every
 table.
 
@@ -683,8 +684,10 @@ COUNTERPART = {"ik-geo get_ik": "poekin chain.ik_all"}
 
 
 def ratios(rows: Sequence[Row]) -> dict[str, float]:
-    """Each anchor's time per target over poekin's on the same arm: against poekin's batch on
-    all threads, and, for an anchor's single calls, against poekin's single calls (medians)."""
+    """Each anchor's time per target over poekin's on the same arm: its mean (restarts and
+    failures included) over poekin's batch on all threads, and, for an anchor's single calls,
+    its median call over poekin's median single call (a median shrugs off a shared machine's
+    stray slow call; a mean keeps the restarts' cost)."""
     out = {}
     for r in rows:
         if r.solver.startswith("poekin"):
