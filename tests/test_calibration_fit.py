@@ -17,9 +17,10 @@ from calibration_helpers import plain_fit
 import poekin
 from poekin import lie
 from poekin.calibration import calibrate
+from poekin.calibration.fit import fit
 from poekin.calibration.simulate import SimulatedRobot, simulate_robot
 from poekin.errors import CalibrationWarning, InputError
-from poekin.verify import pose_errors
+from poekin.verify import pose_errors, random_generator
 
 pytestmark = pytest.mark.filterwarnings("ignore::poekin.AssetsStrippedWarning")
 
@@ -198,6 +199,36 @@ def test_outliers_are_reported_and_weighed_down(ur5e: Setup) -> None:
     assert err["huber"] < 0.25 * err["linear"] and err["soft_l1"] < 0.25 * err["linear"]
     assert err["cauchy"] < 1.5 * clean_err  # gross outliers fade out
     assert np.all(fits["cauchy"].fitted.weights[[4, 17, 33]] < 0.05)
+
+
+def test_heldout_residual_is_that_of_refitting_each_fold(ur5e: Setup) -> None:
+    """The k-fold held-out errors (the leave-fold-out solution of the linearised problem)
+    are those of fitting each fold's other poses again, to a thousandth of the noise."""
+    measured = ur5e.sim.measure(ur5e.q, noise_m=SIGMA, noise_rad=SIGMA, seed=8)
+    result = calibrate(ur5e.chain, ur5e.q, measured, folds=5, seed=3)
+    assert result.heldout is not None
+    fold = np.empty(50, dtype=int)
+    fold[random_generator(3).permutation(50)] = np.arange(50) % 5
+    pos, ori = np.zeros(50), np.zeros(50)
+    for f in range(5):
+        train, test = fold != f, fold == f
+        part = fit(
+            result.model,
+            ur5e.q[train],
+            measured[train],
+            start=result.state,
+            sigma_pos=result.fitted.sigma_pos,
+            sigma_ori=result.fitted.sigma_ori,
+            loss="linear",
+            f_scale=3.0,
+            prior_m=1e-3,
+            prior_rad=1e-2,
+        )
+        T = result.model.poses(part.state, ur5e.q[test])
+        pos[test], ori[test] = pose_errors(measured[test], T)
+    assert np.max(np.abs(result.heldout[0] - pos)) < 1e-3 * SIGMA
+    assert np.max(np.abs(result.heldout[1] - ori)) < 1e-3 * SIGMA
+    assert _rms(pos) > 1.05 * result.residual_rms_m  # not the fit's own residual
 
 
 def test_heldout_residual_and_report(ur5e: Setup) -> None:

@@ -20,12 +20,21 @@ from __future__ import annotations
 import functools
 import os
 import warnings
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from poekin.calibration.fit import _MAD, LOSSES, Loss, fit, initial_state, residuals
+from poekin.calibration.fit import (
+    _MAD,
+    LOSSES,
+    Fit,
+    Loss,
+    fit,
+    initial_state,
+    leave_out,
+    residuals,
+)
 from poekin.calibration.identify import (
     advice,
     minimum_poses,
@@ -33,7 +42,7 @@ from poekin.calibration.identify import (
     recommended_poses,
     unidentified,
 )
-from poekin.calibration.model import CalibrationModel, Measure, State, expected_identifiable
+from poekin.calibration.model import CalibrationModel, Measure, expected_identifiable
 from poekin.calibration.plan import plan_poses
 from poekin.calibration.report import Calibration, Change
 from poekin.chain import Chain, as_joint_values
@@ -219,13 +228,8 @@ def calibrate(
     notes = advice(cm, q_arr, directions, source)
     heldout = None
     if folds:
-        # the folds keep the whole fit's weights and start from its solution
-        pose_data = measure == "pose"
-        weights = {
-            "sigma_pos": fitted.sigma_pos,
-            "sigma_ori": fitted.sigma_ori if pose_data else None,
-        }
-        heldout = _heldout(cm, q_arr, meas, folds, seed, state, {**options, **weights})
+        kept = {k: options[k] for k in ("loss", "f_scale", "prior_m", "prior_rad")}
+        heldout = _heldout(cm, q_arr, meas, folds, seed, fitted, kept)
         if heldout is None:
             notes.append(
                 f"too few poses for a {folds}-fold held-out residual (each fold's fit needs "
@@ -285,11 +289,11 @@ def _heldout(
     measured: FloatArray,
     folds: int,
     seed: int,
-    start: State,
-    options: dict[str, object],
+    fitted: Fit,
+    options: dict[str, Any],
 ) -> tuple[FloatArray, FloatArray] | None:
-    """Each pose's errors predicted by a fit on the other folds, or None if a fold's fit would
-    have too few poses."""
+    """Each pose's errors predicted by a fit on the other folds (:func:`~.fit.leave_out`), or
+    None if a fold's fit would have too few poses."""
     from poekin.verify import random_generator
 
     n = len(q)
@@ -298,10 +302,4 @@ def _heldout(
     fold[random_generator(seed).permutation(n)] = np.arange(n) % k
     if n - int(np.max(np.bincount(fold))) < minimum_poses(cm):
         return None
-    pos, ori = np.zeros(n), np.zeros(n)
-    for f in range(k):
-        train, test = fold != f, fold == f
-        part = fit(cm, q[train], measured[train], start=start, **options)  # type: ignore[arg-type]
-        p, o = _errors(cm.measure, cm.poses(part.state, q[test]), measured[test])
-        pos[test], ori[test] = p, o
-    return pos, ori
+    return leave_out(cm, q, measured, fitted, fold, **options)

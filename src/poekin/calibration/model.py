@@ -200,7 +200,7 @@ class Geometry:
     joint directions and points ``(n, 3)``, offsets ``(n,)``, screws ``(n, 6)``, home ``M'``,
     and, for the Jacobian, each joint's tilt rotation and its right Jacobian ``(n, 3, 3)``, the
     tool's turn ``phi`` ``(3,)`` and its right Jacobian; and the screws' terms
-    (:class:`poekin.chain._ScrewTerms`) for :meth:`CalibrationModel._products`."""
+    (:class:`poekin.chain._ScrewTerms`) for :meth:`CalibrationModel.products`."""
 
     dirs: FloatArray
     points: FloatArray
@@ -440,7 +440,7 @@ class CalibrationModel:
 
     # --- forward kinematics and the identification Jacobian ---------------------------------
 
-    def _products(self, state: State, q: FloatArray) -> tuple[FloatArray, Geometry]:
+    def products(self, state: State, q: FloatArray) -> tuple[FloatArray, Geometry]:
         """Partial products ``(N, n + 1, 4, 4)``: ``P_0 = I``, ``P_{i+1} = P_i exp([S'_i](q_i +
         o_i))``; and the geometry."""
         geo = self.geometry(state.x)
@@ -454,7 +454,7 @@ class CalibrationModel:
 
     def poses(self, state: State, q: FloatArray) -> FloatArray:
         """``(N, 4, 4)`` poses of the measured frame in the measuring frame."""
-        P, geo = self._products(state, q)
+        P, geo = self.products(state, q)
         return np.asarray(state.base @ P[:, -1] @ geo.home, dtype=np.float64)
 
     def jacobian(self, state: State, q: FloatArray) -> tuple[FloatArray, FloatArray]:
@@ -469,8 +469,14 @@ class CalibrationModel:
         eta``, since ``exp([Ad(G) S] q) = G exp([S] q) G^-1``; the tool by ``Ad(P_n M')`` of its
         body twist. ``Ad(B)`` turns them into the measuring frame.
         """
-        P, geo = self._products(state, q)
-        N, n = len(q), self.chain.n_joints
+        return self.derivatives(state, *self.products(state, q))
+
+    def derivatives(
+        self, state: State, P: FloatArray, geo: Geometry
+    ) -> tuple[FloatArray, FloatArray]:
+        """:meth:`jacobian` from the partial products ``P`` and the geometry at ``state``
+        (:meth:`products`), for a caller that has them already (a fit's trial step)."""
+        N, n = len(P), self.chain.n_joints
         xi = np.zeros((N, 6, self.n_params))  # twists in the robot's base frame
         xi[:, :, :6] = np.eye(6)
         xi[:, :, list(self.offset_index)] = _ad(P[:, :n], geo.screws[:, :, None])[..., 0].transpose(
