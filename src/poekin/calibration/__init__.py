@@ -25,6 +25,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from poekin._blas import one_thread
 from poekin.calibration.fit import (
     _MAD,
     LOSSES,
@@ -186,6 +187,42 @@ def calibrate(
         CalibrationWarning: too few or too similar poses (how many more, which joints to
             move), or a fit that did not converge.
     """
+    with one_thread():  # small matrices: see poekin._blas
+        result = _calibrate(
+            model,
+            q,
+            measured,
+            frame=frame,
+            sigma_pos=sigma_pos,
+            sigma_ori=sigma_ori,
+            loss=loss,
+            f_scale=f_scale,
+            prior_m=prior_m,
+            prior_rad=prior_rad,
+            folds=folds,
+            seed=seed,
+        )
+    for text in result.warnings:
+        warnings.warn(text, CalibrationWarning, stacklevel=2)
+    return result
+
+
+def _calibrate(
+    model: Chain | str | os.PathLike[str] | LoadedModel,
+    q: ArrayLike,
+    measured: ArrayLike,
+    *,
+    frame: str | None,
+    sigma_pos: float | None,
+    sigma_ori: float | None,
+    loss: Loss,
+    f_scale: float,
+    prior_m: float,
+    prior_rad: float,
+    folds: int,
+    seed: int,
+) -> Calibration:
+    """:func:`calibrate`, its warnings in the result's ``warnings``."""
     chain = as_chain(model, frame)
     n = chain.n_joints
     q_arr = as_joint_values(q, n, what="joint readings")
@@ -240,8 +277,6 @@ def calibrate(
             f"the fit stopped after {fitted.iterations} iterations without converging; "
             "check the data (outliers, joint order, units)"
         )
-    for text in notes:
-        warnings.warn(text, CalibrationWarning, stacklevel=2)
     return Calibration(
         chain=cm.calibrated_chain(state),
         nominal=chain,

@@ -280,10 +280,12 @@ class _Problem:
         for it in range(1, _MAX_ITER + 1):
             b = (r * np.sqrt(w)[:, None]).reshape(-1)
             H, g = A.T @ A, A.T @ b
-            d = np.maximum(np.diag(H), 1e-300)
+            # Marquardt's scaling, as a unit diagonal: (H_s + lam I) y = g_s, dy = s y
+            s = 1.0 / np.sqrt(np.maximum(np.diag(H), 1e-300))
+            Hs, gs, eye = H * s[:, None] * s[None, :], g * s, np.eye(len(g))
             first = True
             while True:
-                dy = _solve(H + lam * np.diag(d), g)
+                dy = np.linalg.solve(Hs + lam * eye, gs) * s
                 if first and lam <= 1.0 and float(dy @ (2.0 * g - H @ dy)) <= _COST_TOL * cost:
                     return point, it, True
                 first = False
