@@ -20,7 +20,7 @@ from __future__ import annotations
 import functools
 import os
 import warnings
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -34,7 +34,6 @@ from poekin.calibration.fit import (
     fit,
     initial_state,
     leave_out,
-    residuals,
 )
 from poekin.calibration.identify import (
     advice,
@@ -258,15 +257,14 @@ def _calibrate(
     start = initial_state(cm, q_arr, meas)
     fitted = fit(cm, q_arr, meas, start=start, **options)  # type: ignore[arg-type]
     state = fitted.state
-    T = cm.poses(state, q_arr)
-    normalised = _normalised(residuals(cm, T, meas))
+    T = fitted.poses
+    normalised = _normalised(fitted.residuals)
     directions = unidentified(cm, fitted)
     source = _source_name(model, chain)
     notes = advice(cm, q_arr, directions, source)
     heldout = None
     if folds:
-        kept = {k: options[k] for k in ("loss", "f_scale", "prior_m", "prior_rad")}
-        heldout = _heldout(cm, q_arr, meas, folds, seed, fitted, kept)
+        heldout = _heldout(cm, len(q_arr), folds, seed, fitted)
         if heldout is None:
             notes.append(
                 f"too few poses for a {folds}-fold held-out residual (each fold's fit needs "
@@ -289,7 +287,7 @@ def _calibrate(
         after=_errors(measure, T, meas),
         normalised=normalised,
         heldout=heldout,
-        observability=observability(cm, state, q_arr, prior_m, prior_rad),
+        observability=observability(cm, state, q_arr, prior_m, prior_rad, jacobian=fitted.jacobian),
         unidentified=tuple(directions),
         warnings=tuple(notes),
         source=source,
@@ -320,21 +318,18 @@ def _source_name(model: object, chain: Chain) -> str:
 
 def _heldout(
     cm: CalibrationModel,
-    q: FloatArray,
-    measured: FloatArray,
+    n: int,
     folds: int,
     seed: int,
     fitted: Fit,
-    options: dict[str, Any],
 ) -> tuple[FloatArray, FloatArray] | None:
     """Each pose's errors predicted by a fit on the other folds (:func:`~.fit.leave_out`), or
     None if a fold's fit would have too few poses."""
     from poekin.verify import random_generator
 
-    n = len(q)
     k = min(folds, n)
     fold = np.empty(n, dtype=int)
     fold[random_generator(seed).permutation(n)] = np.arange(n) % k
     if n - int(np.max(np.bincount(fold))) < minimum_poses(cm):
         return None
-    return leave_out(cm, q, measured, fitted, fold, **options)
+    return leave_out(fitted, fold)

@@ -39,7 +39,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from poekin import lie
-from poekin.calibration.model import CalibrationModel, Geometry, State
+from poekin.calibration.model import CalibrationModel, Geometry, State, rotations
 from poekin.errors import InputError
 
 __all__ = ["LOSSES", "Fit", "Loss", "fit", "leave_out", "register", "residuals"]
@@ -77,6 +77,11 @@ class Fit:
         sigma_pos, sigma_ori: the weights used (m, rad): given, or estimated.
         sigma: the residual sigma of the weighted fit (about 1 when the weights are right).
         weights: ``(N,)`` the robust loss's weight of each pose (all 1 for ``linear``).
+        poses: ``(N, 4, 4)`` the fitted model's poses, in the measuring frame.
+        residuals: ``(N, m)`` measured minus fitted: the rotation ``log(R_meas R^T)`` (rad;
+            pose data only), then the position (m).
+        jacobian: ``(N, m, F)`` the derivatives of the measured numbers at ``state`` over the
+            free corrections (:meth:`~.model.CalibrationModel.jacobian`'s rows and columns).
         cov: ``(F, F)`` covariance of the free corrections (the base's as a turn and a shift).
         iterations: Levenberg-Marquardt iterations, all rounds together.
         converged: whether the last round's steps became small.
@@ -90,6 +95,9 @@ class Fit:
     sigma_ori: float
     sigma: float
     weights: FloatArray
+    poses: FloatArray
+    residuals: FloatArray
+    jacobian: FloatArray
     cov: FloatArray
     iterations: int
     converged: bool
@@ -103,11 +111,6 @@ def residuals(model: CalibrationModel, T: FloatArray, measured: FloatArray) -> F
         return np.asarray(dp, dtype=np.float64)
     dR = measured[:, :3, :3] @ np.swapaxes(T[:, :3, :3], 1, 2)
     return np.concatenate([lie.log_so3(dR), dp], axis=1)
-
-
-def _rows(model: CalibrationModel, D: FloatArray) -> FloatArray:
-    """The derivatives of :meth:`CalibrationModel.jacobian` for the measured numbers."""
-    return D[:, 3:] if model.measure == "position" else D
 
 
 def register(points: FloatArray, measured: FloatArray) -> FloatArray:
@@ -196,7 +199,7 @@ def _retract(model: CalibrationModel, state: State, free: list[int], dx: FloatAr
     step = np.zeros(model.n_params)
     step[free] = dx
     G = np.eye(4)
-    G[:3, :3] = lie.exp_so3(step[:3])
+    G[:3, :3] = rotations(step[:3])
     G[:3, 3] = step[3:6]
     x = state.x + step
     x[:6] = 0.0
@@ -216,12 +219,13 @@ def _robust(loss: Loss, u: FloatArray, f_scale: float) -> FloatArray:
 
 @dataclasses.dataclass(frozen=True, eq=False)
 class _Point:
-    """The model at one state on the data: its poses and residuals ``(N, m)`` (rad, m), and,
+    """The model at one state on the data: its poses, residuals ``(N, m)`` (rad, m) and,
     when first asked, its derivatives over the free corrections ``(N, m, F)`` (from the same
     partial products: a trial step that is accepted costs no second FK)."""
 
     problem: _Problem
     state: State
+    poses: FloatArray
     raw: FloatArray
     products: FloatArray
     geometry: Geometry
@@ -230,7 +234,7 @@ class _Point:
     def derivatives(self) -> FloatArray:
         p = self.problem
         _, D = p.model.derivatives(self.state, self.products, self.geometry)
-        return np.asarray(_rows(p.model, D)[:, :, p.free], dtype=np.float64)
+        return np.asarray(p.model.measured(D)[:, :, p.free], dtype=np.float64)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -248,7 +252,7 @@ class _Problem:
     def at(self, state: State) -> _Point:
         P, geo = self.model.products(state, self.q)
         T = state.base @ P[:, -1] @ geo.home
-        return _Point(self, state, residuals(self.model, T, self.measured), P, geo)
+        return _Point(self, state, T, residuals(self.model, T, self.measured), P, geo)
 
     def cost(self, point: _Point, sig: FloatArray) -> float:
         r = point.raw / sig
@@ -419,24 +423,16 @@ def fit(
         sigma_ori=float(sig[0]) if pose else float("nan"),
         sigma=sigma,
         weights=w,
+        poses=point.poses,
+        residuals=point.raw,
+        jacobian=point.derivatives,
         cov=cov,
         iterations=iterations,
         converged=converged,
     )
 
 
-def leave_out(
-    model: CalibrationModel,
-    q: FloatArray,
-    measured: FloatArray,
-    fitted: Fit,
-    fold: NDArray[np.int_],
-    *,
-    loss: Loss,
-    f_scale: float,
-    prior_m: float,
-    prior_rad: float,
-) -> tuple[FloatArray, FloatArray]:
+def leave_out(fitted: Fit, fold: NDArray[np.int_]) -> tuple[FloatArray, FloatArray]:
     """Each pose's position and orientation errors (m, rad; NaN for positions-only data)
     predicted by a fit to the other folds (``fold`` ``(N,)`` numbers each pose's fold).
 
@@ -448,13 +444,13 @@ def leave_out(
     ``r_f - A_f dy``. What the linearisation leaves out is second order in that step: some
     1e-6 of the noise (``tests/test_calibration_fit.py`` checks it against refitting).
     """
-    problem = _problem(model, q, measured, loss, f_scale, prior_m, prior_rad)
-    pose = model.measure == "pose"
+    pose = fitted.residuals.shape[1] == 6
     sig = np.repeat([fitted.sigma_ori, fitted.sigma_pos] if pose else [fitted.sigma_pos], 3)
-    r, w, A = problem.linearise(problem.at(fitted.state), sig, fitted.basis)
-    N, m, K = r.shape[0], r.shape[1], A.shape[1]
-    root = np.sqrt(w)[:, None]
-    A3 = A.reshape(N, m, K)
+    r = fitted.residuals / sig
+    root = np.sqrt(fitted.weights)[:, None]
+    A3 = (fitted.jacobian * (root / sig)[:, :, None]) @ fitted.basis
+    N, m, K = A3.shape
+    A = A3.reshape(-1, K)
     b = r * root
     H, g = A.T @ A, A.T @ b.reshape(-1)
     e = np.empty_like(r)

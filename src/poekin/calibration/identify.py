@@ -72,15 +72,35 @@ def scaled_jacobian(
     """``(N m, F)`` the identification Jacobian in millimetres (orientation rows times the reach)
     with columns in prior units, over the free corrections (or ``free``)."""
     keys = list(model.free if free is None else free)
+    return _in_units(model, model.rows(state, q)[:, keys], keys, prior_m, prior_rad)
+
+
+def _in_units(
+    model: CalibrationModel, rows: FloatArray, keys: Sequence[int], prior_m: float, prior_rad: float
+) -> FloatArray:
+    """Rows in metres (:meth:`~.model.CalibrationModel.in_metres`) in millimetres, with columns
+    ``keys`` in prior units."""
     units = np.array([prior_m if model.params[k].unit == "m" else prior_rad for k in keys])
-    return np.asarray(model.rows(state, q)[:, keys] * units * 1e3, dtype=np.float64)
+    return np.asarray(rows * units * 1e3, dtype=np.float64)
 
 
 def observability(
-    model: CalibrationModel, state: State, q: FloatArray, prior_m: float, prior_rad: float
+    model: CalibrationModel,
+    state: State,
+    q: FloatArray,
+    prior_m: float,
+    prior_rad: float,
+    *,
+    jacobian: FloatArray | None = None,
 ) -> Observability:
-    """See the module docstring."""
-    s = np.linalg.svd(scaled_jacobian(model, state, q, prior_m, prior_rad), compute_uv=False)
+    """See the module docstring. ``jacobian``: the derivatives of the measured numbers at
+    ``state`` over the free corrections ``(N, m, F)``, if the caller has them
+    (:attr:`~.fit.Fit.jacobian`)."""
+    if jacobian is None:
+        J = scaled_jacobian(model, state, q, prior_m, prior_rad)
+    else:
+        J = _in_units(model, model.in_metres(jacobian), model.free, prior_m, prior_rad)
+    s = np.linalg.svd(J, compute_uv=False)
     smallest = float(s[-1]) if s.size else 0.0
     cond = float(s[0] / smallest) if smallest > 0 else float("inf")
     with np.errstate(divide="ignore"):
