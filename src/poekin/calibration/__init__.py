@@ -39,6 +39,7 @@ from poekin.calibration.identify import (
     advice,
     minimum_poses,
     observability,
+    predicted,
     recommended_poses,
     unidentified,
 )
@@ -65,6 +66,7 @@ __all__ = [
 
 FloatArray = NDArray[np.float64]
 _UNIT = 1e-6  # a rotation block must be orthonormal to this (as Chain's home pose)
+_WORKSPACE, _SEED = 100, 20261125  # configurations that judge the calibrated chain
 
 
 def as_chain(model: Chain | str | os.PathLike[str] | LoadedModel, frame: str | None) -> Chain:
@@ -257,11 +259,19 @@ def _calibrate(
     start = initial_state(cm, q_arr, meas)
     fitted = fit(cm, q_arr, meas, start=start, **options)  # type: ignore[arg-type]
     state = fitted.state
-    T = fitted.poses
-    normalised = _normalised(fitted.residuals)
-    directions = unidentified(cm, fitted)
+    after = _errors(measure, fitted.poses, meas)
+    directions = unidentified(cm, fitted, prior_m, prior_rad)
+    prediction = predicted(cm, fitted, workspace(chain))
     source = _source_name(model, chain)
-    notes = advice(cm, q_arr, directions, source)
+    notes = advice(
+        cm,
+        q_arr,
+        directions,
+        source,
+        state=state,
+        residual_rms_m=float(np.sqrt(np.mean(after[0] ** 2))),
+        prediction=prediction,
+    )
     heldout = None
     if folds:
         heldout = _heldout(cm, len(q_arr), folds, seed, fitted)
@@ -284,10 +294,11 @@ def _calibrate(
         q=q_arr,
         measured=meas,
         before=_errors(measure, cm.poses(start, q_arr), meas),
-        after=_errors(measure, T, meas),
-        normalised=normalised,
+        after=after,
+        normalised=_normalised(fitted.residuals),
         heldout=heldout,
         observability=observability(cm, state, q_arr, prior_m, prior_rad, jacobian=fitted.jacobian),
+        predicted=prediction,
         unidentified=tuple(directions),
         warnings=tuple(notes),
         source=source,
@@ -297,6 +308,22 @@ def _calibrate(
         f_scale=f_scale,
         folds=folds,
     )
+
+
+@functools.lru_cache(maxsize=16)
+def workspace(chain: Chain) -> FloatArray:
+    """``(W, n)`` random configurations within the limits (a revolute joint's within a turn),
+    the same for every calibration of ``chain``: where :class:`~.identify.Prediction` judges
+    the calibrated chain."""
+    from poekin.calibration.plan import sampling_chain
+    from poekin.verify import sample_joint_values
+
+    q = np.array(
+        sample_joint_values(sampling_chain(chain), _WORKSPACE, seed=_SEED, within_limits=True),
+        dtype=np.float64,
+    )
+    q.flags.writeable = False
+    return q
 
 
 def _normalised(r: FloatArray) -> FloatArray:

@@ -601,10 +601,12 @@ def generic_point(chain: Chain) -> FloatArray:
     return np.array([0.31, 0.23, 0.17]) * reach(chain)
 
 
-def alike(A: FloatArray, c: FloatArray, names: Sequence[int], terms: int = 3) -> tuple[int, ...]:
+def alike(
+    A: FloatArray, c: FloatArray, names: Sequence[int], terms: int = 3, rtol: float = 1e-6
+) -> tuple[int, ...]:
     """The few columns of ``A`` (unit norm) that ``c`` is a combination of, by orthogonal
-    matching pursuit: up to ``terms`` columns, as many as it takes to explain ``c`` to 1e-6
-    (all ``terms`` if none does); ``names[j]`` names column ``j``."""
+    matching pursuit: up to ``terms`` columns, as many as it takes to explain ``c`` to ``rtol``
+    of its norm (all ``terms`` if none does); ``names[j]`` names column ``j``."""
     picked: list[int] = []
     r = c.copy()
     for _ in range(terms):
@@ -614,7 +616,7 @@ def alike(A: FloatArray, c: FloatArray, names: Sequence[int], terms: int = 3) ->
         picked.append(j)
         coef = np.linalg.lstsq(A[:, picked], c, rcond=None)[0]
         r = c - A[:, picked] @ coef
-        if np.linalg.norm(r) < 1e-6 * np.linalg.norm(c):
+        if np.linalg.norm(r) < rtol * np.linalg.norm(c):
             break
     return tuple(names[j] for j in picked)
 
@@ -628,7 +630,12 @@ def reach(chain: Chain) -> float:
 
 
 def _direction(v: FloatArray) -> str:
-    return "[" + ", ".join(f"{round(float(x), 3) + 0.0:+.3f}" for x in v) + "]"
+    """A unit direction in the robot's base frame at ``q = 0``: ``"the base's -z"`` along an axis
+    (to 1e-9), else ``"[0.707, 0, -0.707] in the base"``."""
+    k = int(np.argmax(np.abs(v)))
+    if abs(v[k]) > 1.0 - 1e-9:
+        return f"the base's {'-' if v[k] < 0 else ''}{_AXES[k]}"
+    return "[" + ", ".join(f"{round(float(x), 3) + 0.0:.3g}" for x in v) + "] in the base"
 
 
 def words(model: CalibrationModel, keys: Sequence[int]) -> str:
