@@ -173,7 +173,8 @@ def calibrate(
         prior_m, prior_rad: the size of the differences a robot may have from its model: a
             combination of parameters the data determine worse than this is not fitted (it
             keeps the model's value) and is reported as unidentifiable.
-        folds: k of the k-fold held-out residual (0: none).
+        folds: k of the k-fold held-out residual (0: none): each fold's poses predicted by a
+            fit to the others (:func:`~.fit.leave_out`).
         seed: the folds' random split.
 
     Returns:
@@ -185,8 +186,10 @@ def calibrate(
             parameters need, all measured points on one line.
 
     Warns:
-        CalibrationWarning: too few or too similar poses (how many more, which joints to
-            move), or a fit that did not converge.
+        CalibrationWarning: too few poses (how many more), combinations the poses leave
+            unidentified or poses that cover the workspace poorly (which joints to move),
+            data the model cannot fit (joint order, units, frame), or a fit that did not
+            converge.
     """
     with one_thread():  # small matrices: see poekin._blas
         result = _calibrate(

@@ -12,7 +12,11 @@ Steps (:func:`fit`):
    solver rather than ``scipy.optimize.least_squares``: it steps on the base's pose, restricts
    every step to the identifiable subspace, reweights poses for a robust loss, and needs no
    SciPy; for this small, well-started problem (30 parameters, a few hundred residuals) it
-   converges in a few iterations.
+   converges in a few iterations. A trial step costs one FK (its partial products), which
+   the Jacobian reuses when the step is accepted. The fit has converged when a step would
+   lower the cost by less than ``1e-12`` of it (it would move the corrections by some 1e-5
+   of their standard errors), or moves every one by less than ``1e-11`` of its prior
+   (noise-free data, whose cost has no floor).
 3. **Weights.** Position residuals are divided by ``sigma_pos`` (m), orientation residuals by
    ``sigma_ori`` (rad). Either not given is estimated from the residuals (variance
    components: each group's residual sum of squares over its degrees of freedom, the traces of
@@ -23,7 +27,9 @@ Steps (:func:`fit`):
    error would exceed one prior unit (singular value below the residual sigma), or that is
    numerically null, is not fitted: it keeps the model's value, and the fit is repeated in the
    subspace that is left. So noise is never fitted as geometry.
-5. **Robust loss**: poses are reweighted by their normalised residual ``u`` (RMS over their
+5. **Held out** (:func:`leave_out`): each fold's poses predicted by the fit to the others,
+   by the exact leave-fold-out formula of the problem linearised at the whole fit.
+6. **Robust loss**: poses are reweighted by their normalised residual ``u`` (RMS over their
    numbers, in sigmas; the sigmas then from the median absolute residual), iteratively
    (IRLS), as SciPy's losses of the same names with ``f_scale`` in sigmas: ``huber`` and
    ``soft_l1`` bound an outlier's pull, ``cauchy`` lets it fade (best for gross outliers).
