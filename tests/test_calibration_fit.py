@@ -382,13 +382,17 @@ def test_too_few_poses_warn_with_how_many_more(ur5e: Setup) -> None:
     measured = ur5e.sim.poses(ur5e.q[:7])
     with pytest.warns(CalibrationWarning, match="measure at least 3 more"):
         result = calibrate(ur5e.chain, ur5e.q[:7], measured, folds=0)
-    assert (
-        "better 20 or more: 'poekin calibrate universal_robots_ur5e --plan 20'"
-        in result.warnings[0]
+    assert result.warnings[0].endswith(
+        "better 20 or more: 'poekin calibrate universal_robots_ur5e --plan 20' proposes the "
+        "ones that tell the parameters apart best"
     )
+    assert len(result.warnings) == 1  # nothing more (few poses cover the workspace poorly too)
     with pytest.warns(CalibrationWarning) as record:
         calibrate(ur5e.chain, ur5e.q[:7], measured)
     assert any("too few poses for a 5-fold" in str(w.message) for w in record)
+    positions = ur5e.sim.poses(ur5e.q[:12])[:, :3, 3]  # planned for a tracker of points
+    with pytest.warns(CalibrationWarning, match="--plan 36 --positions' proposes"):
+        calibrate(ur5e.chain, ur5e.q[:12], positions, folds=0)
 
 
 def test_model_by_name_and_given_sigmas(ur5e: Setup) -> None:

@@ -335,7 +335,8 @@ def advice(
     n = len(q)
     recommended = recommended_poses(model)
     good = max(2 * recommended, n)
-    plan = f"'poekin calibrate {source} --plan {good}'"
+    positions = " --positions" if model.measure == "position" else ""
+    plan = f"'poekin calibrate {source} --plan {good}{positions}'"
     what = "poses" if model.measure == "pose" else "positions"
     if n < recommended:
         out.append(
@@ -381,8 +382,9 @@ def advice(
         else:
             text += f"; measure more varied {what}, e.g. planned with {plan}"
         out.append(text)
-    if prediction.coverage > _COVERAGE:
-        narrow = _narrow(model, q)
+    narrow = _narrow(model, q)
+    # too few poses cover the workspace poorly too; that says nothing more unless joints are narrow
+    if prediction.coverage > _COVERAGE and (narrow or n >= recommended):
         text = (
             f"the {what} cover the workspace poorly: from the standard errors, the calibrated "
             f"chain predicts the measured configurations to {prediction.measured_m * 1e3:.2g} "
