@@ -108,6 +108,24 @@ class Fit:
     iterations: int
     converged: bool
 
+    @property
+    def row_sigmas(self) -> FloatArray:
+        """``(m,)`` each measured number's sigma: orientation (rad) then position (m), or the
+        position's alone."""
+        pose = self.residuals.shape[1] == 6
+        return np.repeat([self.sigma_ori, self.sigma_pos] if pose else [self.sigma_pos], 3)
+
+    @property
+    def scale(self) -> FloatArray:
+        """``(N, m)`` what each measured number is multiplied by in the fit: one over its
+        sigma, times the square root of its pose's robust weight."""
+        return np.asarray(np.sqrt(self.weights)[:, None] / self.row_sigmas, dtype=np.float64)
+
+    def weighted(self) -> tuple[FloatArray, FloatArray]:
+        """The residuals ``(N, m)`` and their Jacobian ``(N, m, F)`` as the fit weighs them
+        (times :attr:`scale`)."""
+        return self.residuals * self.scale, self.jacobian * self.scale[:, :, None]
+
 
 def residuals(model: CalibrationModel, T: FloatArray, measured: FloatArray) -> FloatArray:
     """``(N, m)`` measured minus model: the rotation ``log(R_meas R^T)`` (rad; pose data
@@ -377,8 +395,7 @@ def _problem(
     if loss not in LOSSES:
         raise InputError(f"unknown loss {loss!r}; use one of {', '.join(LOSSES)}")
     free = list(model.free)
-    units = np.array([prior_m if model.params[k].unit == "m" else prior_rad for k in free])
-    return _Problem(model, q, measured, free, units, loss, f_scale)
+    return _Problem(model, q, measured, free, model.units(free, prior_m, prior_rad), loss, f_scale)
 
 
 def fit(
@@ -450,23 +467,20 @@ def leave_out(fitted: Fit, fold: NDArray[np.int_]) -> tuple[FloatArray, FloatArr
     ``r_f - A_f dy``. What the linearisation leaves out is second order in that step: some
     1e-6 of the noise (``tests/test_calibration_fit.py`` checks it against refitting).
     """
-    pose = fitted.residuals.shape[1] == 6
-    sig = np.repeat([fitted.sigma_ori, fitted.sigma_pos] if pose else [fitted.sigma_pos], 3)
-    r = fitted.residuals / sig
-    root = np.sqrt(fitted.weights)[:, None]
-    A3 = (fitted.jacobian * (root / sig)[:, :, None]) @ fitted.basis
+    b, J = fitted.weighted()
+    A3 = J @ fitted.basis
     N, m, K = A3.shape
     A = A3.reshape(-1, K)
-    b = r * root
     H, g = A.T @ A, A.T @ b.reshape(-1)
-    e = np.empty_like(r)
+    e = np.empty_like(b)  # the predicted residuals, weighted
     for f in np.unique(fold):
         test = fold == f
         At = A3[test].reshape(-1, K)
         dy = _solve(H - At.T @ At, g - At.T @ b[test].reshape(-1))
-        e[test] = (b[test] - (At @ dy).reshape(-1, m)) / root[test] * sig
+        e[test] = b[test] - (At @ dy).reshape(-1, m)
+    e /= fitted.scale  # back to radians and metres
     pos = np.linalg.norm(e[:, -3:], axis=1)
-    ori = np.linalg.norm(e[:, :3], axis=1) if pose else np.full(N, np.nan)
+    ori = np.linalg.norm(e[:, :3], axis=1) if m == 6 else np.full(N, np.nan)
     return pos, ori
 
 

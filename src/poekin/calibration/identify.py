@@ -91,8 +91,7 @@ def _in_units(
 ) -> FloatArray:
     """Rows in metres (:meth:`~.model.CalibrationModel.in_metres`) in millimetres, with columns
     ``keys`` in prior units."""
-    units = np.array([prior_m if model.params[k].unit == "m" else prior_rad for k in keys])
-    return np.asarray(rows * units * 1e3, dtype=np.float64)
+    return np.asarray(rows * model.units(keys, prior_m, prior_rad) * 1e3, dtype=np.float64)
 
 
 def observability(
@@ -160,10 +159,7 @@ def unidentified(
 def _weighted(model: CalibrationModel, fitted: Fit, prior_m: float, prior_rad: float) -> FloatArray:
     """The fit's identification Jacobian ``(N m, F)`` in residual sigmas (its weights, robust
     ones included) per prior unit of each free correction."""
-    pose = model.measure == "pose"
-    sig = np.repeat([fitted.sigma_ori, fitted.sigma_pos] if pose else [fitted.sigma_pos], 3)
-    units = np.array([prior_m if model.params[k].unit == "m" else prior_rad for k in model.free])
-    J = fitted.jacobian * (np.sqrt(fitted.weights)[:, None, None] / sig[:, None]) * units
+    J = fitted.weighted()[1] * model.units(model.free, prior_m, prior_rad)
     return np.asarray(J.reshape(-1, J.shape[-1]), dtype=np.float64)
 
 

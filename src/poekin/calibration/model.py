@@ -356,6 +356,11 @@ class CalibrationModel:
     def n_params(self) -> int:
         return len(self.params)
 
+    def units(self, keys: Sequence[int], prior_m: float, prior_rad: float) -> FloatArray:
+        """``(len(keys),)`` each correction's prior: ``prior_m`` for a length, ``prior_rad``
+        for an angle (the units the fit weighs corrections in)."""
+        return np.array([prior_m if self.params[k].unit == "m" else prior_rad for k in keys])
+
     @property
     def rows_per_pose(self) -> int:
         """Measured numbers per pose: 6 (orientation and position) or 3 (position)."""
