@@ -64,9 +64,10 @@ class Observability:
 
 @dataclasses.dataclass(frozen=True)
 class Direction:
-    """A combination of corrections the data cannot determine: the corrections it involves
-    (indices into the model's parameters, largest share first) and its standard error had it
-    been fitted (in prior units: 1 means as large as the prior)."""
+    """A combination of corrections the data cannot determine: the correction it leads with,
+    then those that move the tool like it (indices into the model's parameters), and its
+    standard error had it been fitted (in prior units: 1 means as large as the prior; inf when
+    the data do not see it at all)."""
 
     params: tuple[int, ...]
     std_prior: float
@@ -362,7 +363,8 @@ def advice(
         still = _still(model, q)
         move = [i for i in involved if i in still] or still
         last = model.chain.n_joints - 1
-        distance = _off_axis(model, state) if model.measure == "position" else np.inf
+        turns = model.chain.joint_types[last] == "revolute"  # a slide moves any point
+        distance = _off_axis(model, state) if model.measure == "position" and turns else np.inf
         if move:
             text += (
                 f"; move {_moved(model, move)} over a wider range ({_spans(model, q, move)}): "
