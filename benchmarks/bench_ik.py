@@ -1,18 +1,30 @@
-"""The IK benchmark: poekin's numerical ``Chain.ik`` against Robotics Toolbox, pytorch_kinematics
-and Pinocchio, on the same targets, every answer checked by MuJoCo (issue #21's protocol).
+"""The IK benchmark: poekin's numerical ``Chain.ik`` and analytic ``Chain.ik_all`` against
+Robotics Toolbox, pytorch_kinematics, Pinocchio and ik-geo, on the same targets, every answer
+checked by MuJoCo (issue #21's protocol).
 
 Protocol, per arm of the shared Menagerie (UR5e, UR10e, FR3, Panda ``hand``, Sawyer, Lite6):
 configurations uniform within the joint limits (seed 0); the targets are their poses by MuJoCo's
-``mj_forward``. Every solver starts from random configurations, never the generating ones. An
-answer succeeds at a tolerance when MuJoCo's pose of it (the answer written into ``qpos``) is
-that close to the target, in metres and radians, and it lies within the joint limits. Rates
-are given at 1e-9, at 1e-5 and at 5 mm / 0.05 rad, so the anchors' published figures compare.
+``mj_forward``. Every numerical solver starts from random configurations, never the generating
+ones. An answer succeeds at a tolerance when MuJoCo's pose of it (the answer written into
+``qpos``) is that close to the target, in metres and radians, and it lies within the joint
+limits. Rates are given at 1e-9, at 1e-5 and at 5 mm / 0.05 rad, so the anchors' published
+figures compare. A solver of every solution succeeds on a target when one of its solutions does.
 
 Rows (each a prefix of the same targets):
 
 * poekin ``chain.ik(T)``: one batch, all threads and one thread (solves per second, time per
   solve including failures); a loop of single calls (median, p99 and mean per call); targets
   out of reach (2.5 m from the base: every one must fail; time per failed target);
+* poekin ``chain.ik_all(T)``, every closed-form solution, on the arms that have one (the UR
+  arms: three parallel axes; the Lite6: a spherical wrist): one batch on all threads and on one,
+  the NumPy reference path (an installation without a compiler), a loop of single calls, and
+  the targets out of reach (no solution may be valid). MuJoCo checks every valid solution of
+  every target: the largest residual (goal 1e-12), solutions per target, and whether the
+  configuration a target came from is among them;
+* ik-geo (``pip install ik-geo``: Elias and Wen's IK-Geo in Rust), ``Robot.get_ik`` in a loop,
+  one pose per call (it has no batch call), on the UR arms, built with
+  ``three_parallel_two_intersecting`` from the same axes; its exact solutions checked as
+  poekin's;
 * Robotics Toolbox ``ETS.ik_LM`` (C++; 100 searches x 30 iterations, limits on), its ETS built
   from poekin's screws (``S_1 .. S_n``, ``M``: the same model, never its built-in robots, whose
   UR5 clones a repository): a loop of single calls;
@@ -27,11 +39,18 @@ Rows (each a prefix of the same targets):
   PyTorch tensors, ``chain.ik(tensor)`` eagerly (float64; torch.compile runs the solve eagerly
   too): one batch. On the UR5e and the Panda unless ``--arrays-arms`` says otherwise.
 
-The anchors run on the UR5e and the Panda (the issue's table) unless ``--arms`` says otherwise;
-solvers that are not installed are skipped (``pip install -e '.[bench]'``). Timings are wall
-times of one run on a shared machine: read medians and ratios, never one sample. The CPU and
-its vector width are printed with every table. Analytic solvers (``Chain.ik_all``) add their
-rows to ``SOLVERS`` as further functions of ``(case, sizes)`` returning a :class:`Row`.
+The numerical anchors run on the UR5e and the Panda (the issue's table) unless
+``--anchor-arms`` says otherwise; solvers that are not installed are skipped
+(``pip install -e '.[bench]'``). Ratios: each anchor's mean time per target (the protocol's
+figure: restarts and failures included) over poekin's batch time per target (``chain.ik`` for
+the numerical anchors, ``chain.ik_all`` for ik-geo), and, for a loop of single calls, its
+median call over poekin's median single call. Timings are wall times of one run on a shared machine:
+read medians and ratios, never one sample. The CPU and its vector width are printed with every
+table.
+
+Pitfalls met on the way: ik-geo's ``get_ik(R, t)`` expects the transpose of the rotation its
+documentation describes (as documented, every solution misses by ~0.7 m; this script passes
+``R.T``), and wants the points where axes 1 and 2, and 5 and 6, meet as its axis points.
 
 examples:
   python benchmarks/bench_ik.py --quick                      # seconds; what CI runs
@@ -61,6 +80,7 @@ sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent))
 from bench_fk import machine_info, package_version  # the FK benchmark's machine description
 
 import poekin
+from poekin.ik import analytic
 from poekin.ik._angles import within_limits
 
 FloatArray = NDArray[np.float64]
@@ -92,6 +112,9 @@ class Sizes:
     rtb: int = 2_000  # Robotics Toolbox's loop
     pytorch_kinematics: int = 1_000  # its batch
     pinocchio: int = 100  # its loop (milliseconds per target)
+    analytic_single: int = 2_000  # poekin ik_all's loop of single calls
+    analytic_numpy: int = 1_000  # ik_all's NumPy reference path
+    ik_geo: int = 2_000  # ik-geo's loop
     arrays: int = 1_000  # poekin's JAX and PyTorch batches
 
 
@@ -103,8 +126,13 @@ QUICK = Sizes(
     rtb=20,
     pytorch_kinematics=20,
     pinocchio=5,
+    analytic_single=50,
+    analytic_numpy=50,
+    ik_geo=50,
     arrays=16,
 )
+EXACT = 1e-12  # m and rad: ik_all's goal for the MuJoCo residual of every valid solution
+SAME_Q = 1e-6  # rad: the configuration a target came from is among its solutions
 
 
 @dataclasses.dataclass(frozen=True)
@@ -129,6 +157,9 @@ class Row:
     p99_us: float | None = None
     success: dict[str, float] = dataclasses.field(default_factory=dict)
     note: str = ""
+    # solvers of every solution: solutions per target, the fraction of targets whose
+    # generating q is among them, MuJoCo's largest residual over every solution (m, rad)
+    checks: dict[str, float] = dataclasses.field(default_factory=dict)
 
     @property
     def solves_per_s(self) -> float:
@@ -172,6 +203,42 @@ def success_rates(case: Case, q: FloatArray, n: int) -> dict[str, float]:
         name: float(np.mean((pos <= p) & (ori <= o) & inside))
         for name, (p, o) in TOLERANCES.items()
     }
+
+
+def solution_checks(
+    case: Case, solutions: Sequence[FloatArray]
+) -> tuple[dict[str, float], dict[str, float]]:
+    """For ``solutions[k]``, the ``(m_k, n)`` solutions a solver gives for target ``k``: the
+    fraction of targets with a solution that MuJoCo puts within each of :data:`TOLERANCES`
+    (within the limits), and :attr:`Row.checks`."""
+    n = len(solutions)
+    flat = np.concatenate([np.reshape(s, (-1, case.chain.n_joints)) for s in solutions])
+    which = np.repeat(np.arange(n), [len(s) for s in solutions])
+    pos, ori = poekin.pose_errors(case.T[which], mujoco_poses(case.loaded, case.chain, flat))
+    inside = within_limits(flat, case.chain.limits)
+    rates = {}
+    for name, (p, o) in TOLERANCES.items():
+        reached = np.zeros(n, dtype=bool)
+        np.logical_or.at(reached, which, (pos <= p) & (ori <= o) & inside)
+        rates[name] = float(reached.mean())
+    gap = np.abs(np.angle(np.exp(1j * (flat - case.q_true[which])))).max(axis=-1)
+    drawn = np.zeros(n, dtype=bool)
+    np.logical_or.at(drawn, which, inside & (gap <= SAME_Q))
+    checks = {
+        "solutions per target": len(flat) / n,
+        "generating q found": float(drawn.mean()),
+        "max residual m": float(pos.max(initial=0.0)),
+        "max residual rad": float(ori.max(initial=0.0)),
+    }
+    return rates, checks
+
+
+def _checks_note(checks: dict[str, float]) -> str:
+    return (
+        f"{checks['solutions per target']:.2f} solutions per target, the generating q among "
+        f"them for {100 * checks['generating q found']:.2f}%; MuJoCo's largest residual "
+        f"{checks['max residual m']:.1e} m, {checks['max residual rad']:.1e} rad"
+    )
 
 
 def make_case(arm: str, n: int) -> Case:
@@ -253,11 +320,17 @@ def poekin_rows(case: Case, sizes: Sizes) -> list[Row]:
     return rows
 
 
+def out_of_reach(case: Case, sizes: Sizes) -> FloatArray:
+    """The first targets moved to :data:`UNREACHABLE_M` from the base, turned as they were."""
+    T = case.T[: sizes.unreachable].copy()
+    T[:, :3, 3] *= UNREACHABLE_M / np.linalg.norm(T[:, :3, 3], axis=-1, keepdims=True)
+    return T
+
+
 def unreachable_row(case: Case, sizes: Sizes) -> Row:
     """Targets out of reach: every one must fail (success would be false), and the cost of a
     failure is the time to spend every attempt."""
-    T = case.T[: sizes.unreachable].copy()
-    T[:, :3, 3] *= UNREACHABLE_M / np.linalg.norm(T[:, :3, 3], axis=-1, keepdims=True)
+    T = out_of_reach(case, sizes)
     t0 = time.perf_counter()
     found = case.chain.ik(T)
     batch_us = (time.perf_counter() - t0) / len(T) * 1e6
@@ -335,6 +408,162 @@ def arrays_rows(case: Case, sizes: Sizes) -> list[Row]:
             )
         )
     return rows
+
+
+# --- poekin: every solution ---------------------------------------------------------------------
+
+
+def ik_all_rows(case: Case, sizes: Sizes) -> list[Row]:
+    """``chain.ik_all`` on the arms that have a closed form (none for the 7-joint arms)."""
+    chain, T = case.chain, case.T
+    try:
+        split = analytic.geometry(chain)
+    except poekin.AnalyticIKError:
+        return []
+    chain.ik_all(T[:50])  # warm
+    rows = []
+    for n_threads, label in ((None, "all threads"), (1, "1 thread")):
+        with threads(n_threads):
+            samples = []
+            for _ in range(sizes.repeats):
+                t0 = time.perf_counter()
+                chain.ik_all(T)
+                samples.append(time.perf_counter() - t0)
+        count = poekin.get_threads() if n_threads is None else 1
+        rows.append(
+            Row(
+                "poekin chain.ik_all",
+                case.arm,
+                "batch",
+                len(T),
+                float(np.median(samples)) / len(T) * 1e6,
+                note=f"{label} ({count}); {split.description}",
+            )
+        )
+    found = chain.ik_all(T)
+    rates, checks = solution_checks(case, [q[v] for q, v in zip(found.q, found.valid, strict=True)])
+    rows[0].success, rows[0].checks = rates, checks
+    rows[0].note += f"; {_checks_note(checks)}"
+    small = T[: sizes.analytic_numpy]
+    samples = []
+    for _ in range(sizes.repeats):
+        t0 = time.perf_counter()
+        analytic.solve_numpy(chain, small)
+        samples.append(time.perf_counter() - t0)
+    rows.append(
+        Row(
+            "poekin chain.ik_all, NumPy path",
+            case.arm,
+            "batch",
+            len(small),
+            float(np.median(samples)) / len(small) * 1e6,
+            note="the reference path, as an installation without a C compiler runs it",
+        )
+    )
+    singles: list[FloatArray] = []
+    times = _loop_times(lambda t: singles.append(chain.ik_all(t).q), T[: sizes.analytic_single])
+    rows.append(
+        Row(
+            "poekin chain.ik_all",
+            case.arm,
+            "single calls",
+            len(times),
+            float(times.mean()),
+            float(np.median(times)),
+            float(np.percentile(times, 99)),
+            note="one (4, 4) target per call",
+        )
+    )
+    far = out_of_reach(case, sizes)
+    t0 = time.perf_counter()
+    missed = chain.ik_all(far)
+    far_us = (time.perf_counter() - t0) / len(far) * 1e6
+    false = int(missed.valid.any(axis=-1).sum())
+    rows.append(
+        Row(
+            "poekin chain.ik_all, out of reach",
+            case.arm,
+            "batch",
+            len(far),
+            far_us,
+            success={"reported success (must be 0)": float(false)},
+            note="a target counts as reported reached if any branch is valid",
+        )
+    )
+    return rows
+
+
+# --- ik-geo -----------------------------------------------------------------------------------
+
+
+def _closest(p1: FloatArray, w1: FloatArray, p2: FloatArray, w2: FloatArray) -> FloatArray:
+    """Where two lines meet (the midpoint of their closest points)."""
+    n = np.cross(w1, w2)
+    d = p2 - p1
+    a = p1 + w1 * (np.cross(d, w2) @ n / (n @ n))
+    b = p2 + w2 * (np.cross(d, w1) @ n / (n @ n))
+    return (a + b) / 2
+
+
+def ik_geo_robot(chain: poekin.Chain) -> Any:
+    """ik-geo's robot from the chain's axes: directions h_i and the offsets p_i between one
+    point on each axis, the points where axes 1 and 2 and axes 5 and 6 meet, and the feet of
+    the common normal from there on axes 3 and 4 (its kinematic form, all frames aligned with
+    the base at q = 0)."""
+    import ik_geo
+
+    w = chain.screws[:, :3]
+    point = np.cross(w, chain.screws[:, 3:])
+    c12 = _closest(point[0], w[0], point[1], w[1])
+    c56 = _closest(point[4], w[4], point[5], w[5])
+    feet = [point[i] + w[i] * ((c12 - point[i]) @ w[i]) for i in (2, 3)]
+    points = [c12, c12, *feet, c56, c56]
+    p = np.zeros((7, 3))
+    p[0] = points[0]
+    for i in range(1, 6):
+        p[i] = points[i] - points[i - 1]
+    p[6] = chain.home[:3, 3] - points[5]
+    return ik_geo.Robot.three_parallel_two_intersecting(w.tolist(), p.tolist())
+
+
+def ik_geo_rows(case: Case, sizes: Sizes) -> list[Row]:
+    """ik-geo's ``get_ik`` in a loop, on the arms of the UR geometry."""
+    try:
+        split = analytic.geometry(case.chain)
+    except poekin.AnalyticIKError:
+        return []
+    if split.kind != "three parallel axes":
+        return []  # ik-geo has other constructors; only this one is built here
+    robot = ik_geo_robot(case.chain)
+    R_home = case.chain.home[:3, :3]
+    # the rotation ik-geo wants: the target's turn of the base-aligned frame 6, transposed
+    n = min(sizes.ik_geo, len(case.T))
+    args = [((t[:3, :3] @ R_home.T).T.tolist(), t[:3, 3].tolist()) for t in case.T[:n]]
+    answers: list[Any] = []
+    times = _loop_times(lambda a: answers.append(robot.get_ik(*a)), args)
+    exact = [
+        np.array([q for q, least_squares in found if not least_squares], dtype=np.float64)
+        for found in answers
+    ]
+    rates, checks = solution_checks(_prefix(case, n), exact)
+    return [
+        Row(
+            "ik-geo get_ik",
+            case.arm,
+            "single calls",
+            n,
+            float(times.mean()),
+            float(np.median(times)),
+            float(np.percentile(times, 99)),
+            rates,
+            f"ik-geo {package_version('ik-geo')}, one pose per call; {_checks_note(checks)}",
+            checks,
+        )
+    ]
+
+
+def _prefix(case: Case, n: int) -> Case:
+    return dataclasses.replace(case, q_true=case.q_true[:n], T=case.T[:n])
 
 
 # --- anchors ----------------------------------------------------------------------------------
@@ -484,14 +713,18 @@ def pinocchio_rows(case: Case, sizes: Sizes) -> list[Row]:
     return [_single_row("Pinocchio CLIK loop", case, times, np.array(answers), note.strip())]
 
 
-ANCHORS: dict[str, tuple[str, Callable[[Case, Sizes], list[Row]]]] = {
+Solver = tuple[str, Callable[[Case, Sizes], list[Row]]]  # (distribution, rows)
+# the numerical anchors, on --anchor-arms
+ANCHORS: dict[str, Solver] = {
     "roboticstoolbox": ("roboticstoolbox-python", rtb_rows),
     "pytorch_kinematics": ("pytorch-kinematics", pytorch_kinematics_rows),
     "pinocchio": ("pin", pinocchio_rows),
 }
-# further solvers (Chain.ik_all) go here: name -> (distribution, rows)
-SOLVERS: dict[str, tuple[str, Callable[[Case, Sizes], list[Row]]]] = {
+# every solver, by name; the analytic ones run on every arm with a closed form
+SOLVERS: dict[str, Solver] = {
     "poekin": ("numpy", poekin_rows),
+    "ik_all": ("numpy", ik_all_rows),
+    "ik-geo": ("ik-geo", ik_geo_rows),
     "poekin_arrays": ("array-api-compat", arrays_rows),
     **ANCHORS,
 }
@@ -519,22 +752,30 @@ def table(rows: Sequence[Row]) -> str:
     return "\n".join(lines)
 
 
+# each anchor's poekin counterpart: the numerical solver's, or ik_all's for ik-geo
+COUNTERPART = {"ik-geo get_ik": "poekin chain.ik_all"}
+
+
 def ratios(rows: Sequence[Row]) -> dict[str, float]:
-    """Per anchor arm: poekin's batch rate over each anchor's rate."""
+    """Each anchor's time per target over poekin's on the same arm: its mean (restarts and
+    failures included) over poekin's batch on all threads, and, for an anchor's single calls,
+    its median call over poekin's median single call (a median shrugs off a shared machine's
+    stray slow call; a mean keeps the restarts' cost)."""
     out = {}
     for r in rows:
         if r.solver.startswith("poekin"):
             continue
-        ours = next(
-            (
-                x
-                for x in rows
-                if x.solver == "poekin chain.ik" and x.arm == r.arm and x.mode == "batch"
-            ),
-            None,
-        )
-        if ours is not None:
-            out[f"{r.solver} ({r.arm})"] = r.per_solve_us / ours.per_solve_us
+        ours = COUNTERPART.get(r.solver, "poekin chain.ik")
+        same = [x for x in rows if x.solver == ours and x.arm == r.arm]
+        batch = next((x for x in same if x.mode == "batch"), None)
+        if batch is not None:
+            out[f"{r.solver} ({r.arm}) / {ours} batch"] = r.per_solve_us / batch.per_solve_us
+        single = next((x for x in same if x.mode == "single calls"), None)
+        if r.mode == "single calls" and single is not None:
+            assert r.median_us is not None and single.median_us is not None
+            out[f"{r.solver} ({r.arm}) / {ours} single calls, medians"] = (
+                r.median_us / single.median_us
+            )
     return out
 
 
@@ -548,7 +789,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--arms", nargs="+", choices=list(ARMS), default=list(ARMS))
     parser.add_argument("--anchor-arms", nargs="+", choices=list(ARMS), default=list(ANCHOR_ARMS))
     parser.add_argument("--arrays-arms", nargs="+", choices=list(ARMS), default=list(ARRAYS_ARMS))
-    parser.add_argument("--skip", nargs="+", choices=[*ANCHORS, "poekin_arrays"], default=[])
+    parser.add_argument("--skip", nargs="+", choices=list(SOLVERS)[1:], default=[])
     parser.add_argument("--json", type=pathlib.Path, help="write the rows and machine here")
     args = parser.parse_args(argv)
     sizes = QUICK if args.quick else Sizes()
@@ -577,7 +818,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     print(table(rows))
     rel = ratios(rows)
     for name, x in rel.items():
-        print(f"{name}: {x:.1f}x poekin's time per solve")
+        print(f"{name}: {x:.1f}x the time per target")
     if skipped:
         print("skipped:", ", ".join(sorted(set(skipped))))
     if args.json:

@@ -118,6 +118,9 @@ def test_calibrate_json(tmp_path: pathlib.Path, capsys: pytest.CaptureFixture[st
     assert all(
         set(c) >= {"tilt_mrad", "offset_mm", "encoder", "message"} for c in result["changes"]
     )
+    for unit in ("m", "rad"):  # the error predicted from the standard errors, below the noise
+        predicted, residual = result[f"predicted_rms_{unit}"], result[f"residual_rms_{unit}"]
+        assert 0 < predicted["measured"] < residual and 0 < predicted["workspace"] < residual
 
 
 def test_calibrate_reads_degrees_and_npz(
@@ -220,15 +223,24 @@ HEADER = (
     "shoulder_pan_joint,shoulder_lift_joint,elbow_joint,wrist_1_joint,wrist_2_joint,wrist_3_joint"
 )
 
+# what a bad data file must not leave behind
+WRITES = ["--output", "{tmp}/calibrated.json", "--plot", "{tmp}/calibration.png"]
+
 # (argv, message); {tracker} is a good measurement file, {bad:...} one with an edit
 BAD_INPUTS_CALIBRATE = [
     (["calibrate", ROBOT], "give --measurements FILE"),
     (["calibrate", "universal_robots_ur5", "--plan", "10"], "did you mean 'universal_robots_ur5e'"),
-    (["calibrate", ROBOT, "--measurements", "{nan}"], "is NaN or inf"),
+    (["calibrate", ROBOT, "--measurements", "{nan}", *WRITES], "is NaN or inf"),
     (["calibrate", ROBOT, "--measurements", "{typo}"], "did you mean 'wrist_3_joint'"),
-    (["calibrate", ROBOT, "--measurements", "{missing_joint}"], "no column 'wrist_3_joint'"),
-    (["calibrate", ROBOT, "--measurements", "{few}"], "measure at least 6"),
-    (["calibrate", ROBOT, "--measurements", "{not_unit}"], "not 1; give a unit quaternion"),
+    (
+        ["calibrate", ROBOT, "--measurements", "{missing_joint}", *WRITES],
+        "no column 'wrist_3_joint'",
+    ),
+    (["calibrate", ROBOT, "--measurements", "{few}", *WRITES], "measure at least 6"),
+    (
+        ["calibrate", ROBOT, "--measurements", "{not_unit}", *WRITES],
+        "not 1; give a unit quaternion",
+    ),
     (["calibrate", ROBOT, "--measurements", "{text}"], "'abc' is not a number"),
     (["calibrate", ROBOT, "--measurements", "{half_quaternion}"], "missing qy, qz"),
     (["calibrate", ROBOT, "--measurements", "{no_header}"], "must be a header"),
@@ -290,3 +302,15 @@ def test_bad_input_gives_one_line_and_exit_2(
     assert code == 2
     assert_one_error_line(err, message)
     assert {p: p.read_bytes() for p in tmp_path.iterdir()} == files  # nothing written
+
+
+def test_every_loss_is_a_choice() -> None:
+    """--loss offers what poekin.calibrate takes (the parser does not import the fit)."""
+    from poekin.calibration import LOSSES
+    from poekin.cli import _build_parser
+
+    parser = _build_parser()
+    sub = next(a for a in parser._actions if a.dest == "command")
+    calibrate = sub.choices["calibrate"]  # type: ignore[index]
+    (loss,) = [a for a in calibrate._actions if a.dest == "loss"]
+    assert tuple(loss.choices) == LOSSES

@@ -17,9 +17,10 @@ from calibration_helpers import plain_fit
 import poekin
 from poekin import lie
 from poekin.calibration import calibrate
+from poekin.calibration.fit import fit
 from poekin.calibration.simulate import SimulatedRobot, simulate_robot
 from poekin.errors import CalibrationWarning, InputError
-from poekin.verify import pose_errors
+from poekin.verify import pose_errors, random_generator
 
 pytestmark = pytest.mark.filterwarnings("ignore::poekin.AssetsStrippedWarning")
 
@@ -130,8 +131,10 @@ def test_a_point_on_the_last_axis_leaves_its_offset_unidentified() -> None:
     than the plain fit that fits them anyway."""
     setup = Setup("universal_robots_ur5e", 14)
     measured = setup.sim.measure(setup.q, noise_m=SIGMA, positions=True, seed=3)
-    with pytest.warns(CalibrationWarning, match="wrist_3_joint"):
+    with pytest.warns(CalibrationWarning, match="wrist_3_joint") as record:
         result = calibrate(setup.chain, setup.q, measured, folds=0)
+    (note,) = [str(w.message) for w in record]
+    assert "from joint 6 (wrist_3_joint)'s axis" in note and "mount the target" in note
     assert result.identifiable < result.expected_identifiable == 27
     assert any(
         "wrist_3_joint" in result.model.params[k].key for d in result.unidentified for k in d.params
@@ -146,11 +149,20 @@ def test_a_joint_that_never_moves_is_not_fitted_to_noise(ur5e: Setup) -> None:
     q = ur5e.q.copy()
     q[:, 3] = 0.4  # wrist 1 held still
     measured = ur5e.sim.measure(q, noise_m=SIGMA, noise_rad=SIGMA, seed=4)
-    with pytest.warns(CalibrationWarning, match=r"move joint 4 \(wrist_1_joint\)"):
+    with pytest.warns(CalibrationWarning, match=r"move joint 4 \(wrist_1_joint\)") as record:
         result = calibrate(ur5e.chain, q, measured, folds=0)
+    (note,) = [str(w.message) for w in record]
+    assert "(it spans 0 of its 6.28 rad)" in note and "right only near where it stays" in note
     assert result.identifiable < 30
     summary = result.summary()
     assert summary["unidentifiable"] and summary["warnings"]
+    # in words, each combination led by a correction of its own, with what moves the tool alike
+    messages = [u["message"] for u in summary["unidentifiable"]]
+    leads = [u["parameters"][0] for u in summary["unidentifiable"]]
+    assert len(set(leads)) == len(leads)
+    assert any(m.startswith("joint 4 (wrist_1_joint)'s axis") for m in messages)
+    assert all(" moves the tool as " in m for m in messages)
+    assert all("[" not in m for m in messages)  # directions along the base's axes by name
     free = list(result.model.free)[6:]
     units = np.array([1e-3 if result.model.params[k].unit == "m" else 1e-2 for k in free])
     assert np.max(np.abs(result.state.x[free]) / units) < 5  # no wild geometry
@@ -158,6 +170,54 @@ def test_a_joint_that_never_moves_is_not_fitted_to_noise(ur5e: Setup) -> None:
     q_same[:, 3] = 0.4  # where it was measured, it is still right
     pos, _ = pose_errors(ur5e.sim.poses(q_same), result.chain.fk(q_same))
     assert _rms(pos) < 0.1e-3
+
+
+def _narrow_wrist(q: np.ndarray) -> np.ndarray:
+    """Wrist 3 turned over a twentieth of its range."""
+    return np.asarray(q * [1, 1, 1, 1, 1, 0.05])
+
+
+def test_poses_that_leave_a_joint_narrow_are_too_similar(ur5e: Setup) -> None:
+    """Every parameter is identified, but the chain is predicted to be much worse over the
+    workspace than at the measured poses: the warning says so and names the joint."""
+    q = _narrow_wrist(ur5e.q)
+    measured = ur5e.sim.measure(q, noise_m=SIGMA, noise_rad=SIGMA, seed=9)
+    with pytest.warns(CalibrationWarning, match="cover the workspace poorly") as record:
+        result = calibrate(ur5e.chain, q, measured, folds=0)
+    (note,) = [str(w.message) for w in record]
+    assert "move joint 6 (wrist_3_joint) over a wider range" in note
+    assert result.identifiable == 30 and result.predicted.coverage > 3
+    good = calibrate(ur5e.chain, ur5e.q, ur5e.sim.measure(ur5e.q, seed=9), folds=0)
+    assert good.predicted.coverage < 1.5 and good.warnings == ()
+
+
+@pytest.mark.parametrize(("design", "low", "high"), [("random", 0.7, 1.4), ("narrow", 0.5, 2.0)])
+def test_the_predicted_workspace_error_is_honest(
+    ur5e: Setup, design: str, low: float, high: float
+) -> None:
+    """The workspace error predicted from the standard errors is, on average over noise
+    draws, the calibrated chain's true error against the MuJoCo robot on random
+    configurations (the mean of (true / predicted)^2 is 1; a narrow design's draws scatter
+    more: its error lies in a few poorly determined directions)."""
+    q = ur5e.q if design == "random" else _narrow_wrist(ur5e.q)
+    ratios = []
+    for seed in range(16):
+        measured = ur5e.sim.measure(q, noise_m=SIGMA, noise_rad=SIGMA, seed=300 + seed)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", CalibrationWarning)
+            result = calibrate(ur5e.chain, q, measured, folds=0)
+        ratios.append(_rms(ur5e.errors(result.chain.fk)[0]) / result.predicted.workspace_m)
+    assert low < np.mean(np.square(ratios)) < high, ratios
+
+
+def test_data_the_model_cannot_fit_are_called_wrong(ur5e: Setup) -> None:
+    """Two joint columns swapped: the fit misses by centimetres; the warning says to check the
+    data (order, units, frame) and nothing about poses to add."""
+    q = ur5e.q[:, [0, 2, 1, 3, 4, 5]]
+    with pytest.warns(CalibrationWarning, match="still misses the measurements") as record:
+        result = calibrate(ur5e.chain, q, ur5e.sim.poses(ur5e.q), folds=0)
+    (note,) = [str(w.message) for w in record]
+    assert "order and units" in note and result.residual_rms_m > 0.01
 
 
 def test_standard_errors_are_honest(ur5e: Setup) -> None:
@@ -198,6 +258,36 @@ def test_outliers_are_reported_and_weighed_down(ur5e: Setup) -> None:
     assert err["huber"] < 0.25 * err["linear"] and err["soft_l1"] < 0.25 * err["linear"]
     assert err["cauchy"] < 1.5 * clean_err  # gross outliers fade out
     assert np.all(fits["cauchy"].fitted.weights[[4, 17, 33]] < 0.05)
+
+
+def test_heldout_residual_is_that_of_refitting_each_fold(ur5e: Setup) -> None:
+    """The k-fold held-out errors (the leave-fold-out solution of the linearised problem)
+    are those of fitting each fold's other poses again, to a thousandth of the noise."""
+    measured = ur5e.sim.measure(ur5e.q, noise_m=SIGMA, noise_rad=SIGMA, seed=8)
+    result = calibrate(ur5e.chain, ur5e.q, measured, folds=5, seed=3)
+    assert result.heldout is not None
+    fold = np.empty(50, dtype=int)
+    fold[random_generator(3).permutation(50)] = np.arange(50) % 5
+    pos, ori = np.zeros(50), np.zeros(50)
+    for f in range(5):
+        train, test = fold != f, fold == f
+        part = fit(
+            result.model,
+            ur5e.q[train],
+            measured[train],
+            start=result.state,
+            sigma_pos=result.fitted.sigma_pos,
+            sigma_ori=result.fitted.sigma_ori,
+            loss="linear",
+            f_scale=3.0,
+            prior_m=1e-3,
+            prior_rad=1e-2,
+        )
+        T = result.model.poses(part.state, ur5e.q[test])
+        pos[test], ori[test] = pose_errors(measured[test], T)
+    assert np.max(np.abs(result.heldout[0] - pos)) < 1e-3 * SIGMA
+    assert np.max(np.abs(result.heldout[1] - ori)) < 1e-3 * SIGMA
+    assert _rms(pos) > 1.05 * result.residual_rms_m  # not the fit's own residual
 
 
 def test_heldout_residual_and_report(ur5e: Setup) -> None:
@@ -292,10 +382,17 @@ def test_too_few_poses_warn_with_how_many_more(ur5e: Setup) -> None:
     measured = ur5e.sim.poses(ur5e.q[:7])
     with pytest.warns(CalibrationWarning, match="measure at least 3 more"):
         result = calibrate(ur5e.chain, ur5e.q[:7], measured, folds=0)
-    assert "--plan" in result.warnings[0]
+    assert result.warnings[0].endswith(
+        "better 20 or more: 'poekin calibrate universal_robots_ur5e --plan 20' proposes the "
+        "ones that tell the parameters apart best"
+    )
+    assert len(result.warnings) == 1  # nothing more (few poses cover the workspace poorly too)
     with pytest.warns(CalibrationWarning) as record:
         calibrate(ur5e.chain, ur5e.q[:7], measured)
     assert any("too few poses for a 5-fold" in str(w.message) for w in record)
+    positions = ur5e.sim.poses(ur5e.q[:12])[:, :3, 3]  # planned for a tracker of points
+    with pytest.warns(CalibrationWarning, match="--plan 36 --positions' proposes"):
+        calibrate(ur5e.chain, ur5e.q[:12], positions, folds=0)
 
 
 def test_model_by_name_and_given_sigmas(ur5e: Setup) -> None:

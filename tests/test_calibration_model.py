@@ -15,7 +15,7 @@ from helpers import MJ_TOL, assert_close
 
 import poekin
 from poekin import lie
-from poekin.calibration.model import CalibrationModel, State, expected_identifiable
+from poekin.calibration.model import CalibrationModel, State, expected_identifiable, rotations
 from poekin.calibration.simulate import simulate_robot
 from poekin.verify import pose_errors
 
@@ -185,3 +185,14 @@ def test_simulated_robot_differs_by_about_what_was_asked() -> None:
     pos, ori = pose_errors(noisy, sim.poses(q[:50]))
     assert 0.5e-4 < np.sqrt(np.mean(pos**2)) / np.sqrt(3) < 2e-4
     assert sim.measure(q[:5], positions=True).shape == (5, 3)
+
+
+@pytest.mark.parametrize("shape", [(), (1,), (3, 1, 2)])
+def test_rotations_are_lie_exp_so3(shape: tuple[int, ...]) -> None:
+    """The fit's batched Rodrigues (matrix products) is poekin.lie.exp_so3, from zero and
+    tiny angles (the series branch) to more than pi."""
+    rng = np.random.default_rng(5)
+    v = rng.normal(size=(*shape, 3)) * 10.0 ** rng.uniform(-12, 0.6, size=(*shape, 1))
+    assert_close("exp", rotations(v), lie.exp_so3(v), 5e-16)
+    identity = np.broadcast_to(np.eye(3), (*shape, 3, 3))
+    assert_close("zero", rotations(np.zeros((*shape, 3))), identity, 0.0)

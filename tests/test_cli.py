@@ -173,6 +173,7 @@ _ON_LINUX = pytest.mark.skipif(
     not (os.path.isdir("/proc/self") and os.path.isdir("/sys/kernel")), reason="needs /proc, /sys"
 )
 
+POSE = ["0.4", "0.2", "0.3", "0", "1", "0", "0"]  # x y z qw qx qy qz: a pose the UR5e reaches
 BAD_INPUTS = [
     (["verify", "universal_robots_ur5"], "did you mean 'universal_robots_ur5e'"),
     (["verify", "no/such/robot.xml"], "model file not found"),
@@ -353,6 +354,68 @@ BAD_INPUTS = [
         ["diagnose", "--params", "{ur_calibration}", "--against", "ur5e-dh", "--frame", "tool0"],
         "frame out",
     ),
+    # poekin ik (issue 21): targets that are no poses, files, options that do not go together
+    (["ik", "universal_robots_ur5e", "--pose", *POSE[:3], *"0000"], "the quaternion is zero"),
+    (
+        ["ik", "universal_robots_ur5e", "--pose", *POSE[:3], "0.7071", "0.7071", "0", "0"],
+        "norm 0.99999041, not 1 (|q| must be within 1e-6 of 1; poekin does not normalise it): "
+        "give a unit quaternion, such as 0.707106781 0.707106781 0 0",
+    ),
+    (["ik", "universal_robots_ur5e", "--pose", "nan", *POSE[1:]], "--pose holds NaN or inf"),
+    (["ik", "universal_robots_ur5e", "--pose", *POSE[:6]], "--pose takes 7 numbers"),
+    (["ik", "universal_robots_ur5e", "--pose", *POSE[:3]], "or pass --position-only"),
+    (["ik", "universal_robots_ur5e"], "give a target with --pose X Y Z QW QX QY QZ"),
+    (["ik", "universal_robots_ur5e", "--pose", *POSE, "--input", "{poses}"], "give one"),
+    (["ik", "universal_robots_ur5e", "--input", "{poses}"], "--input needs --output"),
+    (["ik", "universal_robots_ur5e", "--pose", *POSE, "--output", "{tmp}/q.npy"], "goes with"),
+    (
+        ["ik", "universal_robots_ur5e", "--input", "{poses}", "--output", "{tmp}/q.npy", "--json"],
+        "--json prints the answer for one --pose",
+    ),
+    (
+        ["ik", "universal_robots_ur5e", "--input", "{not_rigid}", "--output", "{tmp}/q_ik.npy"],
+        "target at index (1,) is not a rigid transform: its rotation block is not orthonormal",
+    ),
+    (
+        ["ik", "universal_robots_ur5e", "--input", "{bad_quat_csv}", "--output", "{tmp}/q_ik.npy"],
+        "bad_quat.csv row 1: the quaternion QW QX QY QZ = 1 1 0 0 has norm 1.41421356",
+    ),
+    (
+        ["ik", "universal_robots_ur5e", "--input", "{nan_poses}", "--output", "{tmp}/q_ik.npy"],
+        "nan_poses.npy row 1 holds NaN or inf",
+    ),
+    (
+        ["ik", "universal_robots_ur5e", "--input", "{q_npy}", "--output", "{tmp}/q_ik.npy"],
+        "holds an array of shape (2, 6); give targets as (N, 4, 4) matrices",
+    ),
+    (
+        ["ik", "universal_robots_ur5e", "--input", "{tmp}/none.npy", "--output", "{tmp}/q_ik.npy"],
+        "no such file",
+    ),
+    (
+        ["ik", "universal_robots_ur5e", "--input", "{poses}", "--output", "{other_csv}"],
+        "already exists; pass --force",
+    ),
+    (["ik", "franka_fr3", "--pose", *POSE, "--all"], "ik_all needs 6 revolute joints"),
+    (["ik", "universal_robots_ur5e", "--pose", *POSE, "--all", "--seed", "1"], "takes no --seed"),
+    (["ik", "universal_robots_ur5e", "--pose", *POSE, "--q0", "1", "2"], "expected 6 --q0 values"),
+    (["ik", "universal_robots_ur5e", "--pose", *POSE, "--seed", "-1"], "--seed must be a whole"),
+    (["ik", "universal_robots_ur5e", "--pose", *POSE, "--pos-tol", "0"], "--pos-tol must be a"),
+    (["ik", "universal_robots_ur5e", "--pose", *POSE, "--qpos", "0"], "pass --tree too"),
+    (["ik", "unitree_go2", "--frame", "FL_calf", "--pose", *POSE], "pass --tree"),
+    (
+        ["ik", "aloha", "--tree", "--frame", "left/griper", "--pose", *POSE],
+        "did you mean 'left/gripper'",
+    ),
+    (
+        ["ik", "aloha", "--tree", "--frame", "left/gripper", "--pose", *POSE, "--qpos", "0"],
+        "expected 16 --qpos values",
+    ),
+    pytest.param(
+        ["ik", "universal_robots_ur5e", "--input", "{poses}", "--output", "/sys/q.npy"],
+        "cannot write the joint values to /sys/q.npy: folder /sys is not writable",
+        marks=_ON_LINUX,
+    ),
 ]
 
 # {name}.yaml files for BAD_INPUTS: the synthetic UR5e calibration of tests/data/ur, edited
@@ -445,6 +508,14 @@ def test_bad_input_gives_one_line_and_exit_2(
         "mismatched_xml": _write(tmp_path, "m.xml", "<mujoco>\n<worldbody>\n<oops>\n</mujoco>\n"),
         "deg_unit_typo": _write(
             tmp_path, "t.json", json.dumps({**UR5E_DH_DICT, "angle_unit": "degree"})
+        ),
+        "poses": _npy(tmp_path / "poses.npy", np.tile(np.eye(4), (2, 1, 1))),
+        "not_rigid": _npy(tmp_path / "not_rigid.npy", np.stack([np.eye(4), np.diag([2, 1, 1, 1])])),
+        "bad_quat_csv": _write(
+            tmp_path, "bad_quat.csv", "0.4,0.2,0.3,1,0,0,0\n0.4,0.2,0.3,1,1,0,0\n"
+        ),
+        "nan_poses": _npy(
+            tmp_path / "nan_poses.npy", np.array([[0.4, 0, 0, 1, 0, 0, 0], [np.nan] * 7])
         ),
     }
     fills |= {

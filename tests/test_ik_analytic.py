@@ -453,6 +453,19 @@ def test_kernel_widths_threads_and_batches_give_the_same_bits(folder: pathlib.Pa
     np.testing.assert_array_equal(singles, results[0][:20])
 
 
+def test_unaligned_targets_give_the_same_solutions(folder: pathlib.Path) -> None:
+    """An array at an odd offset in its buffer (from Dask, ``np.frombuffer``) is copied for the
+    kernel, not refused."""
+    from test_ik_numerical import unaligned
+
+    arm = arm_named("ur5e", folder)
+    T = arm.chain.fk(arm.sample(50, seed=12))
+    expected = arm.chain.ik_all(T)
+    got = arm.chain.ik_all(unaligned(T))
+    np.testing.assert_array_equal(got.q, expected.q)
+    np.testing.assert_array_equal(got.valid, expected.valid)
+
+
 @needs_kernel
 def test_kernel_rejects_what_the_reference_rejects(folder: pathlib.Path) -> None:
     chain = arm_named("ur5e", folder).chain

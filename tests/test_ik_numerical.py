@@ -331,6 +331,27 @@ def test_a_target_gets_the_same_bits_alone_in_any_batch_and_position(ur5e: Chain
     assert_same_bits(fields(ur5e.ik(T)), batch, "a repeated run")
 
 
+def unaligned(a: np.ndarray) -> np.ndarray:
+    """A copy of ``a`` in a buffer at an odd offset, as Dask's workers and ``np.frombuffer``
+    hand arrays out: C-contiguous float64, but not aligned."""
+    out = np.ndarray(a.shape, np.float64, buffer=np.zeros(a.nbytes + 1, np.uint8), offset=1)
+    out[...] = a
+    assert out.flags.c_contiguous and not out.flags.aligned
+    return out
+
+
+def test_unaligned_arrays_give_the_same_bits(ur5e: Chain) -> None:
+    """The kernel reads aligned arrays only: unaligned targets, q0 and qpos are copied first,
+    not refused (a Dask result used to fail an assertion)."""
+    q = uniform_q(ur5e, 20, seed=15)
+    T = ur5e.fk(q)
+    expected = fields(ur5e.ik(T, q[::-1]))
+    assert_same_bits(fields(ur5e.ik(unaligned(T), unaligned(q[::-1]))), expected, "unaligned")
+    tree = poekin.load_tree(load_quiet("universal_robots_ur5e"))
+    got = tree.ik(unaligned(T), ur5e.frame, unaligned(q[::-1]), warm_start=True)
+    assert_same_bits(fields(got), expected, "unaligned, Tree.ik")
+
+
 def test_the_seed_changes_the_starts_not_the_success(ur5e: Chain) -> None:
     T = ur5e.fk(uniform_q(ur5e, 30, seed=13))
     a, b = ur5e.ik(T, seed=1), ur5e.ik(T, seed=2)

@@ -26,6 +26,7 @@ from poekin import DHTable, InputError, dh_from_chain
 from poekin.cli import main
 from poekin.paramfile import load_params, params_from_dict
 from poekin.params import UR5E_JOINT_NAMES
+from poekin.sources import kinematics_spec
 from poekin.ur_kinematics import UR_ORIGIN_KEYS, ur_chain
 
 REPO = pathlib.Path(__file__).resolve().parents[1]
@@ -272,7 +273,7 @@ def test_default_ur5e_has_the_menagerie_frames(ur5e: poekin.Chain, tmp_path: pat
 
 def _menagerie_with_urs_lengths() -> poekin.Chain:
     """The Menagerie UR5e with UR's published lengths typed into its bodies, through MuJoCo."""
-    spec = mujoco.MjSpec.from_file(str(poekin.load_model("universal_robots_ur5e").xml_path))
+    spec = kinematics_spec("universal_robots_ur5e")  # meshes or not
     spec.body("shoulder_link").pos = [0.0, 0.0, 0.1625]
     spec.body("wrist_1_link").pos = [0.0, 0.0, 0.3922]
     spec.body("wrist_2_link").pos = [0.0, 0.1333 - 0.138 + 0.131, 0.0]

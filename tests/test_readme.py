@@ -63,13 +63,16 @@ def _tracker() -> tuple[np.ndarray, np.ndarray]:
 
 
 def _fixtures(folder: pathlib.Path) -> None:
-    """The files the examples read: joint values for the UR5e and the go2, a parameter file,
-    and a calibration's measurements (tracker.csv)."""
+    """The files the examples read: joint values for the UR5e and the go2, UR5e poses to solve
+    (T.npy, from joint values within the limits), a parameter file, and a calibration's
+    measurements (tracker.csv)."""
     from poekin.calibration.files import write_measurements
 
     write_measurements(folder / "tracker.csv", poekin.load("universal_robots_ur5e"), *_tracker())
     rng = np.random.default_rng(0)
     np.save(folder / "q.npy", rng.uniform(-3, 3, (20, 6)))
+    ur5e = poekin.load("universal_robots_ur5e")
+    np.save(folder / "T.npy", ur5e.fk(poekin.sample_joint_values(ur5e, 20, within_limits=True)))
     tree = poekin.load_tree("unitree_go2")
     np.save(folder / "qpos.npy", poekin.sample_qpos(tree, 20))
     (folder / "my_ur5e.json").write_text(

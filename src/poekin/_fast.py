@@ -223,10 +223,12 @@ def _hinge(
     point: FloatArray,
     pitch: FloatArray,
     code: int,
+    squares: tuple[NDArray[Any], NDArray[Any]] | None = None,
 ) -> None:
     """A rotation by ``angle = (q scale + offset) - ref`` about ``axis`` through ``point``, then
     ``q pitch`` along it: AXIS about a coordinate axis (see ``lie.coordinate_axis``), else
-    ``code`` (SCREW or HINGE, Rodrigues)."""
+    ``code`` (SCREW or HINGE, Rodrigues) with ``W = [axis]`` and ``W^2`` (``squares`` if given,
+    the same numbers computed for several axes at once)."""
     along = lie.coordinate_axis(axis)
     if along is not None:
         k, sign = along
@@ -234,8 +236,11 @@ def _hinge(
         code = (_AXIS if pitch[k] == 0.0 else _AXIS_PITCH) + k
         p.op(code, qadr, [*angle, sign, point[a], point[b], pitch[k]])
         return
-    W = lie.hat_so3(axis)
-    W2 = lie.rotate_compose(W, W)
+    if squares is None:
+        W: NDArray[Any] = lie.hat_so3(axis)
+        W2: NDArray[Any] = lie.rotate_compose(W, W)
+    else:
+        W, W2 = squares
     if code == _SCREW:
         p.op(_SCREW, qadr, [*W.reshape(-1), *W2.reshape(-1), *point, *pitch])
     else:
@@ -247,10 +252,12 @@ def _chain_joints(
 ) -> None:
     """Each screw's exponential in turn (``chain._ScrewTerms``); with ``columns`` (the screws),
     first its Jacobian column ``Ad(cur) S_i``."""
+    W = lie.hat_so3(w)  # every joint's [w] and [w]^2 at once (entry by entry, as one at a time)
+    W2 = lie.rotate_compose(W, W)
     for i in range(r.shape[0]):
         if columns is not None:
             p.op(_JCOL, params=[*columns[i], 1.0], slot=i)
-        _hinge(p, i, (1.0, 0.0, 0.0), w[i], r[i], u[i], _SCREW)
+        _hinge(p, i, (1.0, 0.0, 0.0), w[i], r[i], u[i], _SCREW, (W[i], W2[i]))
 
 
 def chain_program(

@@ -148,14 +148,15 @@ class _ScrewTerms:
         about a coordinate axis (:func:`poekin.lie.coordinate_axis`) turns by ``cos`` and
         ``+-sin`` entries, as the kernel's AXIS operations do."""
         out = []
-        for w, r, u in zip(self.w, self.r, self.u, strict=True):
-            W = lie.hat_so3(w)
+        Ws = lie.hat_so3(self.w)  # every joint's at once (entry by entry, as one at a time)
+        W2s = lie.rotate_compose(Ws, Ws)
+        for w, r, u, W, W2 in zip(self.w, self.r, self.u, Ws, W2s, strict=True):
             out.append(
                 _Screw(
                     axis=lie.coordinate_axis(w),
                     prismatic=not w.any(),
                     W=_floats(W),
-                    W2=_floats(lie.rotate_compose(W, W)),
+                    W2=_floats(W2),
                     r=tuple(float(x) for x in r),  # type: ignore[arg-type]
                     u=tuple(float(x) for x in u),  # type: ignore[arg-type]
                 )

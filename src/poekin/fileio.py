@@ -14,7 +14,8 @@ Arrays (:data:`ARRAY_FORMATS`):
 
 * ``.npy``: NumPy's array file, read without unpickling (``allow_pickle=False``);
 * ``.npz``: NumPy's archive; read: the one array it holds; written: the result under its name
-  (``T`` or ``J``) and the frame or column names beside it;
+  (``T``, ``J`` or ``q``) and what describes it beside it (frame or column names; ``poekin ik``'s
+  success flags and residuals);
 * ``.csv``: one row per configuration, values separated by commas; an optional first line of
   column names is skipped when read and written when saving; ``#`` starts a comment;
 * ``.txt``: the same, separated by whitespace (``np.savetxt``'s format), names in a ``#`` line.
@@ -39,7 +40,7 @@ from collections.abc import Iterator, Mapping, Sequence
 from typing import IO, Any
 
 import numpy as np
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
 
 from poekin.errors import InputError, PoekinError
 
@@ -333,7 +334,7 @@ def write_array(
     *,
     name: str,
     columns: Sequence[str],
-    extras: Mapping[str, Sequence[str]] | None = None,
+    extras: Mapping[str, ArrayLike] | None = None,
     what: str = "",
 ) -> pathlib.Path:
     """Write ``array`` to ``path`` in the format its suffix names, replacing any file there.
@@ -343,7 +344,8 @@ def write_array(
         array: ``(N, ...)`` results, one configuration per leading index.
         name: the array's name in a ``.npz`` archive (``"T"``).
         columns: one name per value of a configuration, for the text formats' header.
-        extras: string arrays stored beside it in a ``.npz`` archive (e.g. ``{"frames": ...}``).
+        extras: arrays stored beside it in a ``.npz`` archive: names (``{"frames": ...}``),
+            flags, residuals.
         what: what it is, for an error message (``"poses"``); default ``"<name> array"``.
 
     Returns:
@@ -360,7 +362,7 @@ def write_array(
             np.save(f, array)
         elif suffix == ".npz":
             arrays: dict[str, Any] = {name: array}
-            arrays.update({k: np.array(list(v)) for k, v in (extras or {}).items()})
+            arrays.update({k: np.asarray(v) for k, v in (extras or {}).items()})
             np.savez(f, allow_pickle=False, **arrays)
         else:
             rows = _rows(array)

@@ -1055,8 +1055,13 @@ class Tree:
                 the targets; default :attr:`qpos0`.
             warm_start: start the first attempt at ``qpos``'s values of the solved joints
                 (a trajectory stays on its branch), rather than at a random configuration.
-            seed, pos_tol, ori_tol, position_only, orientation_weight, max_iterations,
-            max_attempts: as for :meth:`poekin.Chain.ik`.
+            seed: the random starts' seed, as for :meth:`poekin.Chain.ik`.
+            pos_tol: success: position within this (m), as for :meth:`poekin.Chain.ik`.
+            ori_tol: and orientation within this (rad).
+            position_only: reach the position only, whatever the orientation.
+            orientation_weight: metres per radian in the least-squares residual.
+            max_iterations: iterations per attempt.
+            max_attempts: attempts per target.
 
         Returns:
             An :class:`~poekin.ik.IKResult` whose ``q`` is the whole ``(..., nq)`` qpos: the

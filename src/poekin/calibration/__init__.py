@@ -25,15 +25,25 @@ from typing import TYPE_CHECKING
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from poekin.calibration.fit import _MAD, LOSSES, Loss, fit, initial_state, residuals
+from poekin._blas import one_thread
+from poekin.calibration.fit import (
+    _MAD,
+    LOSSES,
+    Fit,
+    Loss,
+    fit,
+    initial_state,
+    leave_out,
+)
 from poekin.calibration.identify import (
     advice,
     minimum_poses,
     observability,
+    predicted,
     recommended_poses,
     unidentified,
 )
-from poekin.calibration.model import CalibrationModel, Measure, State, expected_identifiable
+from poekin.calibration.model import CalibrationModel, Measure, expected_identifiable
 from poekin.calibration.plan import plan_poses
 from poekin.calibration.report import Calibration, Change
 from poekin.chain import Chain, as_joint_values
@@ -56,6 +66,7 @@ __all__ = [
 
 FloatArray = NDArray[np.float64]
 _UNIT = 1e-6  # a rotation block must be orthonormal to this (as Chain's home pose)
+_WORKSPACE, _SEED = 100, 20261125  # configurations that judge the calibrated chain
 
 
 def as_chain(model: Chain | str | os.PathLike[str] | LoadedModel, frame: str | None) -> Chain:
@@ -162,7 +173,8 @@ def calibrate(
         prior_m, prior_rad: the size of the differences a robot may have from its model: a
             combination of parameters the data determine worse than this is not fitted (it
             keeps the model's value) and is reported as unidentifiable.
-        folds: k of the k-fold held-out residual (0: none).
+        folds: k of the k-fold held-out residual (0: none): each fold's poses predicted by a
+            fit to the others (:func:`~.fit.leave_out`).
         seed: the folds' random split.
 
     Returns:
@@ -174,9 +186,47 @@ def calibrate(
             parameters need, all measured points on one line.
 
     Warns:
-        CalibrationWarning: too few or too similar poses (how many more, which joints to
-            move), or a fit that did not converge.
+        CalibrationWarning: too few poses (how many more), combinations the poses leave
+            unidentified or poses that cover the workspace poorly (which joints to move),
+            data the model cannot fit (joint order, units, frame), or a fit that did not
+            converge.
     """
+    with one_thread():  # small matrices: see poekin._blas
+        result = _calibrate(
+            model,
+            q,
+            measured,
+            frame=frame,
+            sigma_pos=sigma_pos,
+            sigma_ori=sigma_ori,
+            loss=loss,
+            f_scale=f_scale,
+            prior_m=prior_m,
+            prior_rad=prior_rad,
+            folds=folds,
+            seed=seed,
+        )
+    for text in result.warnings:
+        warnings.warn(text, CalibrationWarning, stacklevel=2)
+    return result
+
+
+def _calibrate(
+    model: Chain | str | os.PathLike[str] | LoadedModel,
+    q: ArrayLike,
+    measured: ArrayLike,
+    *,
+    frame: str | None,
+    sigma_pos: float | None,
+    sigma_ori: float | None,
+    loss: Loss,
+    f_scale: float,
+    prior_m: float,
+    prior_rad: float,
+    folds: int,
+    seed: int,
+) -> Calibration:
+    """:func:`calibrate`, its warnings in the result's ``warnings``."""
     chain = as_chain(model, frame)
     n = chain.n_joints
     q_arr = as_joint_values(q, n, what="joint readings")
@@ -212,20 +262,22 @@ def calibrate(
     start = initial_state(cm, q_arr, meas)
     fitted = fit(cm, q_arr, meas, start=start, **options)  # type: ignore[arg-type]
     state = fitted.state
-    T = cm.poses(state, q_arr)
-    normalised = _normalised(residuals(cm, T, meas))
-    directions = unidentified(cm, fitted)
+    after = _errors(measure, fitted.poses, meas)
+    directions = unidentified(cm, fitted, prior_m, prior_rad)
+    prediction = predicted(cm, fitted, workspace(chain))
     source = _source_name(model, chain)
-    notes = advice(cm, q_arr, directions, source)
+    notes = advice(
+        cm,
+        q_arr,
+        directions,
+        source,
+        state=state,
+        residual_rms_m=float(np.sqrt(np.mean(after[0] ** 2))),
+        prediction=prediction,
+    )
     heldout = None
     if folds:
-        # the folds keep the whole fit's weights and start from its solution
-        pose_data = measure == "pose"
-        weights = {
-            "sigma_pos": fitted.sigma_pos,
-            "sigma_ori": fitted.sigma_ori if pose_data else None,
-        }
-        heldout = _heldout(cm, q_arr, meas, folds, seed, state, {**options, **weights})
+        heldout = _heldout(cm, len(q_arr), folds, seed, fitted)
         if heldout is None:
             notes.append(
                 f"too few poses for a {folds}-fold held-out residual (each fold's fit needs "
@@ -236,8 +288,6 @@ def calibrate(
             f"the fit stopped after {fitted.iterations} iterations without converging; "
             "check the data (outliers, joint order, units)"
         )
-    for text in notes:
-        warnings.warn(text, CalibrationWarning, stacklevel=2)
     return Calibration(
         chain=cm.calibrated_chain(state),
         nominal=chain,
@@ -247,10 +297,11 @@ def calibrate(
         q=q_arr,
         measured=meas,
         before=_errors(measure, cm.poses(start, q_arr), meas),
-        after=_errors(measure, T, meas),
-        normalised=normalised,
+        after=after,
+        normalised=_normalised(fitted.residuals),
         heldout=heldout,
-        observability=observability(cm, state, q_arr, prior_m, prior_rad),
+        observability=observability(cm, state, q_arr, prior_m, prior_rad, jacobian=fitted.jacobian),
+        predicted=prediction,
         unidentified=tuple(directions),
         warnings=tuple(notes),
         source=source,
@@ -260,6 +311,22 @@ def calibrate(
         f_scale=f_scale,
         folds=folds,
     )
+
+
+@functools.lru_cache(maxsize=16)
+def workspace(chain: Chain) -> FloatArray:
+    """``(W, n)`` random configurations within the limits (a revolute joint's within a turn),
+    the same for every calibration of ``chain``: where :class:`~.identify.Prediction` judges
+    the calibrated chain."""
+    from poekin.calibration.plan import sampling_chain
+    from poekin.verify import sample_joint_values
+
+    q = np.array(
+        sample_joint_values(sampling_chain(chain), _WORKSPACE, seed=_SEED, within_limits=True),
+        dtype=np.float64,
+    )
+    q.flags.writeable = False
+    return q
 
 
 def _normalised(r: FloatArray) -> FloatArray:
@@ -281,27 +348,18 @@ def _source_name(model: object, chain: Chain) -> str:
 
 def _heldout(
     cm: CalibrationModel,
-    q: FloatArray,
-    measured: FloatArray,
+    n: int,
     folds: int,
     seed: int,
-    start: State,
-    options: dict[str, object],
+    fitted: Fit,
 ) -> tuple[FloatArray, FloatArray] | None:
-    """Each pose's errors predicted by a fit on the other folds, or None if a fold's fit would
-    have too few poses."""
+    """Each pose's errors predicted by a fit on the other folds (:func:`~.fit.leave_out`), or
+    None if a fold's fit would have too few poses."""
     from poekin.verify import random_generator
 
-    n = len(q)
     k = min(folds, n)
     fold = np.empty(n, dtype=int)
     fold[random_generator(seed).permutation(n)] = np.arange(n) % k
     if n - int(np.max(np.bincount(fold))) < minimum_poses(cm):
         return None
-    pos, ori = np.zeros(n), np.zeros(n)
-    for f in range(k):
-        train, test = fold != f, fold == f
-        part = fit(cm, q[train], measured[train], start=start, **options)  # type: ignore[arg-type]
-        p, o = _errors(cm.measure, cm.poses(part.state, q[test]), measured[test])
-        pos[test], ori[test] = p, o
-    return pos, ori
+    return leave_out(fitted, fold)

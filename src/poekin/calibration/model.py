@@ -44,10 +44,9 @@ from typing import Literal
 import numpy as np
 from numpy.typing import NDArray
 
-from poekin import lie
 from poekin.chain import Chain, _ScrewTerms
 from poekin.dh import joint_lines
-from poekin.lie import _one_minus_cos_over_t2, _t_minus_sin_over_t3
+from poekin.lie import _one_minus_cos_over_t2, _sin_over_t, _t_minus_sin_over_t3
 
 __all__ = [
     "MEASURES",
@@ -150,6 +149,18 @@ def _right_jacobian(theta: FloatArray) -> FloatArray:
     )
 
 
+def rotations(v: FloatArray) -> FloatArray:
+    """``(..., 3) -> (..., 3, 3)`` ``exp([v])``: Rodrigues' ``I + sin(t)/t W + (1 - cos t)/t^2
+    W^2`` with :mod:`poekin.lie`'s coefficients, as matrix products (NumPy only, for the fit's
+    many small turns; :func:`poekin.lie.exp_so3` takes every array library)."""
+    t = np.linalg.norm(v, axis=-1)[..., None, None]
+    W = _hat(v)
+    return np.asarray(
+        np.eye(3) + _sin_over_t(t) * W + _one_minus_cos_over_t2(t) * (W @ W),
+        dtype=np.float64,
+    )
+
+
 def _cross(a: FloatArray, b: FloatArray, axis: int = -1) -> FloatArray:
     """``a x b`` along ``axis`` (-1, or -2 for stacks of columns ``(..., 3, K)``): NumPy's
     ``cross`` without its overhead on small arrays."""
@@ -185,13 +196,15 @@ def _exponentials(terms: _ScrewTerms, theta: FloatArray) -> FloatArray:
     return E
 
 
-def _ad(T: FloatArray, xi: FloatArray) -> FloatArray:
-    """``Ad(T) xi`` for poses ``(..., 4, 4)`` and twists ``(..., 6, K)`` (columns), the leading
-    axes broadcast: ``[R w; p x R w + R v]``."""
-    R, p = T[..., :3, :3], T[..., :3, 3:]
-    w = R @ xi[..., :3, :]
-    v = R @ xi[..., 3:, :] + _cross(np.broadcast_to(p, w.shape), w, axis=-2)
-    return np.concatenate([w, v], axis=-2)
+def _adjoint(T: FloatArray) -> FloatArray:
+    """``(..., 4, 4) -> (..., 6, 6)`` the adjoint ``[[R, 0], [[p] R, R]]`` (twists ``[w; v]``;
+    NumPy only, as :func:`_hat`; :func:`poekin.lie.adjoint` takes every array library)."""
+    R = T[..., :3, :3]
+    A = np.zeros((*T.shape[:-2], 6, 6))
+    A[..., :3, :3] = R
+    A[..., 3:, 3:] = R
+    A[..., 3:, :3] = _hat(T[..., :3, 3]) @ R
+    return A
 
 
 @dataclasses.dataclass(frozen=True)
@@ -200,7 +213,7 @@ class Geometry:
     joint directions and points ``(n, 3)``, offsets ``(n,)``, screws ``(n, 6)``, home ``M'``,
     and, for the Jacobian, each joint's tilt rotation and its right Jacobian ``(n, 3, 3)``, the
     tool's turn ``phi`` ``(3,)`` and its right Jacobian; and the screws' terms
-    (:class:`poekin.chain._ScrewTerms`) for :meth:`CalibrationModel._products`."""
+    (:class:`poekin.chain._ScrewTerms`) for :meth:`CalibrationModel.products`."""
 
     dirs: FloatArray
     points: FloatArray
@@ -343,6 +356,11 @@ class CalibrationModel:
     def n_params(self) -> int:
         return len(self.params)
 
+    def units(self, keys: Sequence[int], prior_m: float, prior_rad: float) -> FloatArray:
+        """``(len(keys),)`` each correction's prior: ``prior_m`` for a length, ``prior_rad``
+        for an angle (the units the fit weighs corrections in)."""
+        return np.array([prior_m if self.params[k].unit == "m" else prior_rad for k in keys])
+
     @property
     def rows_per_pose(self) -> int:
         """Measured numbers per pose: 6 (orientation and position) or 3 (position)."""
@@ -374,7 +392,7 @@ class CalibrationModel:
         phi = x[list(self.tool_turn_index)] if self.tool_turn_index else np.zeros(3)
         # the joints' tilts and the tool's turn, as one batch
         vectors = np.concatenate([values[:, 2:3] * a + values[:, 3:4] * b, phi[None]])
-        turns = np.asarray(lie.exp_so3(vectors), dtype=np.float64)
+        turns = rotations(vectors)
         dirs = (turns[:-1] @ self.dirs[:, :, None])[:, :, 0]
         points = self.points + shift
         prismatic = self.prismatic[:, None]
@@ -397,7 +415,7 @@ class CalibrationModel:
             terms=_ScrewTerms.of(screws),
         )
 
-    @property
+    @functools.cached_property
     def prismatic(self) -> NDArray[np.bool_]:
         return np.array([t == "prismatic" for t in self.chain.joint_types], dtype=bool)
 
@@ -431,7 +449,7 @@ class CalibrationModel:
         screws = np.zeros_like(S)
         for i in range(len(S)):
             G = G @ E[i]
-            screws[i] = _ad(G, S[i][:, None])[:, 0]
+            screws[i] = _adjoint(G) @ S[i]
         # the screws' axes are unit up to rounding; renormalise so that the chain takes them
         for i, kind in enumerate(self.chain.joint_types):
             part = slice(0, 3) if kind == "revolute" else slice(3, 6)
@@ -440,7 +458,7 @@ class CalibrationModel:
 
     # --- forward kinematics and the identification Jacobian ---------------------------------
 
-    def _products(self, state: State, q: FloatArray) -> tuple[FloatArray, Geometry]:
+    def products(self, state: State, q: FloatArray) -> tuple[FloatArray, Geometry]:
         """Partial products ``(N, n + 1, 4, 4)``: ``P_0 = I``, ``P_{i+1} = P_i exp([S'_i](q_i +
         o_i))``; and the geometry."""
         geo = self.geometry(state.x)
@@ -454,7 +472,7 @@ class CalibrationModel:
 
     def poses(self, state: State, q: FloatArray) -> FloatArray:
         """``(N, 4, 4)`` poses of the measured frame in the measuring frame."""
-        P, geo = self._products(state, q)
+        P, geo = self.products(state, q)
         return np.asarray(state.base @ P[:, -1] @ geo.home, dtype=np.float64)
 
     def jacobian(self, state: State, q: FloatArray) -> tuple[FloatArray, FloatArray]:
@@ -469,28 +487,37 @@ class CalibrationModel:
         eta``, since ``exp([Ad(G) S] q) = G exp([S] q) G^-1``; the tool by ``Ad(P_n M')`` of its
         body twist. ``Ad(B)`` turns them into the measuring frame.
         """
-        P, geo = self._products(state, q)
-        N, n = len(q), self.chain.n_joints
+        return self.derivatives(state, *self.products(state, q))
+
+    def derivatives(
+        self, state: State, P: FloatArray, geo: Geometry
+    ) -> tuple[FloatArray, FloatArray]:
+        """:meth:`jacobian` from the partial products ``P`` and the geometry at ``state``
+        (:meth:`products`), for a caller that has them already (a fit's trial step)."""
+        N, n = len(P), self.chain.n_joints
+        Ad = _adjoint(P)  # (N, n + 1, 6, 6): Ad(P_i)
+        eta = self._line_twists(geo)  # (n, 6, 4)
+        before = Ad[:, :n] @ np.concatenate([geo.screws[:, :, None], eta], axis=2)
+        moved = before[..., 1:] - Ad[:, 1:] @ eta  # (N, n, 6, 4)
         xi = np.zeros((N, 6, self.n_params))  # twists in the robot's base frame
         xi[:, :, :6] = np.eye(6)
-        xi[:, :, list(self.offset_index)] = _ad(P[:, :n], geo.screws[:, :, None])[..., 0].transpose(
-            0, 2, 1
-        )
-        eta = self._line_twists(geo)  # (n, 6, 4)
-        moved = (_ad(P[:, :n], eta) - _ad(P[:, 1:], eta)).transpose(0, 2, 1, 3).reshape(N, 6, 4 * n)
+        xi[:, :, list(self.offset_index)] = before[..., 0].transpose(0, 2, 1)
         slots = np.asarray(self.line_slots).reshape(-1)
-        xi[:, :, slots[slots >= 0]] = moved[:, :, slots >= 0]
+        xi[:, :, slots[slots >= 0]] = moved.transpose(0, 2, 1, 3).reshape(N, 6, 4 * n)[
+            :, :, slots >= 0
+        ]
         T_r = P[:, -1] @ geo.home
         body = np.zeros((6, 3 + len(self.tool_turn_index)))
         body[3:, :3] = geo.home[:3, :3].T @ self.chain.home[:3, :3]  # exp(-phi)
         if self.tool_turn_index:
             body[:3, 3:] = geo.tool_turn_jacobian
-        xi[:, :, [*self.tool_shift_index, *self.tool_turn_index]] = _ad(T_r, body)
+        xi[:, :, [*self.tool_shift_index, *self.tool_turn_index]] = _adjoint(T_r) @ body
         T = np.asarray(state.base @ T_r, dtype=np.float64)
-        twist = _ad(state.base, xi)
-        w = twist[:, :3]
-        dp = twist[:, 3:] + _cross(w, np.broadcast_to(T[:, :3, 3:], w.shape), axis=-2)
-        return T, np.concatenate([w, dp], axis=1)
+        # into the measuring frame (Ad(B)), then the origin's velocity v + w x p:
+        # [[R_B, 0], [([p_B] - [p]) R_B, R_B]]
+        C = np.repeat(_adjoint(state.base)[None], N, axis=0)
+        C[:, 3:, :3] -= _hat(T[:, :3, 3]) @ state.base[:3, :3]
+        return T, np.asarray(C @ xi, dtype=np.float64)
 
     def _line_twists(self, geo: Geometry) -> FloatArray:
         """``(n, 6, 4)``: per joint, the rigid motions (twists at ``q = 0``) that move its line
@@ -556,10 +583,17 @@ class CalibrationModel:
     def rows(self, state: State, q: FloatArray) -> FloatArray:
         """The identification Jacobian ``(N m, P)`` in metres: rotation rows (pose data only)
         times the chain's reach, then position rows, pose by pose."""
-        _, D = self.jacobian(state, q)
-        if self.measure == "position":
-            D = D[:, 3:]
-        else:
+        return self.in_metres(self.measured(self.jacobian(state, q)[1]))
+
+    def measured(self, D: FloatArray) -> FloatArray:
+        """The rows of derivatives ``(N, 6, K)`` (:meth:`jacobian`) that the data measure: all 6
+        for poses, the position's 3 for positions: ``(N, m, K)``."""
+        return D[:, 3:] if self.measure == "position" else D
+
+    def in_metres(self, D: FloatArray) -> FloatArray:
+        """Measured rows ``(N, m, K)`` (:meth:`measured`) as ``(N m, K)`` in metres: rotation
+        rows (pose data) times the chain's reach."""
+        if self.measure == "pose":
             D = np.concatenate([D[:, :3] * reach(self.chain), D[:, 3:]], axis=1)
         return D.reshape(-1, D.shape[-1])
 
@@ -572,10 +606,12 @@ def generic_point(chain: Chain) -> FloatArray:
     return np.array([0.31, 0.23, 0.17]) * reach(chain)
 
 
-def alike(A: FloatArray, c: FloatArray, names: Sequence[int], terms: int = 3) -> tuple[int, ...]:
+def alike(
+    A: FloatArray, c: FloatArray, names: Sequence[int], terms: int = 3, rtol: float = 1e-6
+) -> tuple[int, ...]:
     """The few columns of ``A`` (unit norm) that ``c`` is a combination of, by orthogonal
-    matching pursuit: up to ``terms`` columns, as many as it takes to explain ``c`` to 1e-6
-    (all ``terms`` if none does); ``names[j]`` names column ``j``."""
+    matching pursuit: up to ``terms`` columns, as many as it takes to explain ``c`` to ``rtol``
+    of its norm (all ``terms`` if none does); ``names[j]`` names column ``j``."""
     picked: list[int] = []
     r = c.copy()
     for _ in range(terms):
@@ -585,7 +621,7 @@ def alike(A: FloatArray, c: FloatArray, names: Sequence[int], terms: int = 3) ->
         picked.append(j)
         coef = np.linalg.lstsq(A[:, picked], c, rcond=None)[0]
         r = c - A[:, picked] @ coef
-        if np.linalg.norm(r) < 1e-6 * np.linalg.norm(c):
+        if np.linalg.norm(r) < rtol * np.linalg.norm(c):
             break
     return tuple(names[j] for j in picked)
 
@@ -599,7 +635,12 @@ def reach(chain: Chain) -> float:
 
 
 def _direction(v: FloatArray) -> str:
-    return "[" + ", ".join(f"{round(float(x), 3) + 0.0:+.3f}" for x in v) + "]"
+    """A unit direction in the robot's base frame at ``q = 0``: ``"the base's -z"`` along an axis
+    (to 1e-9), else ``"[0.707, 0, -0.707] in the base"``."""
+    k = int(np.argmax(np.abs(v)))
+    if abs(v[k]) > 1.0 - 1e-9:
+        return f"the base's {'-' if v[k] < 0 else ''}{_AXES[k]}"
+    return "[" + ", ".join(f"{round(float(x), 3) + 0.0:.3g}" for x in v) + "] in the base"
 
 
 def words(model: CalibrationModel, keys: Sequence[int]) -> str:

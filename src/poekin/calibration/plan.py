@@ -17,6 +17,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 from numpy.typing import NDArray
 
+from poekin._blas import one_thread
 from poekin.calibration.identify import observability, scaled_jacobian
 from poekin.calibration.model import CalibrationModel, Measure, State, generic_point
 from poekin.chain import Chain
@@ -86,37 +87,38 @@ def plan_poses(
     from poekin.calibration import as_chain, model_of
     from poekin.calibration.identify import minimum_poses
 
-    chain = as_chain(model, frame)
-    if measure not in ("pose", "position"):
-        raise InputError(f"measure must be 'pose' or 'position', got {measure!r}")
-    cm = model_of(chain, measure)
-    n = whole_number(n, "the number of poses", 1)
-    need = minimum_poses(cm)
-    if n < need:
-        raise InputError(
-            f"{n} poses give {n * cm.rows_per_pose} measured numbers for {len(cm.free)} "
-            f"parameters: plan at least {need}"
-        )
-    count = max(_MIN_CANDIDATES, _CANDIDATES_PER_POSE * n) if candidates is None else candidates
-    count = whole_number(count, "candidates", n)
-    pool = sample_joint_values(sampling_chain(chain), count, seed=seed, within_limits=True)
-    m = cm.rows_per_pose
-    J = scaled_jacobian(cm, design_state(cm), pool, _PRIOR_M, _PRIOR_RAD)  # (C m, F)
-    blocks = J.reshape(count, m, -1)
-    F = J.shape[1]
-    A_inv = np.eye(F) / (_RIDGE * float(np.mean(np.sum(J * J, axis=0))) * m)
-    Y = J @ A_inv  # (C m, F): every candidate's J_c A^-1, kept up to date
-    left = np.ones(count, dtype=bool)
-    picked: list[int] = []
-    for _ in range(n):
-        G = np.einsum("cmf,ckf->cmk", blocks, Y.reshape(count, m, F))  # J_c A^-1 J_c^T
-        _, gain = np.linalg.slogdet(np.eye(m) + G)
-        gain[~left] = -np.inf
-        best = int(np.argmax(gain))
-        picked.append(best)
-        left[best] = False
-        # Woodbury: (A + J_b^T J_b)^-1 = A^-1 - K^T (I + J_b K^T)^-1 K, K = J_b A^-1
-        K = Y[best * m : (best + 1) * m]
-        update = np.linalg.solve(np.eye(m) + blocks[best] @ K.T, K)
-        Y = Y - (J @ K.T) @ update
-    return np.asarray(pool[picked], dtype=np.float64)
+    with one_thread():  # small matrices: see poekin._blas
+        chain = as_chain(model, frame)
+        if measure not in ("pose", "position"):
+            raise InputError(f"measure must be 'pose' or 'position', got {measure!r}")
+        cm = model_of(chain, measure)
+        n = whole_number(n, "the number of poses", 1)
+        need = minimum_poses(cm)
+        if n < need:
+            raise InputError(
+                f"{n} poses give {n * cm.rows_per_pose} measured numbers for {len(cm.free)} "
+                f"parameters: plan at least {need}"
+            )
+        count = max(_MIN_CANDIDATES, _CANDIDATES_PER_POSE * n) if candidates is None else candidates
+        count = whole_number(count, "candidates", n)
+        pool = sample_joint_values(sampling_chain(chain), count, seed=seed, within_limits=True)
+        m = cm.rows_per_pose
+        J = scaled_jacobian(cm, design_state(cm), pool, _PRIOR_M, _PRIOR_RAD)  # (C m, F)
+        blocks = J.reshape(count, m, -1)
+        F = J.shape[1]
+        A_inv = np.eye(F) / (_RIDGE * float(np.mean(np.sum(J * J, axis=0))) * m)
+        Y = J @ A_inv  # (C m, F): every candidate's J_c A^-1, kept up to date
+        left = np.ones(count, dtype=bool)
+        picked: list[int] = []
+        for _ in range(n):
+            G = np.einsum("cmf,ckf->cmk", blocks, Y.reshape(count, m, F))  # J_c A^-1 J_c^T
+            _, gain = np.linalg.slogdet(np.eye(m) + G)
+            gain[~left] = -np.inf
+            best = int(np.argmax(gain))
+            picked.append(best)
+            left[best] = False
+            # Woodbury: (A + J_b^T J_b)^-1 = A^-1 - K^T (I + J_b K^T)^-1 K, K = J_b A^-1
+            K = Y[best * m : (best + 1) * m]
+            update = np.linalg.solve(np.eye(m) + blocks[best] @ K.T, K)
+            Y = Y - (J @ K.T) @ update
+        return np.asarray(pool[picked], dtype=np.float64)

@@ -14,18 +14,20 @@ import numpy as np
 from matplotlib.axes import Axes
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
+from matplotlib.patches import Patch
 
 from poekin.fileio import figure_format
 
 if TYPE_CHECKING:
     from poekin.calibration.report import Calibration
 
-__all__ = ["plot_calibration"]
+__all__ = ["calibration_figure", "plot_calibration"]
 
 _FIGSIZE_IN = (13.0, 8.0)
 _DPI = 130
 _BEFORE, _AFTER, _HELD = "0.55", "#1f5fa8", "#f07f0a"
 _BARS = ("#1f5fa8", "#f07f0a", "#2ca02c")
+_PARTIAL = "not all identified (other values fit as well)"
 
 
 def _residuals(ax: Axes, result: Calibration, k: int, unit: str) -> None:
@@ -51,7 +53,11 @@ def _residuals(ax: Axes, result: Calibration, k: int, unit: str) -> None:
 
 
 def _changes(ax: Axes, result: Calibration) -> None:
-    """Grouped bars per joint (and the tool): axis tilt, axis line offset, encoder offset."""
+    """Grouped bars per joint (and the tool): axis tilt, axis line offset, encoder offset.
+
+    The joints set the scale: a tool offset far beyond it (a target mounted centimetres off
+    the flange) is cut at the top and its value written on it. A joint with combinations left
+    unidentified is hatched: its values are one of several that fit the data as well."""
     changes = result.changes()
     labels = [
         f"J{c.joint + 1}\n{result.nominal.joint_names[c.joint]}" if c.joint is not None else "tool"
@@ -59,31 +65,53 @@ def _changes(ax: Axes, result: Calibration) -> None:
     ]
     x = np.arange(len(changes))
     width = 0.26
-    tilt = [0.0 if np.isnan(c.tilt_mrad) else c.tilt_mrad for c in changes]
-    offset = [c.offset_mm for c in changes]
-    encoder = [c.encoder for c in changes]
-    ax.bar(x - width, tilt, width, color=_BARS[0], label="axis tilt (tool: turn) [mrad]")
-    ax.bar(x, offset, width, color=_BARS[1], label="axis line offset (tool: shift) [mm]")
-    ax.bar(x + width, encoder, width, color=_BARS[2], label="encoder offset [mrad, mm]")
+    values = np.array(
+        [[0.0 if np.isnan(c.tilt_mrad) else c.tilt_mrad, c.offset_mm, c.encoder] for c in changes]
+    )
+    partial = {result.model.params[k].joint for k in result.undetermined}
+    top = max(float(np.max(np.abs(values[:-1]), initial=0.0)), 1e-3)  # the joints'
+    top = max(top, min(float(np.max(np.abs(values[-1]))), 3.0 * top))
+    labels_bars = (
+        "axis tilt (tool: turn) [mrad]",
+        "axis line offset (tool: shift) [mm]",
+        "encoder offset [mrad, mm]",
+    )
+    limit = 1.25 * top
+    for k in range(3):
+        shown = np.clip(values[:, k], -limit, limit)
+        bars = ax.bar(x + (k - 1) * width, shown, width, color=_BARS[k], label=labels_bars[k])
+        for bar, c, v in zip(bars, changes, values[:, k], strict=True):
+            if c.joint in partial:
+                bar.set_hatch("//")
+                bar.set_edgecolor("white")
+            if abs(v) > limit:  # cut: write its value on it
+                ax.text(
+                    bar.get_x() + bar.get_width() / 2,
+                    np.sign(v) * limit * 0.97,
+                    f"{v:.3g} {('mrad', 'mm', c.encoder_unit)[k]}",
+                    ha="center",
+                    va="top" if v > 0 else "bottom",
+                    rotation=90,
+                    fontsize=8,
+                    color="white",
+                )
     ax.axhline(0.0, color="0.3", linewidth=0.8)
     ax.set_xticks(x)
     ax.set_xticklabels(labels, fontsize=8)
     ax.set_ylabel("change from the model [mm, mrad]")
     ax.grid(True, axis="y", alpha=0.3)
-    ax.legend(fontsize=8, loc="upper left", framealpha=0.9, ncol=3)
-    top = max([*np.abs(tilt), *np.abs(offset), *np.abs(encoder), 1e-3])
-    ax.set_ylim(-1.25 * top, 1.45 * top)  # room for the legend above the bars
+    handles, _ = ax.get_legend_handles_labels()
+    if partial:
+        handles.append(Patch(facecolor="0.6", hatch="//", edgecolor="white", label=_PARTIAL))
+    ax.legend(handles=handles, fontsize=8, loc="upper left", framealpha=0.9, ncol=4)
+    ax.set_ylim(-1.3 * top, 1.5 * top)  # room for the legend above the bars
 
 
-def plot_calibration(
-    result: Calibration, path: str | os.PathLike[str], *, title: str
-) -> pathlib.Path:
-    """Save the calibration figure: (a) position error per pose, (b) orientation error per pose
+def calibration_figure(result: Calibration, *, title: str) -> Figure:
+    """The calibration figure: (a) position error per pose, (b) orientation error per pose
     (pose data), each for the model registered to the measuring frame, the calibrated chain, and
     each pose held out of its fit; (c) each joint's calibrated change from the model. About
-    13 x 8 in at 130 dpi, in the format the suffix of ``path`` names."""
-    p = pathlib.Path(path)
-    file_format = figure_format(p, "plot")
+    13 x 8 in at 130 dpi, on the Agg canvas."""
     fig = Figure(figsize=_FIGSIZE_IN, dpi=_DPI)
     FigureCanvasAgg(fig)
     grid = fig.add_gridspec(2, 2, height_ratios=(1.0, 1.0))
@@ -104,5 +132,14 @@ def plot_calibration(
     )
     fig.suptitle(title)
     fig.tight_layout()
-    fig.savefig(p, format=file_format, dpi=_DPI)
+    return fig
+
+
+def plot_calibration(
+    result: Calibration, path: str | os.PathLike[str], *, title: str
+) -> pathlib.Path:
+    """Save :func:`calibration_figure` in the format the suffix of ``path`` names."""
+    p = pathlib.Path(path)
+    file_format = figure_format(p, "plot")
+    calibration_figure(result, title=title).savefig(p, format=file_format, dpi=_DPI)
     return p

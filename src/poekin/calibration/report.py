@@ -10,7 +10,13 @@ from numpy.typing import NDArray
 
 from poekin import lie
 from poekin.calibration.fit import Fit, Loss
-from poekin.calibration.identify import Direction, Observability, describe
+from poekin.calibration.identify import (
+    Direction,
+    Observability,
+    Prediction,
+    describe,
+    undetermined,
+)
 from poekin.calibration.model import CalibrationModel, Measure, State, expected_identifiable, words
 from poekin.chain import Chain
 
@@ -63,6 +69,8 @@ class Calibration:
         heldout: per pose, its errors when predicted by a fit on the other folds (k-fold), or
             None when there were too few poses to leave any out.
         observability: condition number and O1 (:mod:`~.identify`).
+        predicted: how well the calibrated chain predicts poses from its standard errors, at
+            the measured configurations and over the workspace (:class:`~.identify.Prediction`).
         unidentified: the combinations of corrections the data cannot determine.
         warnings: what to do about too few or too similar poses.
         source: the model's name or path, for advice.
@@ -81,6 +89,7 @@ class Calibration:
     normalised: FloatArray
     heldout: tuple[FloatArray, FloatArray] | None
     observability: Observability
+    predicted: Prediction
     unidentified: tuple[Direction, ...]
     warnings: tuple[str, ...]
     source: str
@@ -138,6 +147,12 @@ class Calibration:
         return tuple(int(k) for k in np.flatnonzero(self.normalised > self.f_scale))
 
     @property
+    def undetermined(self) -> tuple[int, ...]:
+        """The corrections the data do not determine (:func:`~.identify.undetermined`): their
+        values are one of several that fit as well."""
+        return undetermined(self.model, self.fitted)
+
+    @property
     def base(self) -> FloatArray:
         """``(4, 4)`` ``T_meas_base``: the robot's base frame (the model's world) in the
         measuring frame."""
@@ -186,7 +201,7 @@ class Calibration:
         data) or ``unidentified`` (the data cannot tell it from others)."""
         std = self.std()
         redundant = {r.param for r in self.model.redundant}
-        unidentified = {k for d in self.unidentified for k in d.params}
+        unidentified = set(self.undetermined)
         out = []
         for k, (p, value) in enumerate(zip(self.model.params, self.values().values(), strict=True)):
             status = "redundant" if k in redundant else "fitted"
@@ -241,7 +256,7 @@ class Calibration:
 
         robot, nominal = self.robot, self.nominal
         tilt, offset = joint_differences(robot, nominal)
-        partial = {self.model.params[k].joint for d in self.unidentified for k in d.params}
+        partial = {self.model.params[k].joint for k in self.undetermined}
         fitted = {self.model.params[k].joint for k in self.model.free}
         out = []
         for i, name in enumerate(nominal.joint_names):
@@ -254,7 +269,7 @@ class Calibration:
                 items.append(f"axis line offset by {offset[i] * 1e3:.3g} mm")
             items.append(f"encoder offset {enc:+.3g} {unit}")
             if i in partial:
-                items.append("not all identified")
+                items.append("not all identified (other values fit as well)")
             if i not in fitted:  # joint 1: nothing of it is fitted, the base takes it
                 items = ["its axis and encoder zero are the base's (no data tell them apart)"]
             out.append(
@@ -275,6 +290,8 @@ class Calibration:
             text += f", turned by {turn:.3g} mrad"
         else:
             turn = float("nan")
+        if None in partial:
+            text += ", not all identified (other values fit as well)"
         out.append(Change("tool", None, turn, dp, 0.0, "", text))
         return out
 
@@ -330,6 +347,16 @@ class Calibration:
             "heldout_rms_m": self.heldout_rms_m,
             "heldout_rms_rad": self.heldout_rms_rad,
             "heldout_max_m": None if hp is None else float(np.max(hp)),
+            "predicted_rms_m": {
+                "measured": self.predicted.measured_m,
+                "workspace": self.predicted.workspace_m,
+            },
+            "predicted_rms_rad": None
+            if self.measure != "pose"
+            else {
+                "measured": self.predicted.measured_rad,
+                "workspace": self.predicted.workspace_rad,
+            },
             "folds": self.folds if self.heldout is not None else 0,
             "sigma_pos_m": self.fitted.sigma_pos,
             "sigma_ori_rad": num(self.fitted.sigma_ori),
@@ -381,6 +408,16 @@ class Calibration:
         if pose:
             noise += f", {self.fitted.sigma_ori * mm:.3g} mrad"
         lines.append(f"noise (sigma, from the residuals unless given): {noise}")
+        pr = self.predicted
+        at = f"{pr.measured_m * mm:.2g} mm" + (f", {pr.measured_rad * mm:.2g} mrad" if pose else "")
+        over = f"{pr.workspace_m * mm:.2g} mm" + (
+            f", {pr.workspace_rad * mm:.2g} mrad" if pose else ""
+        )
+        lines.append(
+            f"predicted from the standard errors: {at} RMS at the measured configurations, "
+            f"{over} over the workspace (random configurations within the limits)"
+            + ("; the unidentified combinations not counted" if self.unidentified else "")
+        )
         R, p = self.base[:3, :3], self.base[:3, 3]
         axis = lie.log_so3(R)
         angle = float(np.linalg.norm(axis))

@@ -224,9 +224,9 @@ def register(sub: Any, fmt: type[argparse.HelpFormatter]) -> None:
     )
     c.add_argument(
         "--loss",
-        choices=("linear", "huber", "soft_l1"),
+        choices=("linear", "huber", "soft_l1", "cauchy"),  # poekin.calibration.LOSSES
         default="linear",
-        help="robust loss for outliers (linear: plain least squares)",
+        help="robust loss for outliers (linear: plain least squares; cauchy lets gross ones fade)",
     )
     c.add_argument(
         "--prior-m",

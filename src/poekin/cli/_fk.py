@@ -40,7 +40,7 @@ from poekin.errors import InputError
 if TYPE_CHECKING:
     from poekin.tree import Tree
 
-__all__ = ["register"]
+__all__ = ["end_chain", "register"]
 
 FloatArray = NDArray[np.float64]
 _ROWS = ("wx", "wy", "wz", "vx", "vy", "vz")
@@ -76,10 +76,10 @@ def _load_tree(args: argparse.Namespace) -> Tree:
     return load_tree(model_source(args, None), floating_base=args.floating_base)
 
 
-def _chain(args: argparse.Namespace) -> Any:
+def end_chain(args: argparse.Namespace) -> Any:
     """The chain (or DH table) to the frame, refusing a frame behind a ball or free joint with
-    the way to pose it (``--tree``)."""
-    if args.floating_base:
+    the way to pose it (``--tree``); ``poekin ik`` solves it too."""
+    if getattr(args, "floating_base", False):
         raise InputError("--floating-base gives a whole model's qpos: pass --tree too")
     if args.params:
         return params_or_chain(args)
@@ -92,7 +92,7 @@ def _chain(args: argparse.Namespace) -> Any:
         if kind in ("ball", "free"):
             raise InputError(
                 f"{frame!r} sits behind the {kind} joint {tree.joint_names[k]!r}, which a chain "
-                f"of hinges and slides cannot hold: pass --tree and give the whole qpos "
+                f"of hinges and slides cannot hold: pass --tree, with which q is the whole qpos "
                 f"({tree.nq} values: {tree.qpos_layout()})"
             )
     return tree.chain(frame)
@@ -100,7 +100,7 @@ def _chain(args: argparse.Namespace) -> Any:
 
 def _fk_target(args: argparse.Namespace) -> _Target:
     if not _tree_mode(args):
-        chain = _chain(args)
+        chain = end_chain(args)
         return _Target(chain.fk, JointSpace.of(chain), (chain.frame,))
     from poekin import lie
     from poekin.loading import default_frame
@@ -128,7 +128,7 @@ def _jacobian_target(args: argparse.Namespace) -> _Target:
     if not _tree_mode(args):
         from poekin.chain import Chain
 
-        chain = _chain(args)
+        chain = end_chain(args)
         if not isinstance(chain, Chain):
             chain = chain.to_chain()
         method = getattr(chain, f"jacobian_{convention}")

@@ -815,7 +815,8 @@ def _solve_kernel(
 ) -> tuple[FloatArray, BoolArray] | None:
     if _kernel is None:
         return None
-    q, valid, bad = _kernel.ik_all(geo._kind, geo._params, np.ascontiguousarray(T), chain.limits)
+    plain = np.require(T, requirements=("C", "A"))  # as the kernel reads it: a copy if not
+    q, valid, bad = _kernel.ik_all(geo._kind, geo._params, plain, chain.limits)
     if bad >= 0:
         _targets(T)  # raises, saying what is wrong
         raise InputError(f"target pose {bad} is not a rigid transform")

@@ -642,7 +642,14 @@ def check_targets(T: ArrayLike) -> FloatArray:
             where = tuple(int(i) for i in np.argwhere(bad)[0])
             at = f" at index {where}" if where else ""
             raise InputError(f"target{at} is not a rigid transform: {what}")
-    return np.ascontiguousarray(arr)
+    return _plain(arr)
+
+
+def _plain(arr: FloatArray) -> FloatArray:
+    """``arr`` C-contiguous and aligned, as the kernel reads it (a copy only if it is not:
+    an array in a buffer at an odd offset, as Dask and ``np.frombuffer`` hand out, is not
+    aligned)."""
+    return np.require(arr, requirements=("C", "A"))
 
 
 def solve(
@@ -682,7 +689,7 @@ def solve(
 
 
 def _inputs(chain: Chain, T: ArrayLike, q0: ArrayLike | None) -> tuple[FloatArray, Any]:
-    """Targets and ``q0`` validated, broadcast to one batch shape, C-contiguous."""
+    """Targets and ``q0`` validated, broadcast to one batch shape, C-contiguous and aligned."""
     if chain.n_joints == 0:
         raise InputError("the chain has no joints: there is nothing to solve for")
     arr = check_targets(T)
@@ -695,7 +702,8 @@ def broadcast_together(
     targets: FloatArray, values: FloatArray, name: str
 ) -> tuple[FloatArray, FloatArray]:
     """``(..., 4, 4)`` targets and ``(..., n)`` values (``name`` in the message) broadcast to
-    one batch shape, C-contiguous; :class:`InputError` if their batch axes do not broadcast."""
+    one batch shape, C-contiguous and aligned; :class:`InputError` if their batch axes do not
+    broadcast."""
     try:
         batch = np.broadcast_shapes(targets.shape[:-2], values.shape[:-1])
     except ValueError:
@@ -704,8 +712,8 @@ def broadcast_together(
             f"{targets.shape}: their batch axes must broadcast"
         ) from None
     return (
-        np.ascontiguousarray(np.broadcast_to(targets, (*batch, 4, 4))),
-        np.ascontiguousarray(np.broadcast_to(values, (*batch, values.shape[-1]))),
+        _plain(np.broadcast_to(targets, (*batch, 4, 4))),
+        _plain(np.broadcast_to(values, (*batch, values.shape[-1]))),
     )
 
 

@@ -61,6 +61,7 @@ __all__ = [
     "format_matrix",
     "ghost",
     "jacobian",
+    "joint_anchors",
     "link_frames",
     "make_subject",
     "manipulability",
@@ -421,6 +422,24 @@ class Snapshot:
     partial: FloatArray
 
 
+def joint_anchors(subject: Subject, bodies: FloatArray) -> FloatArray:
+    """``(..., n, 3)`` each chain joint's anchor in the world, from the world poses ``(..., nb,
+    4, 4)`` of :attr:`Subject.body_names`: a tree joint's anchor in its body, a bare chain's
+    axis point at ``q = 0`` (:func:`~poekin.dh.joint_lines`) in its link."""
+    chain = subject.chain
+    if subject.tree is not None:
+        tree = subject.tree
+        joints = [tree.joint_names.index(j) for j in chain.joint_names]
+        which = np.asarray(tree.joint_bodies, dtype=np.intp)[joints]
+        local = np.asarray(tree.joint_anchors, dtype=np.float64)[joints]
+    else:
+        which = np.arange(chain.n_joints)  # joint i + 1 turns with link i
+        local = joint_lines(chain)[1]
+    T = bodies[..., which, :, :]
+    out: FloatArray = np.einsum("...ij,...j->...i", T[..., :3, :3], local) + T[..., :3, 3]
+    return out.reshape(*bodies.shape[:-3], chain.n_joints, 3)
+
+
 def snapshot(subject: Subject, qpos: ArrayLike) -> Snapshot:
     """What to draw at ``qpos`` (``(nq,)``, MuJoCo's layout; a bare chain: its joint values).
 
@@ -433,22 +452,14 @@ def snapshot(subject: Subject, qpos: ArrayLike) -> Snapshot:
     S = chain.jacobian_space(q).T
     B = chain.jacobian_body(q).T
     if subject.tree is not None:
-        tree = subject.tree
-        frames = tree.fk(x)
-        bodies = frames[: len(tree.body_names)]
+        frames = subject.tree.fk(x)
+        bodies = frames[: len(subject.tree.body_names)]
         base = bodies[subject.base_body] if subject.base_body is not None else np.eye(4)
-        joints = [tree.joint_names.index(j) for j in chain.joint_names]
-        anchors = np.array(
-            [bodies[tree.joint_bodies[k]] @ np.append(tree.joint_anchors[k], 1.0) for k in joints]
-        ).reshape(-1, 4)[:, :3]
     else:
         base = np.eye(4)
         bodies = links
         frames = np.concatenate([links, partial[-1:]])
-        _, points0 = joint_lines(chain)
-        anchors = np.array(
-            [links[i] @ np.append(points0[i], 1.0) for i in range(chain.n_joints)]
-        ).reshape(-1, 4)[:, :3]
+    anchors = joint_anchors(subject, bodies)
     screws = S @ np.asarray(lie.adjoint(base), dtype=np.float64).T
     return Snapshot(
         qpos=x,
