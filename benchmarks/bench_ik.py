@@ -31,7 +31,13 @@ Rows (each a prefix of the same targets):
 * pytorch_kinematics ``PseudoInverseIK`` (float64 CPU, 10 retries, 50 iterations), its chain
   from the Menagerie file: one batch;
 * Pinocchio's CLIK loop (its documentation's example: damped least squares, ``DT = 0.1``,
-  1,000 iterations, 10 restarts; limits by clamping), its model from the Menagerie file: a loop.
+  1,000 iterations, 10 restarts; limits by clamping), its model from the Menagerie file: a loop;
+* poekin on JAX arrays, ``jax.jit(jax.vmap(chain.ik))`` in float64 (16 attempts side by side,
+  50 iterations each: the fixed-iteration solve of ``poekin.ik.fixed``): the first call (trace
+  and compile) and the median of later calls, with XLA's default options and with its quick
+  compile (``compiler_options``: no fusion emitters, backend optimisation level 0); poekin on
+  PyTorch tensors, ``chain.ik(tensor)`` eagerly (float64; torch.compile runs the solve eagerly
+  too): one batch. On the UR5e and the Panda unless ``--arrays-arms`` says otherwise.
 
 The numerical anchors run on the UR5e and the Panda (the issue's table) unless
 ``--anchor-arms`` says otherwise; solvers that are not installed are skipped
@@ -88,6 +94,9 @@ ARMS = {
     "lite6": ("ufactory_lite6", None),
 }
 ANCHOR_ARMS = ("ur5e", "panda")
+ARRAYS_ARMS = ("ur5e", "panda")  # JAX and PyTorch rows
+# XLA's quick compile on the CPU (docs/ik.md): less compile time, slower programs
+QUICK_COMPILE = {"xla_cpu_use_fusion_emitters": False, "xla_backend_optimization_level": 0}
 TOLERANCES = {"1e-9": (1e-9, 1e-9), "1e-5": (1e-5, 1e-5), "5mm/0.05rad": (5e-3, 0.05)}
 UNREACHABLE_M = 2.5  # every arm here reaches less than 1.5 m
 
@@ -106,6 +115,7 @@ class Sizes:
     analytic_single: int = 2_000  # poekin ik_all's loop of single calls
     analytic_numpy: int = 1_000  # ik_all's NumPy reference path
     ik_geo: int = 2_000  # ik-geo's loop
+    arrays: int = 1_000  # poekin's JAX and PyTorch batches
 
 
 QUICK = Sizes(
@@ -119,6 +129,7 @@ QUICK = Sizes(
     analytic_single=50,
     analytic_numpy=50,
     ik_geo=50,
+    arrays=16,
 )
 EXACT = 1e-12  # m and rad: ik_all's goal for the MuJoCo residual of every valid solution
 SAME_Q = 1e-6  # rad: the configuration a target came from is among its solutions
@@ -336,6 +347,67 @@ def unreachable_row(case: Case, sizes: Sizes) -> Row:
         {"reported success (must be 0)": float(false)},
         f"{found.attempts.mean():.0f} attempts each; single calls: the median and p99 columns",
     )
+
+
+def arrays_rows(case: Case, sizes: Sizes) -> list[Row]:
+    """poekin's fixed-iteration solve on JAX arrays (``jit(vmap(chain.ik))``) and PyTorch
+    tensors (eager), float64, on the first ``sizes.arrays`` targets. In ``--quick`` runs (CI)
+    JAX compiles with :data:`QUICK_COMPILE` only."""
+    n = min(sizes.arrays, len(case.T))
+    T, chain = case.T[:n], case.chain
+    rows = []
+    if package_version("jax") is not None:
+        import jax
+
+        jax.config.update("jax_enable_x64", True)
+        quick = sizes.arrays == QUICK.arrays
+        for options, label in [({}, "XLA defaults"), (QUICK_COMPILE, "XLA quick compile")]:
+            if quick and not options:
+                continue
+            solve = jax.jit(jax.vmap(chain.ik), compiler_options=options)
+            targets = jax.device_put(T)
+            t0 = time.perf_counter()
+            found = jax.block_until_ready(solve(targets))
+            first = time.perf_counter() - t0
+            samples = []
+            for _ in range(sizes.repeats):
+                t0 = time.perf_counter()
+                jax.block_until_ready(solve(targets))
+                samples.append(time.perf_counter() - t0)
+            rows.append(
+                Row(
+                    "poekin jit(vmap(chain.ik)), JAX",
+                    case.arm,
+                    "batch",
+                    n,
+                    float(np.median(samples)) / n * 1e6,
+                    success=success_rates(case, np.asarray(found.q), n),
+                    note=f"{label}; first call (trace, compile, run) {first:.2f} s; "
+                    f"jax {jax.__version__} on {jax.devices()[0].platform}, float64",
+                )
+            )
+    if package_version("torch") is not None:
+        import torch
+
+        tensor = torch.from_numpy(T)
+        chain.ik(tensor[:2])  # the first call's imports
+        samples = []
+        for _ in range(max(1, sizes.repeats // 2)):
+            t0 = time.perf_counter()
+            found_t = chain.ik(tensor)
+            samples.append(time.perf_counter() - t0)
+        rows.append(
+            Row(
+                "poekin chain.ik, PyTorch eager",
+                case.arm,
+                "batch",
+                n,
+                float(np.median(samples)) / n * 1e6,
+                success=success_rates(case, found_t.q.numpy(), n),
+                note=f"torch {torch.__version__}, {torch.get_num_threads()} threads, float64",
+            )
+        )
+    return rows
 
 
 # --- poekin: every solution ---------------------------------------------------------------------
@@ -653,6 +725,7 @@ SOLVERS: dict[str, Solver] = {
     "poekin": ("numpy", poekin_rows),
     "ik_all": ("numpy", ik_all_rows),
     "ik-geo": ("ik-geo", ik_geo_rows),
+    "poekin_arrays": ("array-api-compat", arrays_rows),
     **ANCHORS,
 }
 
@@ -715,6 +788,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--quick", action="store_true", help="tiny sizes (CI)")
     parser.add_argument("--arms", nargs="+", choices=list(ARMS), default=list(ARMS))
     parser.add_argument("--anchor-arms", nargs="+", choices=list(ARMS), default=list(ANCHOR_ARMS))
+    parser.add_argument("--arrays-arms", nargs="+", choices=list(ARMS), default=list(ARRAYS_ARMS))
     parser.add_argument("--skip", nargs="+", choices=list(SOLVERS)[1:], default=[])
     parser.add_argument("--json", type=pathlib.Path, help="write the rows and machine here")
     args = parser.parse_args(argv)
@@ -731,6 +805,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         case = make_case(arm, sizes.targets)
         for name, (dist, solver) in SOLVERS.items():
             if name in args.skip or (name in ANCHORS and arm not in args.anchor_arms):
+                continue
+            if name == "poekin_arrays" and arm not in args.arrays_arms:
                 continue
             if package_version(dist) is None:
                 skipped.append(f"{name} (not installed)")

@@ -30,7 +30,16 @@ import numpy as np
 
 from poekin.errors import InputError
 
-__all__ = ["Kind", "as_numpy", "convert", "float_dtype", "kind_of", "namespace", "namespace_of"]
+__all__ = [
+    "Kind",
+    "as_numpy",
+    "convert",
+    "float_dtype",
+    "kind_of",
+    "namespace",
+    "namespace_of",
+    "scalar",
+]
 
 Kind = Literal["jax", "torch"]
 _namespaces: dict[str, Any] = {}
@@ -119,6 +128,16 @@ def convert(x: Any, xp: Any, dtype: Any, like: Any) -> Any:
     if kind_of(like) == "torch":  # a copy: torch would warn of a read-only array's view
         return xp.asarray(np.asarray(x), dtype=dtype, device=like.device, copy=True)
     return xp.asarray(np.asarray(x), dtype=dtype)
+
+
+def scalar(c: float, xp: Any, like: Any) -> Any:
+    """The constant ``c`` as an operand of ``xp``'s ``minimum`` or ``maximum`` with ``like``:
+    itself for NumPy (and for JAX, whose Python floats are weakly typed), else a 0-d array of
+    ``like``'s dtype and device (array-api-compat's PyTorch ``minimum`` promotes a Python float
+    through ``result_type``, which torch.compile cannot trace)."""
+    if kind_of(like) != "torch":
+        return c
+    return xp.asarray(c, dtype=like.dtype, device=like.device)
 
 
 def as_numpy(x: Any, what: str) -> Any:

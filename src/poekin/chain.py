@@ -535,6 +535,9 @@ class Chain:
         rows = [tuple(float(x) for x in row) for row in self.screws]
         set_(self, "_constants", _Model(space.joints(), rows, pose_of(self.home), body.joints()))
         set_(self, "_ik_cache", {})
+        from poekin.ik.numerical import keep_chain_terms  # (a cycle: it imports this module)
+
+        keep_chain_terms(self)
         terms = dataclasses.astuple
         set_(self, "_space_kernel", _fast.chain_program(*terms(space), left=None, right=self.home))
         set_(self, "_body_kernel", _fast.chain_program(*terms(body), left=self.home, right=None))
@@ -784,15 +787,23 @@ class Chain:
         position_only: bool = False,
         orientation_weight: float = 0.3,
         max_iterations: int = 50,
-        max_attempts: int = 100,
+        max_attempts: int | None = None,
+        params: ChainParams | None = None,
     ) -> IKResult:
         """Joint values that put the end frame at ``T``: numerical inverse kinematics, inside
         the joint limits, batched (:mod:`poekin.ik.numerical` describes the algorithm).
 
+        NumPy input runs in the compiled kernel. JAX arrays and PyTorch tensors (targets,
+        ``q0`` or ``params``) run a fixed-iteration solve that traces under ``jax.jit`` and
+        ``jax.vmap``, and come back as the caller's arrays, with ``q`` differentiable with
+        respect to ``T`` and ``params`` by the implicit function theorem
+        (:mod:`poekin.ik.fixed`).
+
         Args:
             T: ``(..., 4, 4)`` targets ``T_world_frame``, in the chain's base (world) frame:
                 rigid transforms (rotation orthonormal to 1e-6; the orientation is met to
-                ``ori_tol`` only if it is orthonormal to about that).
+                ``ori_tol`` only if it is orthonormal to about that; JAX and PyTorch values
+                are not checked).
             q0: ``(..., n)`` starts, broadcast against the targets' batch axes (rad, m): the
                 first attempt starts there (brought into the limits), so that a trajectory
                 solved target by target stays on its branch. None: every attempt starts at a
@@ -810,7 +821,11 @@ class Chain:
                 (it shapes the path to a solution and the best fit of an unreachable
                 target, not the tolerances).
             max_iterations: iterations per attempt (each one FK and Jacobian).
-            max_attempts: attempts per target; the solve stops at the first success.
+            max_attempts: attempts per target; the solve stops at the first success. Default
+                100; for JAX and PyTorch, the number of attempts run side by side, default 16.
+            params: the screws and home pose to solve with instead of the chain's own
+                (:meth:`parameters`): JAX arrays or tensors to differentiate the answer with
+                respect to, or NumPy arrays (the NumPy solve of :meth:`with_parameters`).
 
         Returns:
             An :class:`~poekin.ik.IKResult`: ``q`` ``(..., n)`` (always within the joint
@@ -818,11 +833,12 @@ class Chain:
             comes back in ``(-pi, pi]``), ``success``, ``pos_err`` (m), ``ori_err`` (rad),
             ``iterations`` and ``attempts`` ``(...,)``. An unreachable target gets
             ``success`` False and the least-squares best ``q`` found; it never raises.
+            NumPy arrays, or arrays of the inputs' library, float dtype and device.
 
         Raises:
             InputError: targets of the wrong shape, not finite or not rigid transforms, ``q0``
                 of the wrong length or batch shape, a tolerance or weight that is not > 0, a
-                count below 1, a bad seed.
+                count below 1, a bad seed, JAX arrays mixed with PyTorch tensors.
 
         Example:
             >>> chain = poekin.load("universal_robots_ur5e")
@@ -830,17 +846,36 @@ class Chain:
             >>> bool(found.success), found.q.shape
             (True, (6,))
         """
-        from poekin.ik.numerical import settings, solve
+        from poekin.ik.numerical import DEFAULT_MAX_ATTEMPTS, settings, solve
 
-        options = settings(
-            pos_tol=pos_tol,
-            ori_tol=ori_tol,
-            position_only=position_only,
-            orientation_weight=orientation_weight,
-            max_iterations=max_iterations,
-            max_attempts=max_attempts,
-        )
-        return solve(self, T, q0, seed=seed, options=options)
+        numpy = params is None and arrays.kind_of(T) is None
+        if numpy and (q0 is None or arrays.kind_of(q0) is None):  # the kernel's path, quickly
+            options = settings(
+                pos_tol=pos_tol,
+                ori_tol=ori_tol,
+                position_only=position_only,
+                orientation_weight=orientation_weight,
+                max_iterations=max_iterations,
+                max_attempts=DEFAULT_MAX_ATTEMPTS if max_attempts is None else max_attempts,
+            )
+            return solve(self, T, q0, seed=seed, options=options)
+        from poekin.ik import fixed
+
+        kind = fixed.array_kind(T, q0, params)
+        if max_attempts is None:
+            max_attempts = DEFAULT_MAX_ATTEMPTS if kind is None else fixed.DEFAULT_ATTEMPTS
+        given: dict[str, Any] = {
+            "pos_tol": pos_tol,
+            "ori_tol": ori_tol,
+            "position_only": position_only,
+            "orientation_weight": orientation_weight,
+            "max_iterations": max_iterations,
+            "max_attempts": max_attempts,
+        }
+        if kind is not None:
+            return fixed.solve_arrays(self, T, q0, kind, seed=seed, params=params, **given)
+        chain = self if params is None else self.with_parameters(params)
+        return solve(chain, T, q0, seed=seed, options=settings(**given))
 
     def ik_all(self, T: ArrayLike) -> IKSolutions:
         """Every closed-form inverse kinematics solution: the joint values that put the end

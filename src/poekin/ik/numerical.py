@@ -39,14 +39,13 @@ own numbers only: alone, in any batch, at any position, on any thread or vector 
 Without success the answer is the iterate of least cost over all attempts.
 
 The reference runs every target of a batch in lock-step, with masks: the per-iteration maths
-(:func:`evaluate`, :func:`residual`, :func:`jacobian_rows`, :func:`damped_step`, :func:`step`)
-uses ``+ - * / sqrt floor`` and ``where`` on entries, with the array library's namespace
-``xp``; it runs as it is on PyTorch tensors, to the same bits. Two places are NumPy's only:
-:func:`wrapped` (the projection inside :func:`step`), which calls
-:func:`~poekin.ik._angles.wrap_into_limits`, and :func:`solve_reference`'s bookkeeping
-(dropping finished targets, writing results, the random starts in ``uint64``). A
-fixed-iteration solve for JAX or PyTorch replaces the bookkeeping with masks and gives
-``wrap_into_limits`` an ``xp``.
+(:func:`evaluate`, :func:`residual`, :func:`jacobian_rows`, :func:`damped_step`, :func:`step`,
+with :func:`~poekin.ik._angles.wrap_into_limits`) uses ``+ - * / sqrt floor`` and ``where``
+on entries, with the array library's namespace ``xp``, and reads the chain's constants as
+Python values (:class:`ChainTerms`); the random starts (:mod:`poekin.ik._rng`) take an
+``xp`` too. Only :func:`solve_reference`'s bookkeeping (dropping finished targets, writing
+results) is NumPy's: :mod:`poekin.ik.fixed` solves JAX arrays and PyTorch tensors with the
+same functions and a fixed shape of work instead.
 """
 
 from __future__ import annotations
@@ -60,8 +59,8 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from poekin import _fast, _pose, _sincos, lie
-from poekin.chain import Column, as_joint_values, space_jacobian, world_columns
+from poekin import _fast, _pose, _sincos, arrays, lie
+from poekin.chain import Column, Trig, _Model, as_joint_values, space_jacobian, world_columns
 from poekin.errors import InputError
 from poekin.ik import _rng
 from poekin.ik._angles import TWO_PI, within_limits, wrap_into_limits
@@ -102,7 +101,9 @@ TOL_MARGIN = 1.0 - 1e-6
 
 @dataclasses.dataclass(frozen=True)
 class IKResult:
-    """What an inverse kinematics solve found, per target. Immutable.
+    """What an inverse kinematics solve found, per target. Immutable. NumPy arrays, or, for
+    JAX and PyTorch input, arrays of that library (a JAX pytree: it leaves ``jit`` and
+    ``vmap``).
 
     Attributes:
         q: ``(..., n)`` joint values (rad, m), always within the joint limits: the solution
@@ -230,6 +231,10 @@ class ChainTerms:
     ``start_base + u start_span`` is a random start for ``u`` uniform in ``[0, 1)``: uniform
     within finite limits, ``(-pi, pi]`` for an unlimited revolute joint, a turn (or ``L``
     metres) from a one-sided limit, ``[-L, L)`` for an unlimited prismatic joint.
+
+    The per-iteration functions read the Python values (``bounds``, ``turns``, ``base``,
+    ``span``), never the NumPy arrays, so that code traced by JAX or torch.compile sees
+    constants.
     """
 
     limits: FloatArray  # (n, 2)
@@ -238,6 +243,10 @@ class ChainTerms:
     start_base: FloatArray  # (n,)
     start_span: FloatArray  # (n,)
     scale: float  # L (m): the distance from the home frame to the farthest joint axis, >= 0.1
+    bounds: tuple[tuple[float, float], ...]  # the limits (lower, upper)
+    turns: tuple[bool, ...]  # revolute
+    base: tuple[float, ...]  # start_base
+    span: tuple[float, ...]  # start_span
 
     def floor(self, s: Settings) -> float:
         """The damping's floor, ``1e-18 L^2`` with ``L`` at least the orientation weight."""
@@ -249,13 +258,29 @@ class ChainTerms:
         return length * length
 
 
-def chain_terms(chain: Chain) -> ChainTerms:
-    """The chain's :class:`ChainTerms`, computed at first use and kept with the chain."""
-    cache = chain._ik_cache
-    if "terms" not in cache:
-        cache["terms"] = _chain_terms(chain)
-    terms: ChainTerms = cache["terms"]
+def chain_terms(chain: Chain, single: bool = False) -> ChainTerms:
+    """The chain's :class:`ChainTerms` (kept with the chain: :meth:`poekin.Chain.__post_init__`
+    computes them, as torch.compile cannot trace their NumPy); ``single``: for a float32
+    solve, the bounds rounded inwards to float32 values, so that an answer within them in
+    float32 is within the model's limits."""
+    terms: ChainTerms = chain._ik_cache["terms32" if single else "terms"]
     return terms
+
+
+def keep_chain_terms(chain: Chain) -> None:
+    """Compute the chain's :class:`ChainTerms` (both) into its IK cache."""
+    terms = _chain_terms(chain)
+    lo32 = terms.limits.astype(np.float32)
+    up, down = np.float32(np.inf), np.float32(-np.inf)
+    inward = np.where(
+        np.arange(2) == 0,
+        np.where(lo32 < terms.limits, np.nextafter(lo32, up), lo32),
+        np.where(lo32 > terms.limits, np.nextafter(lo32, down), lo32),
+    ).astype(np.float64)
+    chain._ik_cache["terms"] = terms
+    chain._ik_cache["terms32"] = dataclasses.replace(
+        terms, bounds=tuple((float(a), float(b)) for a, b in inward)
+    )
 
 
 def _chain_terms(chain: Chain) -> ChainTerms:
@@ -275,17 +300,35 @@ def _chain_terms(chain: Chain) -> ChainTerms:
     span = np.where(cyclic, -TWO_PI, span)
     for a in (base, span):
         a.flags.writeable = False
-    return ChainTerms(chain.limits, revolute, cyclic, base, span, scale)
+    return ChainTerms(
+        chain.limits,
+        revolute,
+        cyclic,
+        base,
+        span,
+        scale,
+        tuple((float(a), float(b)) for a, b in chain.limits),
+        tuple(bool(x) for x in revolute),
+        tuple(float(x) for x in base),
+        tuple(float(x) for x in span),
+    )
 
 
 # --- one iteration's maths (entries; every array library) ---------------------------------
 
 
-def evaluate(chain: Chain, q: Sequence[Entry], xp: Any) -> tuple[_pose.Pose, list[Column]]:
+def evaluate(
+    chain: Chain,
+    q: Sequence[Entry],
+    xp: Any,
+    model: _Model | None = None,
+    trig: Trig = _sincos.sincos,
+) -> tuple[_pose.Pose, list[Column]]:
     """The end pose ``T(q)`` and the world Jacobian's columns ``[w; v_frame]``, with the
-    compiled kernel's sine and cosine."""
-    model = chain._constants
-    columns, pose = space_jacobian(model.screws, model.rows, q, xp, model.home, _sincos.sincos)
+    compiled kernel's sine and cosine (``trig``; the array library's own below float64), of
+    the chain's constants or of ``model`` (:meth:`poekin.Chain._model`, from parameters)."""
+    model = chain._constants if model is None else model
+    columns, pose = space_jacobian(model.screws, model.rows, q, xp, model.home, trig)
     return pose, world_columns(columns, pose[1])
 
 
@@ -395,11 +438,11 @@ def _capped(d: Entries, xp: Any) -> Entries:
     return [x * factor for x in d]
 
 
-def wrapped(v: Entries, terms: ChainTerms) -> Entries:
+def wrapped(v: Entries, terms: ChainTerms, xp: Any) -> Entries:
     """Each value moved by whole turns into its limits where that helps
     (:func:`wrap_into_limits`), a cyclic joint's into ``(-pi, pi]``; a value already there
     keeps its bits."""
-    moved = wrap_into_limits(np.stack(v, axis=-1), terms.limits, terms.revolute)
+    moved = wrap_into_limits(xp.stack(v, axis=-1), terms.bounds, terms.turns, xp)
     return [moved[..., j] for j in range(len(v))]
 
 
@@ -414,25 +457,30 @@ def step(
 ) -> Entries:
     """The next iterate from ``q`` (module step 4 and 5): inside the limits."""
     floor, ceiling = terms.floor(s), terms.ceiling(s)
-    lam = xp.minimum(DAMPING * cost + floor, ceiling)
+    lam = xp.minimum(DAMPING * cost + floor, arrays.scalar(ceiling, xp, cost))
     d = _capped(damped_step(J, r, lam, floor, xp), xp)
     v = [qi + di for qi, di in zip(q, d, strict=True)]
-    w = wrapped(v, terms)
-    lo, hi = terms.limits[:, 0], terms.limits[:, 1]
+    w = wrapped(v, terms, xp)
+    lo, hi = [b[0] for b in terms.bounds], [b[1] for b in terms.bounds]
     blocked = [(wj < lo[j]) | (wj > hi[j]) for j, wj in enumerate(w)]
     anything = blocked[0]
     for b in blocked[1:]:
         anything = anything | b
     # the active set: blocked joints go to their limit; the others are solved for again
-    to_limit = [xp.minimum(xp.maximum(vj, lo[j]), hi[j]) - q[j] for j, vj in enumerate(v)]
+    to_limit = [_clamp(vj, lo[j], hi[j], xp) - q[j] for j, vj in enumerate(v)]
     fixed = [xp.where(b, t, 0.0) for b, t in zip(blocked, to_limit, strict=True)]
     r_free = [rk - _dot(Jk, fixed) for rk, Jk in zip(r, J, strict=True)]
     J_free = [[xp.where(b, 0.0, x) for b, x in zip(blocked, row, strict=True)] for row in J]
     d_free = damped_step(J_free, r_free, lam, floor, xp)
     d2 = _capped([xp.where(b, f, x) for b, f, x in zip(blocked, fixed, d_free, strict=True)], xp)
     v2 = [qi + di for qi, di in zip(q, d2, strict=True)]
-    w = [xp.where(anything, a, b) for a, b in zip(wrapped(v2, terms), w, strict=True)]
-    return [xp.minimum(xp.maximum(wj, lo[j]), hi[j]) for j, wj in enumerate(w)]
+    w = [xp.where(anything, a, b) for a, b in zip(wrapped(v2, terms, xp), w, strict=True)]
+    return [_clamp(wj, lo[j], hi[j], xp) for j, wj in enumerate(w)]
+
+
+def _clamp(x: Entry, lo: float, hi: float, xp: Any) -> Entry:
+    """``x`` within ``[lo, hi]`` (``-inf``/``inf`` where unbounded)."""
+    return xp.minimum(xp.maximum(x, arrays.scalar(lo, xp, x)), arrays.scalar(hi, xp, x))
 
 
 def errors(pose: _pose.Pose, target: _pose.Pose, xp: Any) -> tuple[Entry, Entry]:
@@ -453,20 +501,32 @@ def _c_atan2(y: FloatArray, x: FloatArray) -> FloatArray:
     return np.asarray(np.frompyfunc(math.atan2, 2, 1)(y, x), dtype=np.float64)
 
 
+def start_entries(terms: ChainTerms, keys: Any, attempt: Any, xp: Any) -> Entries:
+    """Random starts (float64, one entry per joint) for keys at their attempt numbers
+    (arrays that broadcast together)."""
+    return [
+        base + _rng.uniform(keys, attempt, j, xp) * span
+        for j, (base, span) in enumerate(zip(terms.base, terms.span, strict=True))
+    ]
+
+
 def starts(terms: ChainTerms, keys: Any, attempt: Any) -> FloatArray:
     """``(N, n)`` random starts for ``(N,)`` keys at their attempt numbers."""
-    n = len(terms.start_base)
-    columns = [
-        terms.start_base[j] + _rng.uniform(keys, attempt, j) * terms.start_span[j] for j in range(n)
-    ]
+    columns = start_entries(terms, keys, attempt, np)
     return np.stack(columns, axis=-1) if columns else np.zeros((len(keys), 0))
 
 
+def first_start_entries(q0: Entries, terms: ChainTerms, xp: Any) -> Entries:
+    """``q0`` (entries) brought into the limits: turned where whole turns help, else clamped
+    (a cyclic joint into ``(-pi, pi]``)."""
+    lo, hi = [b[0] for b in terms.bounds], [b[1] for b in terms.bounds]
+    w = wrapped(q0, terms, xp)
+    return [_clamp(wj, lo[j], hi[j], xp) for j, wj in enumerate(w)]
+
+
 def first_start(q0: FloatArray, terms: ChainTerms) -> FloatArray:
-    """``q0`` brought into the limits: turned where whole turns help, else clamped (a cyclic
-    joint into ``(-pi, pi]``)."""
-    w: FloatArray = np.stack(wrapped(list(np.moveaxis(q0, -1, 0)), terms), axis=-1)
-    return np.minimum(np.maximum(w, terms.limits[:, 0]), terms.limits[:, 1])
+    """``(N, n)`` ``q0`` brought into the limits (:func:`first_start_entries`)."""
+    return np.stack(first_start_entries(list(np.moveaxis(q0, -1, 0)), terms, np), axis=-1)
 
 
 # --- the NumPy reference --------------------------------------------------------------------

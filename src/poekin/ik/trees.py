@@ -15,7 +15,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from poekin import lie
+from poekin import arrays, lie
 from poekin.errors import InputError
 from poekin.ik.numerical import IKResult, Settings, broadcast_together, check_targets, solve
 
@@ -94,6 +94,11 @@ def solve_tree(
 ) -> IKResult:
     """:meth:`poekin.Tree.ik`."""
     how = plan(tree, frame)
+    if arrays.namespace_of([T, qpos], "targets and qpos")[1] is not None:
+        raise InputError(
+            "Tree.ik takes NumPy arrays; for JAX arrays or PyTorch tensors, solve "
+            "tree.chain(frame) with chain.ik (targets in the chain's base frame)"
+        )
     if not isinstance(warm_start, bool | np.bool_):
         raise InputError(f"warm_start must be True or False, got {warm_start!r:.40}")
     q = tree.qpos0 if qpos is None else tree._as_qpos(qpos)
