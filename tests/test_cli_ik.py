@@ -211,6 +211,36 @@ def test_what_fk_writes_ik_reads(
     assert_reaches("ur5e", read_array(answers), mj_poses(loaded, chain, q_true))
 
 
+def test_what_ik_writes_with_its_flags_fk_reads(
+    tmp_path: pathlib.Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """An .npz of answers holds q beside success and the residuals: fk reads its q, and the
+    poses are MuJoCo's; an archive with several arrays and none named q is refused."""
+    loaded, chain = arm("ur5e")
+    q_true = np.random.default_rng(7).uniform(chain.limits[:, 0], chain.limits[:, 1], (10, 6))
+    np.save(tmp_path / "q.npy", q_true)
+    poses, answers, again = (str(tmp_path / n) for n in ("T.npz", "q_ik.npz", "T_ik.npy"))
+    robot = "universal_robots_ur5e"
+    assert run(capsys, "fk", robot, "--input", str(tmp_path / "q.npy"), "--output", poses)[0] == 0
+    assert run(capsys, "ik", robot, "--input", poses, "--output", answers)[0] == 0
+    assert set(np.load(answers)) >= {"q", "success", "pos_err", "ori_err"}
+    assert run(capsys, "fk", robot, "--input", answers, "--output", again)[0] == 0
+    T = np.load(again)
+    pos, ori = poekin.pose_errors(mj_poses(loaded, chain, q_true), T)
+    assert pos.max() <= 1e-10 and ori.max() <= 1e-10  # ik's tolerances, by MuJoCo's poses
+    np.savez(tmp_path / "two.npz", a=q_true, b=q_true)
+    code, _, err = run(
+        capsys,
+        "fk",
+        robot,
+        "--input",
+        str(tmp_path / "two.npz"),
+        "--output",
+        str(tmp_path / "T_two.npy"),
+    )
+    assert code == 2 and "or one with an array named 'q'" in err
+
+
 def test_all_on_a_batch_marks_invalid_branches_nan(
     tmp_path: pathlib.Path, capsys: pytest.CaptureFixture[str]
 ) -> None:

@@ -13,7 +13,8 @@ caller says so (``--force``).
 Arrays (:data:`ARRAY_FORMATS`):
 
 * ``.npy``: NumPy's array file, read without unpickling (``allow_pickle=False``);
-* ``.npz``: NumPy's archive; read: the one array it holds; written: the result under its name
+* ``.npz``: NumPy's archive; read: the one array it holds (or the one the reader names, among
+  several); written: the result under its name
   (``T``, ``J`` or ``q``) and what describes it beside it (frame or column names; ``poekin ik``'s
   success flags and residuals);
 * ``.csv``: one row per configuration, values separated by commas; an optional first line of
@@ -218,7 +219,7 @@ def _read_npy(p: pathlib.Path, where: str) -> NDArray[Any]:
     return arr
 
 
-def _read_npz(p: pathlib.Path, where: str) -> NDArray[Any]:
+def _read_npz(p: pathlib.Path, where: str, name: str | None) -> NDArray[Any]:
     with p.open("rb") as f:
         head = f.read(len(_ZIP_MAGIC))
     if head != _ZIP_MAGIC:
@@ -226,12 +227,13 @@ def _read_npz(p: pathlib.Path, where: str) -> NDArray[Any]:
     try:
         with np.load(p, allow_pickle=False) as archive:
             names = list(archive.keys())
-            if len(names) != 1:
+            if len(names) != 1 and name not in names:
                 listed = ", ".join(repr(n) for n in names) or "none"
+                named = f", or one with an array named {name!r}" if name else ""
                 raise InputError(
-                    f"{where} holds {len(names)} arrays ({listed}); give a file with one"
+                    f"{where} holds {len(names)} arrays ({listed}); give a file with one{named}"
                 )
-            arr: NDArray[Any] = archive[names[0]]
+            arr: NDArray[Any] = archive[names[0] if len(names) == 1 else name]
     except ValueError as e:
         raise InputError(f"{where} is not a readable .npz archive: {e}") from None
     return arr
@@ -265,8 +267,12 @@ def _read_text(p: pathlib.Path, where: str, delimiter: str | None) -> NDArray[An
     return arr
 
 
-def read_array(path: str | os.PathLike[str], what: str = "--input") -> NDArray[np.float64]:
-    """The float64 array in the file at ``path``, read in the format its suffix names.
+def read_array(
+    path: str | os.PathLike[str], what: str = "--input", *, name: str | None = None
+) -> NDArray[np.float64]:
+    """The float64 array in the file at ``path``, read in the format its suffix names: of a
+    ``.npz`` archive, the one array it holds, or the one called ``name`` among several (the
+    joint values ``q`` that ``poekin ik`` writes beside its flags, the poses ``T``).
 
     Raises:
         InputError: unknown suffix, no such file, not that format, or values that are not real
@@ -280,7 +286,7 @@ def read_array(path: str | os.PathLike[str], what: str = "--input") -> NDArray[n
     if suffix == ".npy":
         arr = _read_npy(p, where)
     elif suffix == ".npz":
-        arr = _read_npz(p, where)
+        arr = _read_npz(p, where, name)
     else:
         arr = _read_text(p, where, "," if suffix == ".csv" else None)
     return _numbers(arr, where)

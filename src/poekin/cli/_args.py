@@ -247,7 +247,7 @@ def read_joint_values(args: argparse.Namespace, space: JointSpace) -> NDArray[np
     from poekin.fileio import read_array
 
     path = getattr(args, "input", None)  # commands without --input (draw) read --q only
-    q = read_array(path) if path is not None else np.asarray(args.q, dtype=np.float64)
+    q = read_array(path, name="q") if path is not None else np.asarray(args.q, dtype=np.float64)
     n = len(space.names)
     if q.ndim == 0 or q.shape[-1] != n or not np.all(np.isfinite(q)):
         return q

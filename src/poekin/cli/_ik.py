@@ -191,7 +191,7 @@ def _targets(args: argparse.Namespace) -> tuple[FloatArray, str]:
         return T, f"target xyz {xyz} m, quat wxyz {quat}"
     from poekin.fileio import read_array
 
-    arr = read_array(args.input)
+    arr = read_array(args.input, name="T")
     shape = arr.shape
     one = arr.ndim == 1 or shape == (4, 4)
     rows = arr.reshape(1, *shape) if one else arr
