@@ -36,12 +36,6 @@ if TYPE_CHECKING:
     import dask.array as da
 
 
-def pose_block(q: np.ndarray, chain: poekin.Chain) -> np.ndarray:
-    """``chain.fk`` of one chunk (a function, not the bound method: cloudpickle, which Dask
-    uses for what this script defines, cannot pickle the compiled method itself)."""
-    return chain.fk(q)
-
-
 def solve_block(T: np.ndarray, chain: poekin.Chain) -> np.ndarray:
     """``chain.ik`` of one chunk of ``(m, 4, 4)`` targets, as ``(m, n + 3)`` rows: the joint
     values, then success (1 or 0), the position error (m) and the orientation error (rad)."""
@@ -112,8 +106,7 @@ def main() -> int:
 def poses_of(chain: poekin.Chain, q: da.Array) -> da.Array:
     """``chain.fk`` of each chunk of ``(N, 6)`` joint values: ``(N, 4, 4)`` poses."""
     return q.map_blocks(
-        pose_block,
-        chain=chain,
+        chain.fk,  # the bound method: the chain and its compiled method travel to the workers
         dtype=np.float64,
         drop_axis=1,
         new_axis=[1, 2],

@@ -11,8 +11,10 @@ kernels are None and callers use the NumPy path.
 
 from __future__ import annotations
 
+import copyreg
 import dataclasses
 import functools
+import importlib
 import inspect
 import os
 import warnings
@@ -142,8 +144,26 @@ def _traceable_call(method: Any, *args: Any, **kwargs: Any) -> Any:
     return method.__wrapped__(*args, **kwargs)
 
 
+def _method_named(module: str, qualname: str) -> Any:
+    """The attribute ``qualname`` (``"Chain.fk"``) of ``module``: what a pickled
+    :func:`fast_method` stands for."""
+    found: Any = importlib.import_module(module)
+    for part in qualname.split("."):
+        found = getattr(found, part)
+    return found
+
+
+def _reduce_fast_method(method: Any) -> tuple[Callable[..., Any], tuple[str, str]]:
+    """Pickle a compiled method descriptor as its class attribute's name, as pickle does a
+    function: cloudpickle (Dask, Ray, multiprocessing's spawn) pickles a bound method
+    ``chain.fk`` as the function and the chain, and the function is this descriptor."""
+    wrapped = method.__wrapped__
+    return _method_named, (wrapped.__module__, wrapped.__qualname__)
+
+
 if _kernel is not None:
     _kernel.expose_python(_traceable_get, _traceable_call)
+    copyreg.pickle(_kernel.FastMethod, _reduce_fast_method)
 
 
 def _default_threads() -> int:
