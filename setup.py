@@ -27,7 +27,10 @@ setup(
         Extension(
             "poekin._kernel",
             ["src/poekin/_kernel.c"],
-            depends=["src/poekin/_kernel_core.h"],
+            depends=[
+                f"src/poekin/{name}.h"
+                for name in ("_kernel_core", "_ik_all", "_ik_common", "_ik_core", "_ik_type")
+            ],
             include_dirs=[np.get_include()],
             define_macros=[("NPY_TARGET_VERSION", "NPY_1_24_API_VERSION")],
             optional=True,

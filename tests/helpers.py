@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import importlib
 import os
+import pathlib
 import warnings
 from typing import Any
 
@@ -81,3 +82,70 @@ def import_extra(module: str) -> Any:
     if os.environ.get("POEKIN_REQUIRE_EXTRAS") == "1":
         return importlib.import_module(module)
     return pytest.importorskip(module)
+
+
+def drawn_text_boxes(fig: Any) -> list[tuple[Any, Any]]:
+    """``(text, display box)`` of every text a draw of ``fig`` renders (its box included),
+    recorded as it is drawn: a tick label out of view, which exists but is not drawn, is not
+    counted, and a 3-D text has its extent where it was drawn (it moves back to its 3-D
+    coordinates after)."""
+    from matplotlib.text import Text
+    from matplotlib.transforms import Bbox
+
+    renderer = fig.canvas.get_renderer()
+    drawn: dict[int, tuple[Any, Any]] = {}
+    original = Text.draw
+
+    def record(self: Any, renderer: Any) -> Any:
+        if self.get_visible() and self.get_text().strip() and id(self) not in drawn:
+            box = self.get_window_extent(renderer)
+            patch = self.get_bbox_patch()
+            if patch is not None:
+                self.update_bbox_position_size(renderer)
+                box = Bbox.union([box, patch.get_window_extent(renderer)])
+            drawn[id(self)] = (self, box)
+        return original(self, renderer)
+
+    Text.draw = record  # type: ignore[method-assign]
+    try:
+        fig.draw(renderer)
+    finally:
+        Text.draw = original  # type: ignore[method-assign]
+    return list(drawn.values())
+
+
+def assert_labels_apart(fig: Any) -> None:
+    """No two labels (the texts of the axes: joint tags, screw labels, findings, boxes) overlap,
+    and none overlaps another drawn text (a tick or axis label, a title, the legend), with
+    matplotlib's own extents (``Text.get_window_extent``); every label is inside the figure."""
+    boxes = drawn_text_boxes(fig)
+    labels = {id(t) for ax in fig.axes for t in ax.texts}
+    whole = fig.bbox
+    for i, (a, box_a) in enumerate(boxes):
+        if id(a) not in labels:
+            continue
+        assert whole.x0 <= box_a.x0 and box_a.x1 <= whole.x1, f"{a.get_text()!r} leaves the figure"
+        assert whole.y0 <= box_a.y0 and box_a.y1 <= whole.y1, f"{a.get_text()!r} leaves the figure"
+        for j, (b, box_b) in enumerate(boxes):
+            if j != i and (id(b) not in labels or j > i):
+                assert not box_a.overlaps(box_b), f"{a.get_text()!r} overlaps {b.get_text()!r}"
+
+
+def mesh_menagerie() -> pathlib.Path:
+    """A Menagerie clone with the UR5e's meshes, for the few tests that draw or hash them
+    (tests/data/menagerie is XML only): ``POEKIN_MESH_MENAGERIE`` if set, else
+    ``../shared/menagerie`` beside the checkout. Without one the test skips, saying how to
+    enable it; with ``POEKIN_REQUIRE_MESHES=1`` (CI) it fails instead."""
+    root = pathlib.Path(__file__).resolve().parents[1]
+    folder = pathlib.Path(
+        os.environ.get("POEKIN_MESH_MENAGERIE") or root.parent / "shared" / "menagerie"
+    )
+    if (folder / "universal_robots_ur5e" / "assets" / "base_0.obj").is_file():
+        return folder
+    why = (
+        f"needs the UR5e's meshes, not found under {folder}: set POEKIN_MESH_MENAGERIE to a "
+        "mujoco_menagerie clone with them"
+    )
+    if os.environ.get("POEKIN_REQUIRE_MESHES") == "1":
+        pytest.fail(f"{why} (POEKIN_REQUIRE_MESHES=1)")
+    pytest.skip(why)

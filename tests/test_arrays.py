@@ -42,8 +42,8 @@ FD_TOL, FD_STEP = 1e-6, 1e-6
 # from the parameters) against the model's own (cos/sin entries): a few roundings apart.
 PARAM_TOL = 2e-14
 # Float32 vs float64 on the same q, every Menagerie model, 1000 samples in [-2 pi, 2 pi]:
-# measured at most 4.3e-7 m and 6.8e-7 rad (README); float32's eps is 1.2e-7 and an angle near
-# 2 pi is itself rounded by 2.4e-7.
+# measured at most 4.3e-7 m and 6.8e-7 rad (docs/jax-pytorch.md); float32's eps is 1.2e-7 and
+# an angle near 2 pi is itself rounded by 2.4e-7.
 F32_POS_TOL, F32_ORI_TOL = 1e-6, 1.5e-6
 N = 64
 BATCH_SHAPES = [(), (1,), (3, 1, 2)]
@@ -163,7 +163,8 @@ def test_a_chain_without_joints_and_an_empty_batch(lib: Lib) -> None:
 
 
 def test_float32_stays_float32_within_the_stated_error(lib: Lib) -> None:
-    """README's float32 figures: every Menagerie tree, float32 vs float64 on the same q."""
+    """The float32 figures of docs/jax-pytorch.md: every Menagerie tree, float32 vs float64 on
+    the same q."""
     worst_pos = worst_ori = 0.0
     for robot in MENAGERIE:
         tree = poekin.load_tree(load_quiet(robot))
@@ -271,6 +272,7 @@ def test_gradients_through_quaternions_are_finite(lib: Lib) -> None:
 LOG_ANGLES = [0.0, 1e-12, 1e-7, 1e-3, 0.3, 2.0, np.pi - 1e-3, np.pi - 1e-6, np.pi - 1e-9, np.pi]
 
 
+@pytest.mark.slow
 def test_gradients_through_log_near_zero_and_pi(lib: Lib) -> None:
     """d log(exp(w)) / dw is the identity for |w| < pi, near 0 (Taylor branch) and near pi
     (the symmetric-part branch) alike; exactly at pi, where log jumps, it is finite. So is the
@@ -329,6 +331,7 @@ def test_parameters_round_trip(lib: Lib, ur5e: Chain, features: Tree) -> None:
     assert np.array_equal(features.with_parameters(tparams).body_rot, features.body_rot)
 
 
+@pytest.mark.slow
 def test_chain_parameter_gradients_equal_central_differences(lib: Lib, ur5e: Chain) -> None:
     """d fk / d screws and d fk / d home, space and body form, with the general formulas (the
     UR5e's axes are coordinate axes: a shortcut there would get the axis derivative wrong)."""
@@ -353,6 +356,7 @@ def test_chain_parameter_gradients_equal_central_differences(lib: Lib, ur5e: Cha
         assert_close(f"{method} d/dhome", got, fd, FD_TOL)
 
 
+@pytest.mark.slow
 def test_tree_parameter_gradients_equal_central_differences(lib: Lib, features: Tree) -> None:
     """Every field of TreeParams at once (a pytree): body offsets, joint axes (hinge and slide),
     anchors (hinge and ball), site offsets; a scalar loss of all frames, reverse mode."""

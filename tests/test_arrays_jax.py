@@ -28,6 +28,7 @@ def jax() -> Any:
     return load("jax").module
 
 
+@pytest.mark.slow
 def test_jit_vmap_and_their_compositions(jax: Any, ur5e: Chain, go2: Tree) -> None:
     """jit(fk), vmap(fk), jit(vmap(fk)) on (4, 6) and (2, 2, 6), tree too: the NumPy path's
     poses, each compiled once."""
@@ -50,6 +51,7 @@ def test_jit_vmap_and_their_compositions(jax: Any, ur5e: Chain, go2: Tree) -> No
     assert_close("tree jacobian", np.asarray(calf(qpos)), go2.jacobian(qpos, "FL_calf"), LIB_TOL)
 
 
+@pytest.mark.slow
 def test_jacfwd_and_jacrev_agree_with_each_other_and_grad(jax: Any, ur5e: Chain) -> None:
     """A scalar loss's grad equals the contraction of jacrev, and jacfwd equals jacrev."""
     q = np.random.default_rng(21).uniform(-3, 3, 6)
@@ -136,6 +138,7 @@ SHARDED = textwrap.dedent(
 )
 
 
+@pytest.mark.slow
 def test_a_batch_sharded_over_8_devices_is_one_devices_bit_for_bit(jax: Any) -> None:
     """shard_map runs the same program on each device's slice: bit for bit the one-device
     result. jit with a NamedSharding lets XLA re-fuse the partitioned program, and XLA on the

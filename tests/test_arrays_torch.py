@@ -3,6 +3,9 @@ fullgraph=True (no graph break) and torch.export of functions that call chain.fk
 
 from __future__ import annotations
 
+import subprocess
+import sys
+import textwrap
 from typing import Any
 
 import numpy as np
@@ -64,6 +67,7 @@ def test_torch_func_vmap_jacrev_and_grad(torch: Any, ur5e: Chain, go2: Tree) -> 
     assert isinstance(grads, ChainParams) and tuple(grads.home.shape) == (4, 4)
 
 
+@pytest.mark.slow
 def test_compile_fullgraph_has_no_graph_break(torch: Any, ur5e: Chain, go2: Tree) -> None:
     """torch.compile(fullgraph=True) raises at the first graph break. chain.fk and a Jacobian,
     forward and backward, through Dynamo and AOTAutograd (the aot_eager backend); tree.fk and
@@ -90,6 +94,36 @@ def test_compile_fullgraph_has_no_graph_break(torch: Any, ur5e: Chain, go2: Tree
     assert_close("compiled go2.fk", bound(qpos).numpy(), go2.fk(qpos.numpy()), LIB_TOL)
     assert_close("tree.fk", got[0].numpy(), go2.fk(qpos.numpy(), form="pos_quat"), LIB_TOL)
     assert_close("tree.jacobian", got[1].numpy(), go2.jacobian(qpos.numpy(), "FL_calf"), LIB_TOL)
+
+
+@pytest.mark.slow
+def test_compile_fullgraph_as_the_first_torch_call() -> None:
+    """torch.compile(fullgraph=True) of chain.fk and tree.fk as a process's first torch
+    computation (issue #20): poekin then resolves PyTorch's array-API namespace inside Dynamo's
+    trace, where an import through importlib is refused. A fresh process, since in this one an
+    earlier test has already resolved it; the eager backend, since a graph break is Dynamo's."""
+    code = textwrap.dedent(
+        """
+        import sys, warnings
+        import numpy as np
+        import poekin
+        from poekin.verify import sample_qpos
+        warnings.simplefilter("ignore", poekin.AssetsStrippedWarning)
+        chain = poekin.load("universal_robots_ur5e")
+        tree = poekin.load_tree("unitree_go2")
+        q, qpos = np.random.default_rng(36).uniform(-6, 6, (4, 6)), sample_qpos(tree, 4, seed=36)
+        import torch
+        print(sorted(m for m in ("array_api_compat", "torch._dynamo") if m in sys.modules))
+        fk = torch.compile(chain.fk, fullgraph=True, backend="eager")(torch.tensor(q))
+        tree_fk = torch.compile(tree.fk, fullgraph=True, backend="eager")(torch.tensor(qpos))
+        print(abs(fk.numpy() - chain.fk(q)).max(), abs(tree_fk.numpy() - tree.fk(qpos)).max())
+        """
+    )
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert done.returncode == 0, done.stderr[-3000:]
+    first, errors = done.stdout.splitlines()
+    assert first == "[]", f"torch.compile was not the first call: {first} imported before it"
+    assert max(map(float, errors.split())) <= LIB_TOL, errors
 
 
 @pytest.mark.parametrize("strict", [False, True])

@@ -10,7 +10,7 @@ from helpers import assert_close
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from poekin import Chain, InputError, adjoint, exp_se3, inverse
+from poekin import Chain, InputError, adjoint, exp_se3, inverse, named_params
 
 # Products of <= 8 exponentials of unit screws with |q| <= 2 pi and offsets <= 1 m: each factor
 # rounds at ~1e-16 relative, so 1e-13 leaves a wide margin while catching any real mistake.
@@ -157,15 +157,37 @@ def test_dtypes_and_empty_batch() -> None:
         (1.0, r"expected 4 joint values"),
         ([0.0, np.nan, 0.0, 0.0], "NaN or inf"),
         ([0.0, np.inf, 0.0, 0.0], "NaN or inf"),
-        (["a", "b", "c", "d"], "must be numbers"),
+        (["a", "b", "c", "d"], "must be numbers, got 'a'"),
+        # issue 20: not numbers is not "NaN or inf"; complex is refused, not cast to real
+        (np.array([None] * 4), r"must be numbers, got None in array\(\[None"),
+        ([0.0, None, 0.0, 0.0], "must be numbers, got None"),
+        (np.zeros(4) + 1j, "must be real numbers, got complex numbers"),
+        ([0.0, 0.0, 1j, 0.0], "must be real numbers, got complex numbers"),
+        (np.array([0, 0, np.complex64(1), 0], dtype=object), "got complex numbers"),
+        ([{}, 0.0, 0.0, 0.0], "must be numbers, got"),
     ],
 )
 def test_bad_joint_values(q: object, match: str) -> None:
+    """One validation for the FK of both forms, the three Jacobians and a DH table's FK."""
     chain = random_chain(np.random.default_rng(7), 4)
-    with pytest.raises(InputError, match=match):
-        chain.fk(q)  # type: ignore[arg-type]
-    with pytest.raises(InputError, match=match):
-        chain.fk_body(q)  # type: ignore[arg-type]
+    for method in (
+        chain.fk,
+        chain.fk_body,
+        chain.jacobian_space,
+        chain.jacobian_body,
+        chain.jacobian_world,
+    ):
+        with pytest.raises(InputError, match=match) as info:
+            method(q)  # type: ignore[arg-type]
+        assert "\n" not in str(info.value)
+
+
+def test_a_dh_table_refuses_what_is_not_a_real_number() -> None:
+    table = named_params("ur5e-dh")
+    with pytest.raises(InputError, match="must be numbers, got None"):
+        table.fk(np.array([None] * 6))
+    with pytest.raises(InputError, match="must be real numbers, got complex numbers"):
+        table.fk(np.zeros(6, dtype=complex))
 
 
 @pytest.mark.parametrize(

@@ -8,6 +8,8 @@ import os
 import pathlib
 import subprocess
 import sys
+from collections.abc import Callable
+from typing import Any
 
 import numpy as np
 import pytest
@@ -167,6 +169,11 @@ def _write(tmp_path: pathlib.Path, name: str, text: str) -> str:
     return str(tmp_path / name)
 
 
+_ON_LINUX = pytest.mark.skipif(
+    not (os.path.isdir("/proc/self") and os.path.isdir("/sys/kernel")), reason="needs /proc, /sys"
+)
+
+POSE = ["0.4", "0.2", "0.3", "0", "1", "0", "0"]  # x y z qw qx qy qz: a pose the UR5e reaches
 BAD_INPUTS = [
     (["verify", "universal_robots_ur5"], "did you mean 'universal_robots_ur5e'"),
     (["verify", "no/such/robot.xml"], "model file not found"),
@@ -270,11 +277,6 @@ BAD_INPUTS = [
     (["view", "--params", "lynch-park-ur", "--no-browser"], "did you mean 'lynch-park-ur5'"),
     (["view", "--frame", "atachment_site", "--no-browser"], "did you mean 'attachment_site'"),
     (["view", "--port", "70000", "--no-browser"], "--port must be in 0..65535"),
-    pytest.param(
-        ["verify", "--metrics", "/dev/full"],
-        "No space left on device",
-        marks=pytest.mark.skipif(not os.path.exists("/dev/full"), reason="no /dev/full"),
-    ),
     # URDF files (issue 15): BAD_URDFS below. verify reads a URDF before MuJoCo compiles it,
     # so poekin's reason, naming the joint, comes first for what MuJoCo refuses too
     (["screws", "{rpy_of_4}"], "joint 'j': <origin rpy=\"0 0 1 0\"> has 4 numbers; give 3"),
@@ -285,7 +287,154 @@ BAD_INPUTS = [
     (["verify", "{mimic_cycle}"], "mimic joints form a cycle: j -> k -> j"),
     (["screws", "{world_only}"], "no link to pose"),
     (["verify", "{planar}"], "joint 'j' is planar"),
+    # issue 20: every writer refuses a path it cannot write, before any work, in one line
+    *[
+        pytest.param(argv, message, marks=_ON_LINUX)
+        for argv, message in [
+            (
+                ["verify", "--plot", "/proc/fk.png"],
+                "cannot write the plot to /proc/fk.png: folder /proc is not writable",
+            ),
+            (
+                ["draw", "--out", "/proc/a.png"],
+                "cannot write the drawing to /proc/a.png: folder /proc is not writable",
+            ),
+            (
+                ["diagnose", "--params", "ur5e-dh", "--plot", "/proc/w.png"],
+                "cannot write the plot to /proc/w.png: folder /proc is not writable",
+            ),
+            (
+                ["fk", "universal_robots_ur5e", "--input", "{q_npy}", "--output", "/sys/T.csv"],
+                "cannot write the poses to /sys/T.csv: folder /sys is not writable",
+            ),
+            (
+                [
+                    "jacobian",
+                    "universal_robots_ur5e",
+                    "--input",
+                    "{q_npy}",
+                    "--output",
+                    "/sys/J.npy",
+                ],
+                "cannot write the Jacobians to /sys/J.npy: folder /sys is not writable",
+            ),
+            (
+                ["verify", "--metrics", "/proc/metrics.csv"],
+                "cannot write metrics to /proc/metrics.csv: folder /proc is not writable",
+            ),
+        ]
+    ],
+    (
+        ["fk", "universal_robots_ur5e", "--input", "{q_npy}", "--output", "{tmp}"],
+        "is a folder; give a file path ending in one of .npy, .npz, .csv, .txt",
+    ),
+    (["verify", "--plot", "{tmp}"], "is a folder; give a file path ending in one of .png"),
+    (["verify", "--metrics", "{tmp}"], "it is a directory; pass a file path"),
+    (
+        ["fk", "universal_robots_ur5e", "--input", "{q_npy}", "--output", "{other_csv}/T.npy"],
+        "other.csv is a file, not a folder",
+    ),
+    (["draw", "--out", "{other_csv}/a.png"], "other.csv is a file, not a folder"),
+    (["verify", "--samples", "100000000000"], "100000000000 samples need at least 27.6 TiB"),
+    (["diagnose", "--params", "ur5e-dh", "--samples", "100000000000"], "samples need at least"),
+    (
+        ["fk", "universal_robots_ur5e", "--q", *"000000", "--input", "{q_npy}"],
+        "both --q and --input were given; give one",
+    ),
+    (["draw", "--aligned", "--out", "{tmp}/a.png"], "give --params FILE|NAME too, or drop"),
+    (["jacobian", "unitree_go2", "--relative-to", "bse", "--q", "0"], "did you mean 'base'"),
+    (["jacobian", "aloha", "--all-frames", "--frame", "left/gripper", "--q", "0"], "drop --frame"),
+    (["jacobian", "--params", "ur5e-dh", "--relative-to", "base", "--q", "0"], "not --params"),
+    # UR calibration files (issue 22): BAD_UR_CALIBRATIONS below
+    (["fk", "--params", "{ur_missing_segment}", "--q", *"000000"], "has no 'wrist_2' segment"),
+    (["diagnose", "--params", "{ur_misspelled_segment}"], "did you mean 'wrist_1'?"),
+    (["dh", "--params", "{ur_text}"], "kinematics.forearm.x must be a number"),
+    (["verify", "--params", "{ur_extra_segment}"], "unknown segment 'wrist_4'"),
+    (
+        ["diagnose", "--params", "{ur_calibration}", "--against", "ur5e-dh", "--frame", "tool0"],
+        "frame out",
+    ),
+    # poekin ik (issue 21): targets that are no poses, files, options that do not go together
+    (["ik", "universal_robots_ur5e", "--pose", *POSE[:3], *"0000"], "the quaternion is zero"),
+    (
+        ["ik", "universal_robots_ur5e", "--pose", *POSE[:3], "0.7071", "0.7071", "0", "0"],
+        "norm 0.99999041, not 1 (|q| must be within 1e-6 of 1; poekin does not normalise it): "
+        "give a unit quaternion, such as 0.707106781 0.707106781 0 0",
+    ),
+    (["ik", "universal_robots_ur5e", "--pose", "nan", *POSE[1:]], "--pose holds NaN or inf"),
+    (["ik", "universal_robots_ur5e", "--pose", *POSE[:6]], "--pose takes 7 numbers"),
+    (["ik", "universal_robots_ur5e", "--pose", *POSE[:3]], "or pass --position-only"),
+    (["ik", "universal_robots_ur5e"], "give a target with --pose X Y Z QW QX QY QZ"),
+    (["ik", "universal_robots_ur5e", "--pose", *POSE, "--input", "{poses}"], "give one"),
+    (["ik", "universal_robots_ur5e", "--input", "{poses}"], "--input needs --output"),
+    (["ik", "universal_robots_ur5e", "--pose", *POSE, "--output", "{tmp}/q.npy"], "goes with"),
+    (
+        ["ik", "universal_robots_ur5e", "--input", "{poses}", "--output", "{tmp}/q.npy", "--json"],
+        "--json prints the answer for one --pose",
+    ),
+    (
+        ["ik", "universal_robots_ur5e", "--input", "{not_rigid}", "--output", "{tmp}/q_ik.npy"],
+        "target at index (1,) is not a rigid transform: its rotation block is not orthonormal",
+    ),
+    (
+        ["ik", "universal_robots_ur5e", "--input", "{bad_quat_csv}", "--output", "{tmp}/q_ik.npy"],
+        "bad_quat.csv row 1: the quaternion QW QX QY QZ = 1 1 0 0 has norm 1.41421356",
+    ),
+    (
+        ["ik", "universal_robots_ur5e", "--input", "{nan_poses}", "--output", "{tmp}/q_ik.npy"],
+        "nan_poses.npy row 1 holds NaN or inf",
+    ),
+    (
+        ["ik", "universal_robots_ur5e", "--input", "{q_npy}", "--output", "{tmp}/q_ik.npy"],
+        "holds an array of shape (2, 6); give targets as (N, 4, 4) matrices",
+    ),
+    (
+        ["ik", "universal_robots_ur5e", "--input", "{tmp}/none.npy", "--output", "{tmp}/q_ik.npy"],
+        "no such file",
+    ),
+    (
+        ["ik", "universal_robots_ur5e", "--input", "{poses}", "--output", "{other_csv}"],
+        "already exists; pass --force",
+    ),
+    (["ik", "franka_fr3", "--pose", *POSE, "--all"], "ik_all needs 6 revolute joints"),
+    (["ik", "universal_robots_ur5e", "--pose", *POSE, "--all", "--seed", "1"], "takes no --seed"),
+    (["ik", "universal_robots_ur5e", "--pose", *POSE, "--q0", "1", "2"], "expected 6 --q0 values"),
+    (["ik", "universal_robots_ur5e", "--pose", *POSE, "--seed", "-1"], "--seed must be a whole"),
+    (["ik", "universal_robots_ur5e", "--pose", *POSE, "--pos-tol", "0"], "--pos-tol must be a"),
+    (["ik", "universal_robots_ur5e", "--pose", *POSE, "--qpos", "0"], "pass --tree too"),
+    (["ik", "unitree_go2", "--frame", "FL_calf", "--pose", *POSE], "pass --tree"),
+    (
+        ["ik", "aloha", "--tree", "--frame", "left/griper", "--pose", *POSE],
+        "did you mean 'left/gripper'",
+    ),
+    (
+        ["ik", "aloha", "--tree", "--frame", "left/gripper", "--pose", *POSE, "--qpos", "0"],
+        "expected 16 --qpos values",
+    ),
+    pytest.param(
+        ["ik", "universal_robots_ur5e", "--input", "{poses}", "--output", "/sys/q.npy"],
+        "cannot write the joint values to /sys/q.npy: folder /sys is not writable",
+        marks=_ON_LINUX,
+    ),
 ]
+
+# {name}.yaml files for BAD_INPUTS: the synthetic UR5e calibration of tests/data/ur, edited
+UR_CALIBRATION = pathlib.Path(__file__).parent / "data" / "ur" / "ur5e_calibration.yaml"
+BAD_UR_CALIBRATIONS: dict[str, Callable[[dict[str, Any]], object]] = {
+    "ur_missing_segment": lambda k: k.pop("wrist_2"),
+    "ur_misspelled_segment": lambda k: k.update(wrist1=k.pop("wrist_1")),
+    "ur_text": lambda k: k["forearm"].update(x="abc"),
+    "ur_extra_segment": lambda k: k.update(wrist_4=dict(k["wrist_3"])),
+}
+
+
+def _ur_calibration(edit: Callable[[dict[str, Any]], object]) -> str:
+    import yaml
+
+    doc = yaml.safe_load(UR_CALIBRATION.read_text())
+    edit(doc["kinematics"])
+    return str(yaml.safe_dump(doc))
+
 
 _LINKS = '<link name="base"/><link name="a"/>'
 _ONE_JOINT = _LINKS + '<joint name="j" type="{}"><parent link="base"/><child link="a"/>{}</joint>'
@@ -360,16 +509,40 @@ def test_bad_input_gives_one_line_and_exit_2(
         "deg_unit_typo": _write(
             tmp_path, "t.json", json.dumps({**UR5E_DH_DICT, "angle_unit": "degree"})
         ),
+        "poses": _npy(tmp_path / "poses.npy", np.tile(np.eye(4), (2, 1, 1))),
+        "not_rigid": _npy(tmp_path / "not_rigid.npy", np.stack([np.eye(4), np.diag([2, 1, 1, 1])])),
+        "bad_quat_csv": _write(
+            tmp_path, "bad_quat.csv", "0.4,0.2,0.3,1,0,0,0\n0.4,0.2,0.3,1,1,0,0\n"
+        ),
+        "nan_poses": _npy(
+            tmp_path / "nan_poses.npy", np.array([[0.4, 0, 0, 1, 0, 0, 0], [np.nan] * 7])
+        ),
     }
     fills |= {
         k: _write(tmp_path, f"{k}.urdf", f'<robot name="r">{v}</robot>')
         for k, v in BAD_URDFS.items()
     }
+    fills |= {
+        k: _write(tmp_path, f"{k}.yaml", _ur_calibration(edit))
+        for k, edit in BAD_UR_CALIBRATIONS.items()
+    }
+    fills["ur_calibration"] = str(UR_CALIBRATION)
     before = pathlib.Path(other).read_bytes()
-    code, _, err = run(capsys, *[a.format(**fills) for a in argv])
+    listing = sorted(tmp_path.iterdir())
+    code, out, err = run(capsys, *[a.format(**fills) for a in argv])
     assert code == 2
     assert_one_error_line(err, message)
+    assert out == ""  # no partial output, such as a PASS line before a failed write
     assert pathlib.Path(other).read_bytes() == before
+    assert sorted(tmp_path.iterdir()) == listing  # nothing written, no probe left behind
+
+
+@pytest.mark.skipif(not os.path.exists("/dev/full"), reason="no /dev/full")
+def test_a_write_that_fails_after_the_run_is_one_line(capsys: pytest.CaptureFixture[str]) -> None:
+    """What no check can foresee, a full disk, still gives one line and exit 2."""
+    code, out, err = run(capsys, "verify", "--samples", "10", "--metrics", "/dev/full")
+    assert code == 2 and "PASS" in out
+    assert_one_error_line(err, "cannot write metrics to /dev/full: No space left on device")
 
 
 @pytest.mark.parametrize(
@@ -390,12 +563,7 @@ def test_argparse_errors_are_one_line(
     assert err.count("\n") == 1 and message in err and "--help" in err
 
 
-def test_no_network_menagerie(
-    capsys: pytest.CaptureFixture[str], tmp_path: pathlib.Path, monkeypatch: pytest.MonkeyPatch
-) -> None:
-    monkeypatch.delenv("MENAGERIE_ROOT")
-    monkeypatch.setenv("MENAGERIE_CACHE_DIR", str(tmp_path))
-    monkeypatch.setenv("MENAGERIE_BASE_URL", (tmp_path / "offline").as_uri())
+def test_no_network_menagerie(capsys: pytest.CaptureFixture[str], fresh_machine: None) -> None:
     code, _, err = run(capsys, "verify", "franka_fr3")
     assert code == 2
     assert_one_error_line(
@@ -415,7 +583,7 @@ def test_every_command_has_help_with_an_example(
     assert f"poekin {command}" in capsys.readouterr().out.split("example")[1]
 
 
-def test_console_script_runs_without_traceback() -> None:
+def test_console_script_runs_without_traceback(fresh_machine: None) -> None:
     """The installed entry point, in a real process: exit code and stderr as a user sees them."""
     proc = subprocess.run(
         [sys.executable, "-m", "poekin.cli", "fk", "universal_robots_ur5e", "--q", "1"],
@@ -441,9 +609,9 @@ NOT_FOR_VERIFY = [
 ]
 
 
-def test_verify_imports_only_what_it_needs() -> None:
-    """``import poekin`` imports no MuJoCo, and ``poekin verify`` none of the modules it does not
-    use; MUJOCO_GL is left as the user had it."""
+def test_verify_imports_only_what_it_needs(fresh_machine: None) -> None:
+    """``import poekin`` imports no MuJoCo, and ``poekin verify`` (the built-in UR5e) none of the
+    modules it does not use; MUJOCO_GL is left as the user had it."""
     code = (
         "import os, sys\n"
         "import poekin\n"
@@ -877,7 +1045,10 @@ def test_diagnose_a_table_typed_with_four_decimals(
     assert errors == sorted(errors, reverse=True) and len(set(errors)) == len(errors)
 
 
-def test_degrees_with_deg_and_a_note_without(capsys: pytest.CaptureFixture[str]) -> None:
+def test_degrees_with_deg_and_a_note_without(
+    capsys: pytest.CaptureFixture[str], fresh_machine: None
+) -> None:
+    """The built-in UR5e, which loads without a note of its own: only --deg's note is left."""
     chain = load("universal_robots_ur5e")
     degrees = ["0", "-90", "90", "0", "45", "0"]
     code, out, err = run(capsys, "fk", "universal_robots_ur5e", "--deg", "--json", "--q", *degrees)
@@ -909,10 +1080,15 @@ def test_values_outside_the_joint_limits_get_a_note(
 ) -> None:
     code, _, err = run(capsys, "fk", "franka_fr3", "--q", *"0000000")
     assert code == 0
-    assert "poekin: note: outside the joint limits: 'fr3_joint4' = 0 rad, not in [-3.0421" in err
+    # both joints whose range excludes 0, in one note (issue 20: not only the first)
+    assert (
+        "poekin: note: outside the joint limits: 'fr3_joint4' = 0 rad, not in [-3.0421, -0.1518]; "
+        "'fr3_joint6' = 0 rad, not in [0.5445, 4.5169] (computed all the same)" in err
+    )
     limits = load(load_quiet("franka_fr3")).limits
     q = np.tile(limits.mean(axis=1), (5, 1))  # within the limits
-    q[2:4, 0] = 3.0  # fr3_joint1 is limited to +-2.9007
+    q[2:4, 0] = 3.0  # fr3_joint1 is limited to +-2.7437
+    q[4, 2] = -3.0  # fr3_joint3 to +-2.9007
     np.save(tmp_path / "q.npy", q)
     code, _, err = run(
         capsys, "fk", "franka_fr3", "--input", str(tmp_path / "q.npy"),
@@ -920,7 +1096,9 @@ def test_values_outside_the_joint_limits_get_a_note(
     )  # fmt: skip
     assert code == 0
     assert (
-        "2 of 5 configurations are outside the joint limits, the first (row 2): 'fr3_joint1'" in err
+        "3 of 5 configurations are outside the joint limits: 'fr3_joint1' in 2 rows (first row 2: "
+        "3 rad), not in [-2.7437, 2.7437]; 'fr3_joint3' in 1 row (first row 4: -3 rad), not in "
+        "[-2.9007, 2.9007] (computed all the same)" in err
     )
 
 
@@ -1007,3 +1185,154 @@ def test_verify_of_a_malformed_urdf_names_the_joint(
     assert code == 2
     assert_one_error_line(err, "has 4 numbers; give 3 numbers (roll pitch yaw)")
     assert "joint '" in err
+
+
+# --- issue 20: jacobian's frame options, fk's forms, writes the OS refuses ---------------------
+
+GO2_STAND = ["0", "0", "0.3", "1", "0", "0", "0"] + ["0", "0.9", "-1.8"] * 4
+
+
+def test_jacobian_takes_fks_frame_options(
+    capsys: pytest.CaptureFixture[str], tmp_path: pathlib.Path
+) -> None:
+    tree = poekin.load_tree(load_quiet("unitree_go2"))
+    qpos = np.array([float(x) for x in GO2_STAND])
+    argv = ["jacobian", "unitree_go2", "--frame", "FL_calf", "--relative-to", "base"]
+    for convention in ("space", "body", "world"):
+        code, out, _ = run(capsys, *argv, "--convention", convention, "--json", "--q", *GO2_STAND)
+        reply = json.loads(out)
+        expected = tree.jacobian(qpos, "FL_calf", convention, relative_to="base")
+        assert code == 0 and reply["relative_to"] == "base" and reply["frame"] == "FL_calf"
+        assert_close(f"--relative-to base, {convention}", reply["J"], expected, 0.0)
+    code, out, _ = run(capsys, *argv, "--convention", "world", "--q", *GO2_STAND)
+    assert out.startswith(
+        "J_world of 'FL_calf' relative to 'base' (6 x 18), rows [w; v_frame] in 'base' coordinates"
+    )
+    # --all-frames: every frame's Jacobian along axis -3, in a file
+    np.save(tmp_path / "qpos.npy", poekin.sample_qpos(tree, 5, seed=2))
+    code, out, _ = run(
+        capsys, "jacobian", "unitree_go2", "--all-frames", "--input", str(tmp_path / "qpos.npy"),
+        "--output", str(tmp_path / "J.npz"),
+    )  # fmt: skip
+    assert code == 0 and "(5, 14, 6, 18)" in out
+    with np.load(tmp_path / "J.npz") as saved:
+        assert list(saved["frames"]) == list(tree.frame_names)
+        for f, name in enumerate(tree.frame_names):
+            expected = tree.jacobian(np.load(tmp_path / "qpos.npy"), name, "space")
+            assert_close(name, saved["J"][:, f], expected, 0.0)
+
+
+def test_fk_forms_pos_quat_and_xyz_rpy(
+    capsys: pytest.CaptureFixture[str], tmp_path: pathlib.Path
+) -> None:
+    """xyz_rpy is URDF's roll-pitch-yaw, R = Rz(yaw) Ry(pitch) Rx(roll): checked against
+    SciPy's extrinsic 'xyz' Euler angles; pos_quat against SciPy's quaternion (w first)."""
+    from scipy.spatial.transform import Rotation
+
+    chain = load("universal_robots_ur5e")
+    q = [0.1, -1.2, 1.3, 0.4, -0.5, 2.0]
+    T = chain.fk(q)
+    argv = ["fk", "universal_robots_ur5e", "--q", *map(str, q)]
+    code, out, _ = run(capsys, *argv, "--form", "xyz_rpy", "--json")
+    reply = json.loads(out)
+    assert code == 0 and reply["form"] == "xyz_rpy"
+    assert_close("xyz", reply["xyz_rpy"][:3], T[:3, 3], 0.0)
+    assert_close(
+        "rpy", reply["xyz_rpy"][3:], Rotation.from_matrix(T[:3, :3]).as_euler("xyz"), 1e-12
+    )
+    rebuilt = Rotation.from_euler("xyz", reply["xyz_rpy"][3:]).as_matrix()
+    assert_close("Rz Ry Rx", rebuilt, T[:3, :3], 1e-12)
+    code, out, _ = run(capsys, *argv, "--form", "pos_quat", "--json")
+    x, y, z, w = Rotation.from_matrix(T[:3, :3]).as_quat()
+    expected = np.array([w, x, y, z]) * np.sign(w)  # poekin's has w >= 0
+    assert_close("quat", json.loads(out)["pos_quat"][3:], expected, 1e-12)
+    code, out, _ = run(capsys, *argv, "--form", "xyz_rpy", "--precision", "3")
+    lines = out.splitlines()
+    assert lines[0] == "T_world_attachment_site ="
+    assert lines[1].split()[:2] == ["xyz", "[m]"] and lines[2].split()[:2] == ["rpy", "[rad]"]
+    assert [float(v) for v in lines[2].split()[2:]] == pytest.approx(
+        Rotation.from_matrix(T[:3, :3]).as_euler("xyz"), abs=5e-4
+    )
+    # a batch: (N, 7) rows with named columns
+    batch = np.random.default_rng(0).uniform(-3, 3, (4, 6))
+    np.save(tmp_path / "q.npy", batch)
+    out_csv = tmp_path / "P.csv"
+    code, out, _ = run(
+        capsys, "fk", "universal_robots_ur5e", "--input", str(tmp_path / "q.npy"),
+        "--output", str(out_csv), "--form", "pos_quat",
+    )  # fmt: skip
+    assert code == 0 and "poses pos_quat of shape (4, 7)" in out
+    assert out_csv.read_text().splitlines()[0] == "x,y,z,qw,qx,qy,qz"
+    rows = np.loadtxt(out_csv, delimiter=",", skiprows=1)
+    Tb = chain.fk(batch)
+    assert_close("positions", rows[:, :3], Tb[:, :3, 3], 0.0)
+    assert_close("rotations", poekin.quat_to_rotation(rows[:, 3:]), Tb[:, :3, :3], 1e-15)
+
+
+def test_a_write_the_os_refuses_midway_is_one_line_and_leaves_nothing(
+    capsys: pytest.CaptureFixture[str], tmp_path: pathlib.Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A check before the work cannot foresee everything (a disk that fills, a folder made
+    read-only meanwhile): what the OS refuses while writing is one line too, naming the path."""
+    import errno
+
+    from poekin import fileio
+
+    np.save(tmp_path / "q.npy", np.zeros((2, 6)))
+    listing = sorted(tmp_path.iterdir())
+
+    def refused(src: object, dst: object) -> None:
+        raise OSError(errno.EROFS, "Read-only file system", str(dst))
+
+    monkeypatch.setattr(fileio.os, "replace", refused)
+    for argv in (
+        ["fk", "universal_robots_ur5e", "--input", str(tmp_path / "q.npy"), "--output"],
+        ["draw", "--out"],
+    ):
+        target = tmp_path / ("T.npy" if argv[0] == "fk" else "a.png")
+        code, out, err = run(capsys, *argv, str(target))
+        assert code == 2 and out == ""
+        what = "the poses" if argv[0] == "fk" else "the drawing"
+        assert_one_error_line(
+            err,
+            f"cannot write {what} to {target}: folder {target.parent} is not writable "
+            "(read-only file system)",
+        )
+        assert sorted(tmp_path.iterdir()) == listing  # neither the file nor a temporary one
+
+
+def test_verify_of_a_missing_urdf_says_so_before_asking_for_yourdfpy(
+    capsys: pytest.CaptureFixture[str], tmp_path: pathlib.Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.setitem(sys.modules, "yourdfpy", None)  # as if the extra were not installed
+    for argv in (["verify"], ["fk", "--q", "0"], ["screws"]):
+        code, _, err = run(capsys, argv[0], str(tmp_path / "x.urdf"), *argv[1:])
+        assert code == 2
+        assert_one_error_line(err, "x.urdf: no such URDF file; check the path")
+    (tmp_path / "x.urdf").write_text('<robot name="r"><link name="a"/></robot>')
+    code, _, err = run(capsys, "verify", str(tmp_path / "x.urdf"))
+    assert code == 2
+    assert_one_error_line(err, "reading x.urdf needs yourdfpy, which is not installed")
+
+
+def test_no_two_help_examples_write_one_file() -> None:
+    """Run one after another in one folder, as a reader trying them would, every --help example
+    works: no two write the same file (issue 20: jacobian's two wrote J.npy; poekin --help
+    repeated verify's, which wrote fk.png)."""
+    import shlex
+
+    from poekin.cli import _build_parser
+
+    parser = _build_parser()
+    epilogs = [parser.epilog or ""]
+    sub = next(a for a in parser._actions if a.dest == "command")
+    epilogs += [p.epilog or "" for p in sub.choices.values()]  # type: ignore[union-attr]
+    written: dict[str, str] = {}
+    for line in (ln.strip() for e in epilogs for ln in e.splitlines()):
+        argv = shlex.split(line) if line.startswith("poekin ") else []
+        for flag in ("--output", "--out", "--plot"):
+            if flag in argv:
+                path = argv[argv.index(flag) + 1]
+                assert path not in written, f"{line!r} and {written[path]!r} both write {path}"
+                written[path] = line
+    assert {"J.npy", "J_FL_calf.npy", "fk.png", "T.csv"} <= set(written)

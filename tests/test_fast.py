@@ -334,6 +334,19 @@ def test_chains_and_trees_pickle_and_copy(ur5e: Chain, features: Tree) -> None:
     assert np.array_equal(pickle.loads(pickle.dumps(features)).fk(qpos), features.fk(qpos))
 
 
+def test_bound_methods_pickle_by_value_as_dask_sends_them(ur5e: Chain, features: Tree) -> None:
+    """cloudpickle (Dask's, Ray's) pickles ``chain.fk`` as its function and its chain; the
+    function is the compiled descriptor, which pickles as the class attribute it is."""
+    cloudpickle = pytest.importorskip("cloudpickle")
+    q = np.random.default_rng(15).uniform(-3, 3, (20, 6))
+    qpos = sample_qpos(features, 20, seed=15)
+    for method, x in ((ur5e.fk, q), (ur5e.jacobian_world, q), (features.fk, qpos)):
+        for dumps in (pickle.dumps, cloudpickle.dumps):
+            clone = pickle.loads(dumps(method))
+            assert np.array_equal(clone(x), method(x))
+    assert pickle.loads(cloudpickle.dumps(Chain.fk)) is Chain.fk
+
+
 def test_without_the_kernel_the_numpy_path_gives_the_same_poses(
     ur5e: Chain, features: Tree, monkeypatch: pytest.MonkeyPatch
 ) -> None:

@@ -2,13 +2,26 @@
 
 from __future__ import annotations
 
+import errno
+import os
 import pathlib
+import re
+from collections.abc import Callable
+from typing import Any
 
 import numpy as np
 import pytest
 
+from poekin import fileio
 from poekin.errors import InputError
-from poekin.fileio import check_new_file, figure_format, read_array, write_array
+from poekin.fileio import (
+    check_new_file,
+    check_writable,
+    figure_format,
+    read_array,
+    save_figure,
+    write_array,
+)
 
 Q = np.array([[0.1, -1e-3, 2.5, 0.0, -0.25, 3.0], [1.0, 2.0, 3.0, 4.0, 5.0, 6.0]])
 
@@ -133,3 +146,88 @@ def test_figure_format(name: str, expected: str) -> None:
 def test_figure_format_refuses_what_matplotlib_would_not_write(name: str) -> None:
     with pytest.raises(InputError, match=r"names no format poekin knows: \.png, \.pdf, \.svg"):
         figure_format(name, "--plot")
+
+
+# --- paths poekin cannot write (issue 20) -----------------------------------------------------
+
+
+def _oserror(code: int) -> Callable[..., Any]:
+    def refuse(*_: object, **__: object) -> Any:
+        raise OSError(code, os.strerror(code))
+
+    return refuse
+
+
+@pytest.mark.parametrize(
+    ("code", "reason"),
+    [
+        (errno.EACCES, "folder {folder} is not writable (permission denied)"),
+        (errno.EPERM, "folder {folder} is not writable (permission denied)"),
+        (errno.EROFS, "folder {folder} is not writable (read-only file system)"),
+        (errno.ENOENT, "folder {folder} is not writable (it takes no new files)"),
+        (errno.ENOSPC, "No space left on device"),
+    ],
+)
+def test_check_writable_says_why_in_one_line(
+    code: int, reason: str, tmp_path: pathlib.Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.setattr(fileio.tempfile, "mkstemp", _oserror(code))
+    path = tmp_path / "T.npy"
+    with pytest.raises(InputError) as info:
+        check_new_file(path, "poses")
+    assert str(info.value) == f"cannot write the poses to {path}: " + reason.format(folder=tmp_path)
+    with pytest.raises(InputError):  # the write itself says the same
+        write_array(path, np.zeros((1, 6)), name="q", columns=[], what="poses")
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_check_writable_of_real_paths(tmp_path: pathlib.Path) -> None:
+    (tmp_path / "file").write_text("x")
+    (tmp_path / "folder.npy").mkdir()
+    cases = {
+        tmp_path / "file" / "T.npy": f"{tmp_path / 'file'} is a file, not a folder",
+        tmp_path / "no" / "T.npy": f"folder {tmp_path / 'no'} does not exist",
+        tmp_path / "folder.npy": "it is a folder; give a file path",
+    }
+    for path, reason in cases.items():
+        with pytest.raises(InputError, match=re.escape(reason)):
+            check_new_file(path, "poses", force=True)
+    with pytest.raises(InputError, match=r"--output .*folder.npy is a folder; give a file path"):
+        read_array(tmp_path / "folder.npy", "--output")
+    assert check_writable(tmp_path / "file", "metrics", append=True) == tmp_path / "file"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["file", "folder.npy"]  # no probe left
+    if os.path.isdir("/proc/self"):  # exists, takes no new files (as root too)
+        with pytest.raises(InputError, match="folder /proc is not writable"):
+            check_new_file("/proc/T.npy", "poses")
+
+
+def test_a_write_refused_midway_keeps_the_old_file(
+    tmp_path: pathlib.Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    path = tmp_path / "T.csv"
+    path.write_text("the user's data\n")
+    monkeypatch.setattr(fileio.os, "replace", _oserror(errno.EROFS))
+    with pytest.raises(InputError, match=r"is not writable \(read-only file system\)"):
+        write_array(path, np.zeros((2, 6)), name="q", columns=list("abcdef"), what="poses")
+    assert path.read_text() == "the user's data\n"
+    assert [p.name for p in tmp_path.iterdir()] == ["T.csv"]
+
+
+def test_save_figure_writes_what_the_suffix_names_with_the_usual_permissions(
+    tmp_path: pathlib.Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    fig = Figure()
+    FigureCanvasAgg(fig)
+    fig.add_subplot().plot([0, 1], [1, 0])
+    for name, magic in (("f.png", b"\x89PNG"), ("f.svg", b"<?xml"), ("f.pdf", b"%PDF")):
+        assert save_figure(fig, tmp_path / name, dpi=50).read_bytes().startswith(magic)
+    umask = os.umask(0o022)
+    os.umask(umask)
+    assert (tmp_path / "f.png").stat().st_mode & 0o777 == 0o666 & ~umask  # not mkstemp's 0o600
+    monkeypatch.setattr(fig, "savefig", _oserror(errno.ENOSPC))
+    with pytest.raises(InputError, match=r"cannot write the figure to .*g\.png: No space left"):
+        save_figure(fig, tmp_path / "g.png", dpi=50)
+    assert not (tmp_path / "g.png").exists()

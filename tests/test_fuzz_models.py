@@ -214,6 +214,7 @@ def _check(xml: str, seed: int, library: str = "numpy") -> None:
                 assert_close(f"{library} chain.{method} {name}", got_lib, T, 2 * tol)
 
 
+@pytest.mark.slow
 @settings(
     max_examples=EXAMPLES,
     deadline=None,

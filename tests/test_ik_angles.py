@@ -38,6 +38,8 @@ def test_an_unlimited_angle_comes_back_in_minus_pi_pi(q: float) -> None:
     got = float(wrap_into_limits(np.array([q]), lim, np.array([True]))[0])
     assert -np.pi < got <= np.pi
     assert abs(np.sin(got) - np.sin(q)) < 1e-12 and abs(np.cos(got) - np.cos(q)) < 1e-12
+    if -np.pi < q <= np.pi:
+        assert got == q  # bit for bit
 
 
 def test_prismatic_values_and_angles_inside_never_move() -> None:

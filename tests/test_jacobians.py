@@ -216,3 +216,72 @@ def test_a_frame_seen_before_is_still_checked(features_tree: Tree) -> None:
 @pytest.fixture(scope="module")
 def features_tree() -> Tree:
     return tree_from_model(mujoco.MjModel.from_xml_string(FEATURES_XML))
+
+
+# --- one frame seen from another (issue 20) ---------------------------------------------------
+
+
+def mj_pose(model: mujoco.MjModel, data: mujoco.MjData, frame: int) -> np.ndarray:
+    """``T_world_frame`` of body-then-site ``frame`` (poekin's order) after mj_kinematics."""
+    nb = model.nbody - 1
+    T = np.eye(4)
+    if frame < nb:
+        T[:3, :3], T[:3, 3] = data.xmat[frame + 1].reshape(3, 3), data.xpos[frame + 1]
+    else:
+        T[:3, :3], T[:3, 3] = data.site_xmat[frame - nb].reshape(3, 3), data.site_xpos[frame - nb]
+    return T
+
+
+@pytest.mark.parametrize(("frame", "reference"), [("FL_calf", "base"), ("imu", "RR_calf")])
+def test_a_jacobian_relative_to_a_moving_frame_is_the_derivative_of_mujocos_pose(
+    frame: str, reference: str
+) -> None:
+    """``Tree.jacobian(..., relative_to=A)`` against central differences of ``T_A_frame`` from
+    MuJoCo's poses, each velocity (free joint included) stepped by ``mj_integratePos``."""
+    model = load_quiet("unitree_go2").model
+    tree = poekin.load_tree(load_quiet("unitree_go2"))
+    f, a = tree.frame_index(frame), tree.frame_index(reference)
+    data = mujoco.MjData(model)
+
+    def T_rel(qpos: np.ndarray) -> np.ndarray:
+        data.qpos[:] = qpos
+        mujoco.mj_kinematics(model, data)
+        return np.linalg.inv(mj_pose(model, data, a)) @ mj_pose(model, data, f)
+
+    for qpos in sample_qpos(tree, 3, seed=11):
+        T = T_rel(qpos)
+        fd = {c: np.zeros((6, model.nv)) for c in ("space", "body", "world")}
+        for k in range(model.nv):
+            ends = []
+            for sign in (1.0, -1.0):
+                q = qpos.copy()
+                step = np.zeros(model.nv)
+                step[k] = sign * FD_STEP
+                mujoco.mj_integratePos(model, q, step, 1.0)
+                ends.append(T_rel(q))
+            dT = (ends[0] - ends[1]) / (2 * FD_STEP)
+            fd["space"][:, k] = twist_of(dT, T, "space")
+            fd["body"][:, k] = twist_of(dT, T, "body")
+            w = dT[:3, :3] @ T[:3, :3].T  # [w] in the reference's coordinates
+            fd["world"][:, k] = [w[2, 1], w[0, 2], w[1, 0], *dT[:3, 3]]
+        for convention, expected in fd.items():
+            J = tree.jacobian(qpos, frame, convention, relative_to=reference)  # type: ignore[arg-type]
+            assert_close(f"{convention} relative to {reference}", J, expected, FD_TOL)
+    # batched, and a frame relative to itself does not move
+    qpos = sample_qpos(tree, 4, seed=1).reshape(2, 2, 19)
+    assert tree.jacobian(qpos, frame, "body", relative_to=reference).shape == (2, 2, 6, 18)
+    assert_close(
+        "self", tree.jacobian(qpos, frame, relative_to=frame), np.zeros((2, 2, 6, 18)), 1e-15
+    )
+    with pytest.raises(UnknownFrameError, match="did you mean 'base'"):
+        tree.jacobian(qpos, frame, relative_to="bse")
+
+
+def test_a_relative_jacobian_of_pytorch_values_is_a_tensor() -> None:
+    torch = pytest.importorskip("torch")
+    tree = poekin.load_tree(load_quiet("unitree_go2"))
+    qpos = sample_qpos(tree, 3, seed=1)
+    J = tree.jacobian(torch.tensor(qpos), "imu", "body", relative_to="RR_calf")
+    assert isinstance(J, torch.Tensor)
+    expected = tree.jacobian(qpos, "imu", "body", relative_to="RR_calf")
+    assert_close("torch", J.numpy(), expected, 1e-15)

@@ -479,6 +479,7 @@ FUNCTIONS: list[tuple[str, Callable[[Any], np.ndarray], np.ndarray, np.ndarray]]
     ("vec_to_so3", lie.vec_to_so3, np.array([0.1, 0.2, 0.3]), np.array([1, 2, 3])),
     ("vec_to_se3", lie.vec_to_se3, np.arange(6.0), np.arange(6)),
     ("matrix_exp_so3", lie.matrix_exp_so3, np.array([0.1, 0.2, 0.3]), np.array([1, 0, 0])),
+    ("rotation_to_rpy", lie.rotation_to_rpy, ROTATION, np.eye(3, dtype=int)),
 ]
 
 
@@ -548,6 +549,7 @@ _FINITE_CHECKED = [
     (lie.quat_normalize, (4,)),
     (lie.quat_to_rotation, (4,)),
     (lie.rotation_to_quat, (3, 3)),
+    (lie.rotation_to_rpy, (3, 3)),
 ]
 
 
@@ -661,3 +663,69 @@ def test_rotation_to_quat_round_trip(shape: tuple[int, ...], seed: int, angle: f
     assert np.all(quat[..., 0] >= 0)
     assert_close("|quat|", np.linalg.norm(quat, axis=-1), np.ones(shape), 1e-15)
     assert_close("R(quat(R))", lie.quat_to_rotation(quat), R, 1e-15)
+
+
+# --------------------------------------------------------------------------------------------
+# what is not a rotation or a pose (issue 20), roll-pitch-yaw
+
+
+@pytest.mark.parametrize(
+    ("T", "message"),
+    [
+        (
+            np.diag([2.0, 2.0, 2.0, 1.0]),
+            r"T is not a rigid transform .*: its rotation block is not",
+        ),
+        (np.diag([1.0, 1.0, -1.0, 1.0]), r"not orthonormal with det \+1 .*det R = -1"),
+        (np.vstack([POSE[:3], [1.0, 0.0, 0.0, 1.0]]), r"its last row is \[1.0, 0.0, 0.0, 1.0\]"),
+        (np.stack([POSE, POSE * 0.5]), r"T\[1\] is not a rigid transform"),
+    ],
+)
+def test_log_se3_refuses_what_is_not_a_rigid_transform(T: np.ndarray, message: str) -> None:
+    with pytest.raises(InputError, match=message) as info:
+        lie.log_se3(T)
+    assert "\n" not in str(info.value)
+    with pytest.raises(InputError, match="R is not a rotation: it is not orthonormal"):
+        lie.log_so3(np.diag([1.0, 2.0, 1.0]))
+
+
+def test_log_takes_rotations_as_rounded_as_a_typed_pose() -> None:
+    """1e-7 off orthonormal (a pose typed to 7 digits) is a rotation; float32 gets its own
+    rounding's worth."""
+    R = np.round(lie.exp_so3(np.array([0.3, -0.2, 0.1])), 7)
+    assert_close("log", lie.log_so3(R), [0.3, -0.2, 0.1], 1e-6)
+    T32 = lie.exp_se3(np.array([0.3, -0.2, 0.1, 1.0, 2.0, 3.0]).astype(np.float32))
+    assert lie.log_se3(T32 @ T32 @ T32).dtype == np.float32
+
+
+@pytest.mark.parametrize("shape", BATCH_SHAPES)
+def test_rotation_to_rpy_is_scipys_extrinsic_xyz(shape: tuple[int, ...]) -> None:
+    """URDF's rpy: R = Rz(yaw) Ry(pitch) Rx(roll), which is SciPy's extrinsic 'xyz' (an
+    independent construction): the angles, and R rebuilt from them."""
+    from scipy.spatial.transform import Rotation
+
+    n = int(np.prod(shape))
+    R = Rotation.random(n, random_state=1).as_matrix().reshape(*shape, 3, 3)
+    rpy = lie.rotation_to_rpy(R)
+    assert rpy.shape == (*shape, 3)
+    expected = Rotation.from_matrix(R.reshape(-1, 3, 3)).as_euler("xyz").reshape(*shape, 3)
+    assert_close("rpy", rpy, expected, 1e-12)
+    rebuilt = Rotation.from_euler("xyz", rpy.reshape(-1, 3)).as_matrix().reshape(R.shape)
+    assert_close("Rz Ry Rx", rebuilt, R, 1e-12)
+    roll, pitch, yaw = 0.3, -0.4, 2.5
+    Rx = lie.exp_so3(np.array([roll, 0.0, 0.0]))
+    Ry = lie.exp_so3(np.array([0.0, pitch, 0.0]))
+    Rz = lie.exp_so3(np.array([0.0, 0.0, yaw]))
+    assert_close("by hand", lie.rotation_to_rpy(Rz @ Ry @ Rx), [roll, pitch, yaw], 1e-14)
+
+
+@pytest.mark.parametrize("pitch", [PI / 2, -PI / 2])
+def test_rotation_to_rpy_at_gimbal_lock_puts_the_turn_in_yaw(pitch: float) -> None:
+    from scipy.spatial.transform import Rotation
+
+    R = Rotation.from_euler("xyz", [0.7, pitch, 0.4]).as_matrix()
+    roll, pitch_back, yaw = lie.rotation_to_rpy(R)
+    assert roll == 0.0 and abs(pitch_back - pitch) < 1e-7
+    assert_close(
+        "same R", Rotation.from_euler("xyz", [roll, pitch_back, yaw]).as_matrix(), R, 1e-12
+    )

@@ -235,7 +235,9 @@ def test_read_only_file(tmp_path: pathlib.Path) -> None:
     before = path.read_bytes()
     path.chmod(0o444)
     try:
-        with pytest.raises(MetricsFileError, match="Permission denied") as info:
+        with pytest.raises(
+            MetricsFileError, match=r"is not writable \(permission denied\)"
+        ) as info:
             append_metrics(path, [_row()])
         assert str(path) in str(info.value)
     finally:
@@ -255,7 +257,9 @@ def test_permission_denied_from_the_os(
     with pytest.raises(MetricsFileError) as info:
         append_metrics(path, [_row()])
     monkeypatch.undo()
-    assert str(info.value) == f"cannot write metrics to {path}: Permission denied"
+    assert str(info.value) == (
+        f"cannot write metrics to {path}: folder {tmp_path} is not writable (permission denied)"
+    )
 
 
 @pytest.mark.skipif(not os.path.exists("/dev/full"), reason="needs /dev/full (Linux)")

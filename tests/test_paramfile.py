@@ -154,7 +154,7 @@ def _dh(*rows: Any, **extra: Any) -> dict[str, Any]:
 MALFORMED: list[tuple[str, Any, str]] = [
     ("top-level-list", [ROW], "the top level is a list of 1, expected an object"),
     ("top-level-number", 3, "expected an object"),
-    ("neither", {"robot": "x"}, "neither a DH table (needs 'rows') nor a PoE set"),
+    ("neither", {"robot": "x"}, "neither a DH table (needs 'rows'), a PoE set"),
     ("missing-alpha", _dh(ROW, ROW, {"a": 0, "d": 0}), "rows[2] has no 'alpha'; each row needs"),
     ("string-number", _dh({**ROW, "d": "0.1"}), "rows[0].d must be a number"),
     ("bool-number", _dh({**ROW, "a": True}), "rows[0].a must be a number, got true"),

@@ -15,6 +15,7 @@ import matplotlib.colors
 import matplotlib.image as mimage
 import numpy as np
 import pytest
+from helpers import assert_labels_apart
 from matplotlib.figure import Figure
 
 import poekin
@@ -227,10 +228,29 @@ def test_mismatched_inputs_raise(tmp_path: pathlib.Path) -> None:
 def test_missing_parent_directory_raises(tmp_path: pathlib.Path) -> None:
     missing = tmp_path / "nope"
     pos, ori = _realistic(10)
-    with pytest.raises(FileNotFoundError, match="does not exist") as info:
+    with pytest.raises(InputError, match="does not exist") as info:
         plot_errors(pos, ori, title="t", path=missing / "fk.png")
     assert str(missing) in str(info.value)
     assert not missing.exists()
+
+
+@pytest.mark.skipif(not os.path.isdir("/proc/self"), reason="needs /proc")
+def test_a_folder_that_takes_no_files_is_refused_before_drawing(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """issue 20: /proc exists but takes no new files (as root too): one InputError line, not
+    matplotlib's FileNotFoundError after the figure was drawn."""
+    pos, ori = _realistic(10)
+
+    def no_drawing(*_: object, **__: object) -> None:
+        raise AssertionError("drew before checking the path")
+
+    monkeypatch.setattr(plotting, "_histogram", no_drawing)
+    monkeypatch.setattr(plotting, "_diagnosis_figure", no_drawing)
+    with pytest.raises(InputError, match=r"to /proc/fk\.png: folder /proc is not"):
+        plot_errors(pos, ori, title="t", path="/proc/fk.png")
+    with pytest.raises(InputError, match=r"to /proc/w\.png: folder /proc is not"):
+        plot_diagnosis(None, "/proc/w.png")  # type: ignore[arg-type]
 
 
 def test_fresh_process_keeps_its_backend_and_has_no_pyplot(tmp_path: pathlib.Path) -> None:
@@ -345,7 +365,9 @@ def test_diagnosis_png_flipped_joint(ur5e: poekin.Chain, tmp_path: pathlib.Path)
     assert len(fig.axes) == 2
     left, right = fig.axes
     assert left.get_title() == "as given (each in its own base frame)"
-    assert right.get_title().startswith("after aligning your base to the model's")
+    # a flipped axis is no base turn: the right panel shows your base as given, as report()
+    assert not d.base_aligned
+    assert right.get_title().startswith("as given: aligning your base does not reduce the error")
     right_texts = [t.get_text() for t in right.texts]
     assert "J4 flipped" in right_texts
     assert "J4 flipped" not in [t.get_text() for t in left.texts]
@@ -519,3 +541,38 @@ def test_diagnosis_figure_lists_the_link_lengths_that_differ(ur5e: poekin.Chain)
     assert "d1: 0.089 m in yours vs 0.163 m in the model" in text
     exact = _diag_texts(_quiet_figure(diagnose(ur5e, ur5e, samples=20)))
     assert not any("link lengths" in t for t in exact)
+
+
+@pytest.mark.parametrize("params", ["ur5e-dh", "lynch-park-ur5", "flipped J4", "base and M"])
+def test_diagnosis_labels_overlap_nothing(params: str, ur5e: poekin.Chain) -> None:
+    """issue 20: no finding label, tag or the DH box overlaps another, a tick label (the DH box
+    covered the x ticks), a title or the legend."""
+    if params == "flipped J4":
+        yours: poekin.Chain | str = _flipped(ur5e, 3)
+    elif params == "base and M":
+        B = lie.exp_se3(np.array([0.0, 0.0, np.pi / 2, 0.05, 0.0, 0.0]))
+        B_inv = lie.inverse(B)
+        home = B_inv @ ur5e.home
+        home[:3, 3] += [0.0, 0.0, 0.03]
+        screws = (np.asarray(lie.adjoint(B_inv)) @ ur5e.screws.T).T
+        yours = _with_screws(ur5e, screws, home=home)
+    else:
+        yours = params
+    fig = _quiet_figure(diagnose(yours, ur5e, samples=100))
+    assert_labels_apart(fig)
+
+
+def test_the_aligned_panel_says_what_the_report_says(ur5e: poekin.Chain) -> None:
+    """issue 20: for ur5e-dh aligning the base does not help, so the report compares the base
+    as it is; the right panel said "after aligning your base" all the same."""
+    d = diagnose("ur5e-dh", ur5e, samples=100)
+    assert not d.base_aligned
+    assert "aligning the base does not reduce it" in d.report()[0]
+    title = _quiet_figure(d).axes[1].get_title()
+    assert title.startswith("as given: aligning your base does not reduce the error\n")
+    assert "after" not in title
+    lynch = diagnose("lynch-park-ur5", ur5e, samples=100)
+    assert lynch.base_aligned and "after aligning the base" in lynch.report()[0]
+    title = _quiet_figure(lynch).axes[1].get_title()
+    assert title.startswith("after aligning your base to the model's\n")
+    assert title.endswith(" after alignment")

@@ -15,8 +15,9 @@ from collections.abc import Sequence
 import mujoco
 import numpy as np
 import pytest
-from helpers import MJ_TOL, assert_close, load_quiet
+from helpers import MJ_TOL, assert_close, load_quiet, mesh_menagerie
 
+import poekin
 from poekin import (
     AssetsStrippedWarning,
     LoadedModel,
@@ -27,8 +28,16 @@ from poekin import (
     load_model,
 )
 
-MENAGERIE = pathlib.Path(os.environ["MENAGERIE_ROOT"])
+MENAGERIE = pathlib.Path(os.environ["MENAGERIE_ROOT"])  # tests/data/menagerie: XML only
 UR5E_DIR = MENAGERIE / "universal_robots_ur5e"
+
+
+@pytest.fixture
+def complete_ur5e(monkeypatch: pytest.MonkeyPatch) -> pathlib.Path:
+    """The UR5e folder of a Menagerie clone with its meshes, which MENAGERIE_ROOT then names."""
+    root = mesh_menagerie()
+    monkeypatch.setenv("MENAGERIE_ROOT", str(root))
+    return root / "universal_robots_ur5e"
 
 
 def _digest(folder: pathlib.Path) -> dict[str, str]:
@@ -39,26 +48,54 @@ def _digest(folder: pathlib.Path) -> dict[str, str]:
     }
 
 
+def test_the_test_models_are_the_upstream_files_their_source_lists() -> None:
+    """Every file of tests/data/menagerie is in its SOURCE.md with its size and sha256 (an
+    unmodified upstream copy), every file listed is there, and none is a mesh; the UR5e is
+    poekin's built-in copy."""
+    table = re.findall(
+        r"^\| (\S+) \| (\d+) \| ([0-9a-f]{64}) \| .+ \|$",
+        (MENAGERIE / "SOURCE.md").read_text(),
+        re.M,
+    )
+    listed = {path: (int(size), sha) for path, size, sha in table}
+    files = {
+        p.relative_to(MENAGERIE).as_posix(): p.read_bytes()
+        for p in MENAGERIE.rglob("*")
+        if p.is_file() and p.name != "SOURCE.md"
+    }
+    assert sorted(listed) == sorted(files)
+    for path, data in files.items():
+        assert (len(data), hashlib.sha256(data).hexdigest()) == listed[path], path
+        assert path.endswith((".xml", "/LICENSE", "/LICENSE.md")), path
+    builtin = pathlib.Path(poekin.__file__).parent / "data" / "universal_robots_ur5e"
+    for name in ("ur5e.xml", "LICENSE"):
+        assert files[f"universal_robots_ur5e/{name}"] == (builtin / name).read_bytes(), name
+
+
 def test_menagerie_name_and_path_give_the_same_model() -> None:
-    by_name = load_model("universal_robots_ur5e")
-    by_path = load_model(UR5E_DIR / "ur5e.xml")
-    assert by_name.xml_path == by_path.xml_path
+    by_name = load_quiet("universal_robots_ur5e")
+    by_path = load_quiet(str(UR5E_DIR / "ur5e.xml"))
+    assert by_name.xml_path == by_path.xml_path == UR5E_DIR / "ur5e.xml"
     assert by_name.robot == "universal_robots_ur5e"
     assert by_path.robot == "ur5e.xml"
     assert by_name.short_name == "ur5e"
-    assert by_name.stripped == ()
-    assert len(by_name.files) == 21  # ur5e.xml and its 20 meshes
+    assert by_name.files == by_path.files == (UR5E_DIR / "ur5e.xml",)
 
 
-def test_complete_model_loads_without_a_note() -> None:
+def test_complete_model_loads_without_a_note(complete_ur5e: pathlib.Path) -> None:
     with warnings.catch_warnings():
         warnings.simplefilter("error")
-        load_model("universal_robots_ur5e")
+        loaded = load_model("universal_robots_ur5e")
+    assert loaded.xml_path == complete_ur5e / "ur5e.xml"
+    assert loaded.stripped == ()
+    assert len(loaded.files) == 21  # ur5e.xml and its 20 meshes
 
 
-def test_stripped_model_has_the_same_frames(tmp_path: pathlib.Path) -> None:
+def test_stripped_model_has_the_same_frames(
+    tmp_path: pathlib.Path, complete_ur5e: pathlib.Path
+) -> None:
     """The UR5e XML without its meshes: same body and site poses as the complete model."""
-    shutil.copy(UR5E_DIR / "ur5e.xml", tmp_path)
+    shutil.copy(complete_ur5e / "ur5e.xml", tmp_path)
     with pytest.warns(AssetsStrippedWarning, match=r"ur5e.xml.*20 missing mesh files") as rec:
         bare = load_model(tmp_path / "ur5e.xml")
     assert len(rec) == 1
@@ -107,25 +144,28 @@ def _assert_bitwise_kinematics(
             assert np.array_equal(getattr(d_ours, field), getattr(d_full, field)), field
 
 
-def test_ur5e_kinematics_only_compile_equals_the_full_compile_bitwise() -> None:
+def test_ur5e_kinematics_only_compile_equals_the_full_compile_bitwise(
+    complete_ur5e: pathlib.Path,
+) -> None:
     """The complete UR5e folder compiles without reading its 20 meshes (about 30 MB), yet its
     frames, joints and poses are those of MuJoCo's full compile of the same file, bit for bit."""
-    before = _digest(UR5E_DIR)
+    before = _digest(complete_ur5e)
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         loaded = load_model("universal_robots_ur5e")
-    full = mujoco.MjModel.from_xml_path(str(UR5E_DIR / "ur5e.xml"))
-    assert loaded.xml_path == UR5E_DIR / "ur5e.xml"
+    full = mujoco.MjModel.from_xml_path(str(complete_ur5e / "ur5e.xml"))
+    assert loaded.xml_path == complete_ur5e / "ur5e.xml"
     assert (full.nmesh, loaded.model.nmesh) == (20, 0)  # no mesh was read
     assert len(loaded.files) == 21 and loaded.stripped == ()  # the meshes are still its files
     qpos = np.random.default_rng(0).uniform(-2 * np.pi, 2 * np.pi, size=(1000, full.nq))
     _assert_bitwise_kinematics(loaded.model, full, list(qpos))
-    assert _digest(UR5E_DIR) == before
+    assert _digest(complete_ur5e) == before
 
 
 @pytest.mark.parametrize(
     "robot",
     [
+        "universal_robots_ur5e",
         "franka_emika_panda",
         "franka_fr3",
         "universal_robots_ur10e",
@@ -736,13 +776,8 @@ def test_robot_missing_under_menagerie_root(
         load_model("unitree_go2")
 
 
-def test_download_that_cannot_happen(
-    tmp_path: pathlib.Path, monkeypatch: pytest.MonkeyPatch
-) -> None:
+def test_download_that_cannot_happen(fresh_machine: None) -> None:
     """No local clone and no reachable archive: one clear error naming the fix."""
-    monkeypatch.delenv("MENAGERIE_ROOT")
-    monkeypatch.setenv("MENAGERIE_CACHE_DIR", str(tmp_path / "cache"))
-    monkeypatch.setenv("MENAGERIE_BASE_URL", (tmp_path / "no-archives").as_uri())
     with pytest.raises(MenagerieUnavailableError, match="set MENAGERIE_ROOT to a local"):
         load_model("franka_fr3")
 

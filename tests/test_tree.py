@@ -201,11 +201,16 @@ def test_integer_and_float32_qpos_are_accepted(features: mujoco.MjModel) -> None
         ),
         ([0.0] * 16 + [np.nan], "NaN or inf"),
         (["a"] * 17, "must be numbers"),
+        (np.array([None] * 17), "must be numbers, got None"),
+        (np.zeros(17) + 1j, "must be real numbers, got complex numbers"),
     ],
 )
 def test_bad_qpos_is_an_input_error(features: mujoco.MjModel, qpos: object, message: str) -> None:
+    tree = tree_from_model(features)
     with pytest.raises(InputError, match=message):
-        tree_from_model(features).fk(qpos)  # type: ignore[arg-type]
+        tree.fk(qpos)  # type: ignore[arg-type]
+    with pytest.raises(InputError, match=message):
+        tree.jacobian(qpos, "finger")  # type: ignore[arg-type]
 
 
 # --- chains of a tree ---------------------------------------------------------------------------
@@ -297,6 +302,28 @@ def test_load_tree_from_a_path(tmp_path: pathlib.Path) -> None:
         "body": "wrist",
         "qpos_adr": 3,
     }
+
+
+def test_a_chain_from_a_base_body_is_the_pose_relative_to_it(go2: Tree) -> None:
+    """go2's leg from its floating base: T_base_foot, whatever the base's free joint does."""
+    chain = go2.chain("FL_calf", base="base")
+    assert chain.joint_names == ("FL_hip_joint", "FL_thigh_joint", "FL_calf_joint")
+    qpos = sample_qpos(go2, 200, seed=21)
+    expected = go2.pose(qpos, "FL_calf", relative_to="base")
+    assert_close("T_base_foot", chain.fk(qpos[:, list(chain.qpos_indices)]), expected, 1e-14)
+    arm = poekin.load_tree(load_quiet("aloha"))
+    whole, part = arm.chain("left/gripper"), arm.chain("left/gripper", base="left/upper_arm_link")
+    q = sample_qpos(arm, 50, seed=22)
+    assert part.joint_names == whole.joint_names[2:]
+    relative = arm.pose(q, "left/gripper", relative_to="left/upper_arm_link")
+    assert_close("T_upper_arm_gripper", part.fk(q[:, list(part.qpos_indices)]), relative, 1e-14)
+
+
+def test_a_base_off_the_path_or_unknown_is_refused(go2: Tree) -> None:
+    with pytest.raises(ModelError, match="body 'FR_hip' is not on the path from the world"):
+        go2.chain("FL_calf", base="FR_hip")
+    with pytest.raises(UnknownFrameError, match="no body named 'bse': did you mean 'base'"):
+        go2.chain("FL_calf", base="bse")
 
 
 # --- mimic joints and hand-built trees ----------------------------------------------------------

@@ -163,3 +163,37 @@ def test_sample_counts_and_seeds_are_checked() -> None:
             call()
     assert poekin.sample_qpos(tree, 0).shape == (0, 19)
     assert sample_joint_values(chain, 2, seed=np.int64(3)).shape == (2, 6)
+
+
+def test_samples_that_cannot_fit_are_refused_before_anything_is_allocated(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """issue 20: --samples 100000000000 raised MemoryError. The figure said is a lower bound
+    (q and two (4, 4) poses of float64 per sample), against the machine's memory."""
+    import importlib
+
+    import poekin
+
+    verify_module = importlib.import_module("poekin.verify")
+
+    def no_sampling(*_: object, **__: object) -> None:
+        raise AssertionError("sampled before checking the memory")
+
+    monkeypatch.setattr(verify_module, "sample_joint_values", no_sampling)
+    monkeypatch.setattr(verify_module, "sample_qpos", no_sampling)
+    monkeypatch.setattr(verify_module, "_physical_memory", lambda: 16 * 2**30)  # 16 GiB
+    n = 10**11
+    needed = 8 * n * (6 + 2 * 16)  # bytes
+    with pytest.raises(poekin.InputError) as info:
+        verify("universal_robots_ur5e", samples=n)
+    assert str(info.value) == (
+        f"{n} samples need at least {needed / 2**40:.3g} TiB of memory for their joint values "
+        f"and poses, more than this machine's 16 GiB; use fewer (at most about "
+        f"{16 * 2**30 // (8 * 38):,}), or several runs with different seeds"
+    )
+    with pytest.raises(poekin.InputError, match="samples need at least"):
+        verify(load_quiet("unitree_go2"), all_frames=True, samples=10**9)
+    with pytest.raises(poekin.InputError, match="samples need at least"):
+        poekin.diagnose("ur5e-dh", samples=n)
+    monkeypatch.undo()
+    assert verify("universal_robots_ur5e", samples=3).samples == 3

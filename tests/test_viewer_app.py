@@ -12,7 +12,7 @@ from collections.abc import Iterator
 
 import numpy as np
 import pytest
-from helpers import assert_close, load_quiet
+from helpers import assert_close, load_quiet, mesh_menagerie
 
 import poekin
 from poekin import lie
@@ -101,14 +101,20 @@ def test_go2_floating_base_nodes_against_the_tree(go2: Viewer) -> None:
     assert "stand-in" in go2.node("/robot/b0/part0").name or go2.node_names("part")
 
 
-def test_ur5e_geometry_is_the_models_meshes(ur5e: Viewer) -> None:
-    geometry = ur5e.wait_geometry()
-    assert not geometry.stand_in and geometry.note.startswith("the model's 20 meshes")
-    assert len(ur5e.node_names("part")) == len(geometry.parts) == 20
-    # one mesh node per part, sent once, hanging on the part's body node
-    for k, part in enumerate(geometry.parts):
-        handle = ur5e.node(f"/robot/b{part.body}/part{k}")
-        assert handle.vertices.shape == part.vertices.shape
+def test_ur5e_geometry_is_the_models_meshes() -> None:
+    """The complete UR5e (the tests' copy has no meshes): its 20 meshes, each on its body."""
+    xml = mesh_menagerie() / "universal_robots_ur5e" / "ur5e.xml"
+    with view(str(xml), port=0, open_browser=False) as ur5e:
+        geometry = ur5e.wait_geometry()
+        assert not geometry.stand_in and geometry.note.startswith("the model's 20 meshes")
+        assert len(ur5e.node_names("part")) == len(geometry.parts) == 20
+        # one mesh node per part, sent once, hanging on the part's body node
+        for k, part in enumerate(geometry.parts):
+            handle = ur5e.node(f"/robot/b{part.body}/part{k}")
+            assert handle.vertices.shape == part.vertices.shape
+        tree = ur5e.subject.tree
+        assert tree is not None
+        _check_scene(ur5e, poekin.sample_qpos(tree, 1, seed=2)[0])
 
 
 def test_poe_steps_dh_frames_and_all_frames(ur5e: Viewer) -> None:
@@ -313,6 +319,251 @@ def test_opacity_and_framing(ur5e: Viewer) -> None:
     assert {ur5e.node(n).opacity for n in ur5e.node_names("part")} == {0.5}
     ur5e.set_option("robot opacity", 1.0)
     assert {ur5e.node(n).opacity for n in ur5e.node_names("part")} == {None}
+    # framing fits the robot as it stands: stretched out, the camera stands back beyond its
+    # reach (whatever pose an earlier test left, which differs when tests run in parallel)
+    ur5e.q = [0.5, 0, 0, 0, 0, 0]
     ur5e.frame_view()  # no page open: nothing to point
     position, look_at = ur5e._camera(ur5e.snapshot())
     assert np.linalg.norm(position - look_at) > ur5e.subject.extent
+
+
+def test_set_option_refuses_values_the_control_cannot_show(ur5e: Viewer) -> None:
+    """issue 20: an unknown value was taken as it was. Each control says what it takes."""
+    before = ur5e.options()
+    with pytest.raises(InputError, match=r"'Jacobian' has no choice 'wrld': did you mean 'world'"):
+        ur5e.set_option("Jacobian", "wrld")
+    with pytest.raises(InputError, match=r"Valid names: 'space', 'body', 'world'"):
+        ur5e.set_option("Jacobian", 3)
+    with pytest.raises(InputError, match="'DH frames' is a check box: give True or False, got 1"):
+        ur5e.set_option("DH frames", 1)
+    with pytest.raises(InputError, match=r"'robot opacity' takes a number in \[0.1, 1\], got 2"):
+        ur5e.set_option("robot opacity", 2)
+    with pytest.raises(InputError, match="'PoE step k' takes a number in"):
+        ur5e.set_option("PoE step k", float("nan"))
+    with pytest.raises(InputError, match="'angles' has no choice 'degrees': did you mean 'deg'"):
+        ur5e.set_option("angles", "degrees")
+    assert ur5e.options() == before  # nothing changed
+    ur5e.set_option("robot opacity", 0.5)
+    assert ur5e.options()["robot opacity"] == 0.5
+    ur5e.set_option("robot opacity", before["robot opacity"])
+
+
+# --- the IK mode --------------------------------------------------------------------------------
+
+
+def _pose_of(handle: object) -> np.ndarray:
+    return _local(handle)
+
+
+def _slider_q(v: Viewer) -> np.ndarray:
+    return np.array([s.value for _, key, s in v._sliders if key == "value"])
+
+
+@pytest.fixture
+def ik_ur5e(ur5e: Viewer) -> Iterator[Viewer]:
+    """The UR5e viewer in the IK mode from a known configuration; the mode off afterwards."""
+    ur5e.wait_geometry()
+    ur5e.q = [0.3, -1.2, 1.4, -0.5, 1.1, 0.2]
+    ur5e.set_option("IK target", True)
+    yield ur5e
+    ur5e.set_option("IK target", False)
+
+
+def test_ik_target_solves_and_the_sliders_follow(ik_ur5e: Viewer) -> None:
+    v = ik_ur5e
+    tree, chain = v.subject.tree, v.subject.chain
+    assert tree is not None
+    # on: the handle at the end frame, every closed-form solution of that pose a ghost
+    assert_close(
+        "handle at the end frame", v.node_poses("ik_target")["/ik/target"], chain.fk(v.q), TOL
+    )
+    assert v.node("/ik/target").visible and v.node("/ik/target/marker").color == (20, 170, 60)
+    q_goal = np.array([0.45, -1.05, 1.3, -0.7, 1.2, 0.5])
+    T = tree.fk(q_goal)[tree.frame_index(v.frame)]
+    shown = v.set_target(T)
+    assert shown is v.reach and shown.success and shown.how == "current"
+    assert_close("arm at the target", v.node_poses("end")["/end"], T, 1e-10)
+    assert_close("the arm stayed on its branch", v.q, q_goal, 1e-8)
+    assert_close("sliders show q", _slider_q(v), v.q, 0.0)
+    assert_close("the handle is the target", v.node_poses("ik_target")["/ik/target"], T, TOL)
+    assert_close("target", v.target, T, 0.0)  # type: ignore[arg-type]
+    text = v.texts()["ik"]
+    assert "**target reached**" in text and "**8** in closed form" in text
+    assert v.texts()["q"] == " ".join(f"{x + 0.0:.6g}" for x in v.q)
+    # the ghosts: one batched mesh per part, an instance per other solution, on its body
+    ghosts = shown.solutions[shown.ghosts]
+    poses = tree.fk(ghosts)
+    names = v.node_names("solution")
+    assert len(names) == len(v.wait_geometry().parts)
+    for name in names:
+        handle, body = v.node(name), v._nodes[name].index
+        assert handle.visible and handle.batched_positions.shape == (7, 3)
+        assert_close(f"{name} positions", handle.batched_positions, poses[:, body, :3, 3], 1e-6)
+        R = lie.quat_to_rotation(handle.batched_wxyzs.astype(np.float64))
+        assert_close(f"{name} rotations", R, poses[:, body, :3, :3], 1e-6)  # float32 on the wire
+    # framing the robot takes in the target and the ghosts
+    position, look_at = v._camera(v.snapshot())
+    assert np.linalg.norm(position - look_at) > np.linalg.norm(position - T[:3, 3]) * 0.5
+    labels = [v.node(n).text for n in v.node_names("solution_label") if v.node(n).visible]
+    numbers = [k for label in labels for k in label.split(", ")]
+    arm = f"{shown.current + 1} (the arm)"
+    assert sorted(numbers) == sorted([arm, *(str(k + 1) for k in shown.ghosts)])
+    choices = v._solution_input.options
+    assert len(choices) == 9 and v._solution_input.value == choices[shown.current + 1]
+
+
+def test_ik_unreachable_target_turns_red_and_shows_the_residual(ik_ur5e: Viewer) -> None:
+    v = ik_ur5e
+    far = v.subject.chain.fk(v.q)
+    far[:3, 3] = [0.9, -0.4, 0.6]
+    shown = v.set_target(far)
+    assert not shown.success and shown.how == "best fit"
+    pos, ori = poekin.pose_errors(far, v.node_poses("end")["/end"])
+    assert abs(float(pos) - shown.pos_err) < 1e-12 and abs(float(ori) - shown.ori_err) < 1e-12
+    words = f"{shown.pos_err * 1e3:.4g} mm, {shown.ori_err * 1e3:.4g} mrad"
+    assert v.node("/ik/target/marker").color == (225, 20, 20)
+    assert v.node("/ik/target/label").text == f"unreachable: {words}"
+    assert "**UNREACHABLE**" in v.texts()["ik"] and f"residual: `{words}`" in v.texts()["ik"]
+    miss = v.node("/ik/miss")
+    assert miss.visible
+    assert_close(
+        "miss line", miss.points[0], [v.node_poses("end")["/end"][:3, 3], far[:3, 3]], 1e-6
+    )
+    assert not any(v.node(n).visible for n in v.node_names("solution"))  # no branch reaches it
+    assert_close("sliders show the best fit", _slider_q(v), v.q, 0.0)
+
+
+def test_ik_drag_pick_type_and_follow(ik_ur5e: Viewer) -> None:
+    v = ik_ur5e
+    tree = v.subject.tree
+    assert tree is not None
+    # a drag: the page moves the handle, its callback solves for the handle's pose
+    q_goal = np.array([0.35, -1.15, 1.45, -0.55, 1.05, 0.25])
+    T = tree.fk(q_goal)[tree.frame_index(v.frame)]
+    handle = v.node("/ik/target")
+    handle.wxyz, handle.position = lie.rotation_to_quat(T[:3, :3]), T[:3, 3]
+    v._on_target_drag()
+    assert v.reach is not None and v.reach.success
+    assert_close("dragged", v.q, q_goal, 1e-8)
+    # picking a solution in the page's picker, then clicking a ghost
+    shown = v.reach
+    k = shown.ghosts[0]
+    v._solution_input.value = v._solution_input.options[k + 1]  # as the page sends it
+    assert np.array_equal(v.q, shown.solutions[k]) and v.reach.current == k
+    assert_close("same target", v.node_poses("end")["/end"], T, 1e-10)
+    first_ghost = v.reach.ghosts[0]
+    v._on_ghost_click(0)
+    assert np.array_equal(v.q, shown.solutions[first_ghost])
+    with pytest.raises(InputError, match="no closed-form solution 9"):
+        v.pick_solution(9)
+    # a typed target, and a bad one
+    v._target_input.value = "0.3, 0.2, 0.4, 0, 1, 0, 0"
+    v._on_set_target()
+    typed = np.diag([1.0, -1.0, -1.0, 1.0])
+    typed[:3, 3] = [0.3, 0.2, 0.4]
+    assert_close("typed target", v.target, typed, 1e-15)  # type: ignore[arg-type]
+    assert v.reach.success and v._ik_note.content == ""
+    v._target_input.value = "0.3 0.2 0.4 0 2 0 0"
+    v._on_set_target()
+    assert (
+        v._ik_note.content
+        == "**target not set:** qw qx qy qz must be a unit quaternion; its norm is 2"
+    )
+    v._target_input.value = "0.3 0.2 0.4"
+    v._on_set_target()
+    assert "the target is 7 finite numbers, x y z qw qx qy qz; got 3" in v._ik_note.content
+    v._target_input.value = "0.3 0.2 zero 0 1 0 0"
+    v._on_set_target()
+    assert "the target is 7 numbers" in v._ik_note.content
+    # a drag update for a pose already solved, or after the mode is off, changes nothing
+    before = v.reach
+    handle.wxyz, handle.position = lie.rotation_to_quat(typed[:3, :3]), typed[:3, 3]
+    v._on_target_drag()
+    assert v.reach is before
+    # a slider move: the target follows the end frame
+    v._sliders[0][2].value = 0.1
+    assert_close("target follows", v.target, v.node_poses("end")["/end"], TOL)  # type: ignore[arg-type]
+    assert v.reach.how == "follow"
+    # position only: the same target solved again for its position; the closed form (a whole
+    # pose) and its picker are off
+    T_far = v.snapshot().T
+    T_far[:3, 3] += [0.05, 0.0, 0.0]
+    T_far[:3, :3] = T_far[:3, :3] @ lie.exp_so3([0.0, 0.0, 0.4])
+    v.set_target(T_far)
+    v.set_option("position only", True)
+    assert v.reach.how == "current" and v.reach.success
+    assert_close("target kept", v.target, T_far, 0.0)  # type: ignore[arg-type]
+    assert_close("position", v.node_poses("end")["/end"][:3, 3], T_far[:3, 3], 1e-10)
+    assert "the closed form needs a whole pose" in v.texts()["ik"]
+    assert not v._solution_input.visible and not any(
+        v.node(n).visible for n in v.node_names("solution")
+    )
+    v.set_option("position only", False)
+    assert v._solution_input.visible and "closed form within the limits" in v.texts()["ik"]
+    # off: every IK node hidden, no IK text
+    v.set_option("IK target", False)
+    assert v.reach is None and v.target is None and "ik" not in v.texts()
+    q_off = v.q
+    v._on_target_drag()  # a late drag update from the page
+    assert np.array_equal(v.q, q_off)
+    hidden = ["/ik/target", "/ik/target/marker", "/ik/miss", *v.node_names("solution")]
+    assert not any(v.node(n).visible for n in hidden)
+    v.set_option("IK target", True)
+
+
+def test_ik_mode_on_a_tree_and_a_frame_it_refuses(go2: Viewer) -> None:
+    tree = go2.subject.tree
+    assert tree is not None
+    qpos = poekin.sample_qpos(tree, 1, seed=2, within_limits=True)[0]
+    go2.q = qpos
+    assert go2.options()["position only"] is True  # a 3-joint leg
+    goal = qpos.copy()
+    goal[7:10] += [0.1, -0.1, 0.1]  # FL's hip, thigh and calf
+    T = tree.pose(goal, "FL_calf")
+    shown = go2.set_target(T)
+    assert shown.success and "no closed form for this chain (ik_all needs 6" in go2.texts()["ik"]
+    assert_close("foot position", go2.node_poses("end")["/end"][:3, 3], T[:3, 3], 1e-10)
+    assert np.array_equal(np.delete(go2.q, [7, 8, 9]), np.delete(qpos, [7, 8, 9]))
+    assert not go2._solution_input.visible
+    go2.set_option("end frame", "base")
+    assert go2.options()["IK target"] is False and go2._ik_input.disabled
+    why = "no hinge or slide joint moves 'base': nothing to solve"
+    assert go2._ik_note.content == f"IK mode: not for this frame: {why}"
+    with pytest.raises(InputError, match=f"no IK mode for the end frame 'base': {why}"):
+        go2.set_option("IK target", True)
+    go2._ik_input.value = True  # as a page would send it, despite the disabled box
+    assert go2.options()["IK target"] is False and go2.reach is None
+    with pytest.raises(InputError, match="no IK mode for the end frame 'base'"):
+        go2.set_target(np.eye(4))
+    go2.set_option("end frame", "FL_calf")
+    assert not go2._ik_input.disabled and go2._ik_note.content == ""
+    assert go2.options()["IK target"] is False  # a new end frame: on again by a click
+
+
+def test_ik_ghosts_arrive_with_the_geometry() -> None:
+    """The IK mode on before the robot's parts have loaded: the ghosts are drawn once they
+    arrive."""
+    import threading
+
+    from poekin.viewer.geometry import stand_in
+    from poekin.viewer.scene import make_subject
+
+    loaded = threading.Event()
+
+    def slow(subject: object) -> object:
+        loaded.wait(30)
+        return stand_in(subject)  # type: ignore[arg-type]
+
+    subject = make_subject(poekin.lynch_park_ur5_chain())
+    with Viewer(subject, geometry=slow, port=0) as v:  # type: ignore[arg-type]
+        try:
+            v.q = [0.3, -1.2, 1.4, -0.5, 1.1, 0.2]
+            v.set_option("IK target", True)
+            assert v.reach is not None and len(v.reach.ghosts) == 7
+            assert v.node_names("solution") == []  # no parts yet
+        finally:
+            loaded.set()
+        parts = v.wait_geometry().parts
+        names = v.node_names("solution")
+        assert len(names) == len(parts) and all(v.node(n).visible for n in names)
+        assert v.node(names[0]).batched_positions.shape == (7, 3)

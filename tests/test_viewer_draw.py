@@ -13,7 +13,7 @@ import matplotlib.colors
 import matplotlib.image as mimage
 import numpy as np
 import pytest
-from helpers import load_quiet
+from helpers import assert_labels_apart, load_quiet
 from mpl_toolkits.mplot3d.art3d import Line3DCollection
 
 import poekin
@@ -110,3 +110,68 @@ def test_a_fresh_process_keeps_its_backend_and_has_no_pyplot(tmp_path: pathlib.P
     )
     assert proc.returncode == 0, proc.stderr
     assert out.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_aligned_needs_parameters(monkeypatch: pytest.MonkeyPatch) -> None:
+    """issue 20: aligned=True without params was ignored; it is refused before any work."""
+
+    def no_work(*_: object, **__: object) -> None:
+        raise AssertionError("loaded a model before checking aligned")
+
+    monkeypatch.setattr("poekin.viewer.loading.load_shown", no_work)
+    with pytest.raises(InputError, match=r"aligned=True draws your parameters .*: give params"):
+        drawing.draw("universal_robots_ur5e", aligned=True)
+
+
+def test_a_path_that_cannot_be_written_is_refused_before_any_work(
+    monkeypatch: pytest.MonkeyPatch, tmp_path: pathlib.Path
+) -> None:
+    def no_work(*_: object, **__: object) -> None:
+        raise AssertionError("loaded a model before checking the path")
+
+    monkeypatch.setattr("poekin.viewer.loading.load_shown", no_work)
+    (tmp_path / "file").write_text("")
+    with pytest.raises(InputError, match=r"cannot write the drawing to .*: .*file is a file, not"):
+        drawing.draw("universal_robots_ur5e", path=tmp_path / "file" / "arm.png")
+    with pytest.raises(InputError, match=r"folder .* does not exist"):
+        drawing.draw("universal_robots_ur5e", path=tmp_path / "no" / "arm.png")
+
+
+LABEL_CASES = {
+    "ur5e at qpos0": dict(model="universal_robots_ur5e"),
+    "ur5e bent": dict(model="universal_robots_ur5e", qpos=[0.0, -1.57, 1.57, 0.0, 0.0, 0.0]),
+    "ur5e body form": dict(
+        model="universal_robots_ur5e", qpos=[0.3, -1.2, 1.3, -1, -1.57, 0], form="body"
+    ),
+    "lynch-park ghost": dict(
+        model="universal_robots_ur5e",
+        qpos=np.radians([0, -90, 90, 0, 0, 0]),
+        params="lynch-park-ur5",
+    ),
+    "lynch-park aligned": dict(
+        model="universal_robots_ur5e",
+        qpos=[0.3, -1.2, 1.3, -1.0, -1.5708, 0.0],
+        params="lynch-park-ur5",
+        aligned=True,
+    ),
+    "ur5e-dh ghost": dict(model="universal_robots_ur5e", params="ur5e-dh", aligned=True),
+    "go2 every frame": dict(model="unitree_go2", all_frames=True),
+}
+
+
+@pytest.mark.parametrize("case", list(LABEL_CASES))
+def test_no_label_overlaps_another_or_a_tick_label(case: str, tmp_path: pathlib.Path) -> None:
+    """issue 20: the ghost's J4/J5/J6 offsets, T(q), "yours: ..." and S2/world, T(q)/S4/S6 were
+    drawn over each other. Checked on the figure as saved (PNG and PDF, whose dpi differs)."""
+    kwargs = dict(LABEL_CASES[case])
+    model = kwargs.pop("model")
+    source = load_quiet(model) if model == "unitree_go2" else model
+    fig = drawing.draw(source, **kwargs)  # type: ignore[arg-type]
+    assert_labels_apart(fig)
+    texts = _texts(fig)
+    assert "T(q): " + ("FL_calf" if model == "unitree_go2" else "attachment_site") in texts
+    if "params" in kwargs:
+        assert any(t.startswith("yours: ") for t in texts)
+        assert sum(t.startswith("J") and "offset" in t for t in texts) == 5
+    fig.savefig(tmp_path / "d.pdf", format="pdf", dpi=drawing._DPI)
+    assert_labels_apart(fig)  # the placement is in axes coordinates: any dpi

@@ -9,7 +9,8 @@ exactly what MuJoCo stores in ``qpos``.
 >>> T_world_ee = chain.fk([0.0, -1.57, 1.57, 0.0, 0.0, 0.0])
 
 ``poekin.view`` (the browser viewer, the extra ``view``) and ``poekin.draw`` (the same
-scene as a matplotlib figure) are imported when first used, so ``import poekin`` stays fast.
+scene as a matplotlib figure), and ``poekin.calibrate`` and ``poekin.plan_poses``
+(:mod:`poekin.calibration`) are imported when first used, so ``import poekin`` stays fast.
 """
 
 from typing import TYPE_CHECKING, Any
@@ -19,6 +20,7 @@ from poekin.chain import Chain, ChainParams, JointType
 from poekin.dh import DHTable, dh_from_chain
 from poekin.diagnose import Diagnosis, diagnose
 from poekin.errors import (
+    AnalyticIKError,
     InputError,
     MenagerieUnavailableError,
     MetricsFileError,
@@ -49,6 +51,7 @@ from poekin.lie import (
     quat_to_rotation,
     rotation_angle,
     rotation_to_quat,
+    rotation_to_rpy,
     vec_to_se3,
     vec_to_so3,
     vee_se3,
@@ -72,6 +75,8 @@ from poekin.tree import Mimic, Tree, TreeJointType, TreeParams
 from poekin.verify import VerifyReport, pose_errors, sample_joint_values, sample_qpos, verify
 
 if TYPE_CHECKING:
+    from poekin.calibration import calibrate as calibrate
+    from poekin.calibration import plan_poses as plan_poses
     from poekin.viewer.app import view as view
     from poekin.viewer.draw import draw as draw
 
@@ -83,6 +88,7 @@ __all__ = [
     "UR5E_HOME",
     "UR5E_SCREWS",
     "UR5_DH",
+    "AnalyticIKError",
     "AssetsStrippedWarning",
     "Chain",
     "ChainParams",
@@ -138,6 +144,7 @@ __all__ = [
     "quat_to_rotation",
     "rotation_angle",
     "rotation_to_quat",
+    "rotation_to_rpy",
     "sample_joint_values",
     "sample_qpos",
     "set_threads",
@@ -153,7 +160,8 @@ __all__ = [
 
 
 def __getattr__(name: str) -> Any:
-    """``poekin.view`` and ``poekin.draw``, imported at first use (viser, matplotlib)."""
+    """``poekin.view`` and ``poekin.draw``, imported at first use (viser, matplotlib), and
+    ``poekin.calibrate`` and ``poekin.plan_poses`` (:mod:`poekin.calibration`)."""
     if name == "view":
         from poekin._extras import require_view
 
@@ -165,4 +173,8 @@ def __getattr__(name: str) -> Any:
         from poekin.viewer.draw import draw as draw
 
         return draw
+    if name in ("calibrate", "plan_poses"):
+        from poekin import calibration
+
+        return getattr(calibration, name)
     raise AttributeError(f"module 'poekin' has no attribute {name!r}")

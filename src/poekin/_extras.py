@@ -22,7 +22,14 @@ from poekin.errors import MissingExtraError
 
 VIEW_MODULES = ("viser", "trimesh")  # what the extra ``view`` installs and the viewer imports
 
-__all__ = ["VIEW_MODULES", "install_command", "require", "require_installed", "require_view"]
+__all__ = [
+    "VIEW_MODULES",
+    "install_command",
+    "missing_extra",
+    "require",
+    "require_installed",
+    "require_view",
+]
 
 
 @functools.cache
@@ -69,11 +76,16 @@ def require(
     try:
         return importlib.import_module(module)
     except ImportError as e:
-        name = package or module.split(".")[0]
-        other = f" ({instead})" if instead else ""
-        raise MissingExtraError(
-            f"{purpose} needs {name}, which is not installed: {install_command(extra)}{other}"
-        ) from e
+        raise missing_extra(package or module.split(".")[0], extra, purpose, instead) from e
+
+
+def missing_extra(package: str, extra: str, purpose: str, instead: str = "") -> MissingExtraError:
+    """The error :func:`require` raises: ``purpose`` needs ``package``, the command that installs
+    the extra ``extra``, and what to do ``instead`` if anything."""
+    other = f" ({instead})" if instead else ""
+    return MissingExtraError(
+        f"{purpose} needs {package}, which is not installed: {install_command(extra)}{other}"
+    )
 
 
 def require_installed(module: str, extra: str, purpose: str) -> None:
@@ -84,9 +96,7 @@ def require_installed(module: str, extra: str, purpose: str) -> None:
     else:
         installed = importlib.util.find_spec(module) is not None
     if not installed:
-        raise MissingExtraError(
-            f"{purpose} needs {module}, which is not installed: {install_command(extra)}"
-        )
+        raise missing_extra(module, extra, purpose)
 
 
 def require_view(purpose: str) -> None:

@@ -11,8 +11,10 @@ kernels are None and callers use the NumPy path.
 
 from __future__ import annotations
 
+import copyreg
 import dataclasses
 import functools
+import importlib
 import inspect
 import os
 import warnings
@@ -40,6 +42,7 @@ __all__ = [
     "evaluate",
     "fast_method",
     "get_threads",
+    "ik_kernel",
     "kernel_description",
     "result_shape",
     "run_checked",
@@ -63,7 +66,8 @@ def compiled_kernel() -> bool:
 
 
 #: How much slower the NumPy path is than the kernel on a batch: 63x (UR5e ``chain.fk``) and 39x
-#: (go2 ``tree.fk``) against the kernel on one core, twice that against two (README "Install").
+#: (go2 ``tree.fk``) against the kernel on one core, twice that against two
+#: (docs/performance.md, "Without the compiled kernel").
 NUMPY_PATH_SLOWDOWN = "40 to 130 times"
 _VECTOR_UNITS = {8: "AVX-512", 4: "AVX2", 2: "SSE2"}
 # A batch of at least this many configurations on the NumPy path gets a note, once a process.
@@ -140,8 +144,26 @@ def _traceable_call(method: Any, *args: Any, **kwargs: Any) -> Any:
     return method.__wrapped__(*args, **kwargs)
 
 
+def _method_named(module: str, qualname: str) -> Any:
+    """The attribute ``qualname`` (``"Chain.fk"``) of ``module``: what a pickled
+    :func:`fast_method` stands for."""
+    found: Any = importlib.import_module(module)
+    for part in qualname.split("."):
+        found = getattr(found, part)
+    return found
+
+
+def _reduce_fast_method(method: Any) -> tuple[Callable[..., Any], tuple[str, str]]:
+    """Pickle a compiled method descriptor as its class attribute's name, as pickle does a
+    function: cloudpickle (Dask, Ray, multiprocessing's spawn) pickles a bound method
+    ``chain.fk`` as the function and the chain, and the function is this descriptor."""
+    wrapped = method.__wrapped__
+    return _method_named, (wrapped.__module__, wrapped.__qualname__)
+
+
 if _kernel is not None:
     _kernel.expose_python(_traceable_get, _traceable_call)
+    copyreg.pickle(_kernel.FastMethod, _reduce_fast_method)
 
 
 def _default_threads() -> int:
@@ -221,10 +243,12 @@ def _hinge(
     point: FloatArray,
     pitch: FloatArray,
     code: int,
+    squares: tuple[NDArray[Any], NDArray[Any]] | None = None,
 ) -> None:
     """A rotation by ``angle = (q scale + offset) - ref`` about ``axis`` through ``point``, then
     ``q pitch`` along it: AXIS about a coordinate axis (see ``lie.coordinate_axis``), else
-    ``code`` (SCREW or HINGE, Rodrigues)."""
+    ``code`` (SCREW or HINGE, Rodrigues) with ``W = [axis]`` and ``W^2`` (``squares`` if given,
+    the same numbers computed for several axes at once)."""
     along = lie.coordinate_axis(axis)
     if along is not None:
         k, sign = along
@@ -232,8 +256,11 @@ def _hinge(
         code = (_AXIS if pitch[k] == 0.0 else _AXIS_PITCH) + k
         p.op(code, qadr, [*angle, sign, point[a], point[b], pitch[k]])
         return
-    W = lie.hat_so3(axis)
-    W2 = lie.rotate_compose(W, W)
+    if squares is None:
+        W: NDArray[Any] = lie.hat_so3(axis)
+        W2: NDArray[Any] = lie.rotate_compose(W, W)
+    else:
+        W, W2 = squares
     if code == _SCREW:
         p.op(_SCREW, qadr, [*W.reshape(-1), *W2.reshape(-1), *point, *pitch])
     else:
@@ -245,10 +272,12 @@ def _chain_joints(
 ) -> None:
     """Each screw's exponential in turn (``chain._ScrewTerms``); with ``columns`` (the screws),
     first its Jacobian column ``Ad(cur) S_i``."""
+    W = lie.hat_so3(w)  # every joint's [w] and [w]^2 at once (entry by entry, as one at a time)
+    W2 = lie.rotate_compose(W, W)
     for i in range(r.shape[0]):
         if columns is not None:
             p.op(_JCOL, params=[*columns[i], 1.0], slot=i)
-        _hinge(p, i, (1.0, 0.0, 0.0), w[i], r[i], u[i], _SCREW)
+        _hinge(p, i, (1.0, 0.0, 0.0), w[i], r[i], u[i], _SCREW, (W[i], W2[i]))
 
 
 def chain_program(
@@ -430,6 +459,24 @@ def tree_jacobian_program(
         p.const(t.site_rot[frame - nb], t.site_pos[frame - nb])
     p.op(_JEMIT, params=[_JACOBIAN_CODES[convention], nv])
     return p.kernel(t.nq, 0, 1, frame_axis=False)
+
+
+def ik_kernel(
+    jacobian: Any,
+    limits: FloatArray,
+    revolute: NDArray[np.bool_],
+    cyclic: NDArray[np.bool_],
+    start_base: FloatArray,
+    start_span: FloatArray,
+) -> Any:
+    """The compiled inverse kinematics solver of a chain (see ``poekin.ik.numerical``): its
+    world-Jacobian program ``jacobian`` (:func:`chain_jacobian_program`), ``(n, 2)`` limits,
+    which joints are revolute and which of those unlimited (``cyclic``), and the random
+    starts' ``base + u span``. None if not compiled."""
+    if _kernel is None or jacobian is None:
+        return None
+    flags = revolute.astype(np.int32) + 2 * cyclic.astype(np.int32)
+    return _kernel.IKSolver(jacobian, limits, flags, start_base, start_span)
 
 
 # --- evaluation -----------------------------------------------------------------------------

@@ -173,6 +173,93 @@ static void aligned_free(unsigned char *p) {
 }
 
 
+#include "_ik_common.h" /* both IK solvers' scalar helpers (ik_wrap) */
+
+/* ------------------------------------------------------------------------------------------ */
+/* analytic IK (poekin.ik.analytic): the constants of each closed-form split, as the reference
+ * writes them (analytic._flat: its dataclasses' fields in order, all doubles) */
+
+enum { IK_THREE_PARALLEL = 0, IK_TWO_PARALLEL = 1, IK_ONE_TWO_MEET = 2, IK_TWO_THREE_MEET = 3 };
+
+typedef struct { /* analytic._Wrist */
+    double h[6][3], minus[6][3], h6_end[3], x6[3], x6_end[3], d56, tol, tiny;
+} IkWrist;
+
+typedef struct { /* analytic._ThreeParallel */
+    IkWrist w;
+    double h[3], minus_h[3], h3[3], sign3, sign4, r1[3], r2[3], c56_end[3], d1, c56_r4[3],
+        p32[3], p43[3], p23[3], tol, tiny, tol2, tiny2;
+} IkThreeParallel;
+
+typedef struct { /* analytic._TwoParallel */
+    double h2[3], h3[3], minus_h1[3], r1[3], r2[3], pw3[3], p23[3], p32[3], d1, tol, tiny, tol2,
+        tiny2;
+} IkTwoParallel;
+
+typedef struct { /* analytic._OneTwoMeet */
+    double h2[3], h3[3], minus_h1[3], c[3], pw3[3], pc3[3], p3c[3], tol, tiny, tol2, tiny2;
+} IkOneTwoMeet;
+
+typedef struct { /* analytic._TwoThreeMeet */
+    double h3[3], minus_h1[3], minus_h2[3], r1[3], pc1[3], pwc[3], c[3], dist2, d3, tol, tiny,
+        tol2, tiny2;
+} IkTwoThreeMeet;
+
+typedef struct { /* analytic._Spherical */
+    IkWrist w;
+    double pw_end[3];
+    union {
+        IkTwoParallel two_parallel;
+        IkOneTwoMeet one_two_meet;
+        IkTwoThreeMeet two_three_meet;
+    } s;
+} IkSpherical;
+
+/* The branch index bits (4 i1 + 2 i2 + i3) each joint's angle does not depend on, by kind:
+ * three parallel axes, q1 on i1 only, q5 and q6 not on the elbow i3; spherical wrist, q1 to q3
+ * not on the wrist's i3. */
+static const int IK_SHARED[4][6] = {
+    {3, 0, 0, 0, 1, 1}, {1, 1, 1, 0, 0, 0}, {1, 1, 1, 0, 0, 0}, {1, 1, 1, 0, 0, 0}};
+
+/* The number of doubles of each split's constants. */
+static npy_intp ik_params_size(int kind) {
+    const npy_intp head = (npy_intp)offsetof(IkSpherical, s);
+    switch (kind) {
+        case IK_THREE_PARALLEL: return sizeof(IkThreeParallel) / sizeof(double);
+        case IK_TWO_PARALLEL: return (head + sizeof(IkTwoParallel)) / sizeof(double);
+        case IK_ONE_TWO_MEET: return (head + sizeof(IkOneTwoMeet)) / sizeof(double);
+        case IK_TWO_THREE_MEET: return (head + sizeof(IkTwoThreeMeet)) / sizeof(double);
+        default: return -1;
+    }
+}
+
+typedef struct {
+    int kind;
+    const void *params; /* the split's struct, read from the constants array */
+    const double *T;    /* (n, 16) targets */
+    const double *limits; /* (6, 2) */
+    double *q;          /* (n, 8, 6) */
+    uint8_t *valid;     /* (n, 8) */
+    npy_intp lo, hi;
+} IkAllTask;
+
+/* Whether target T (16 numbers) is not a rigid transform as poekin.ik.analytic._targets
+ * decides: NaN or inf, R^T R off the identity by more than 1e-6, det R < 0, or a last row
+ * other than [0, 0, 0, 1]. */
+static int ik_bad_target(const double *T) {
+    for (int e = 0; e < 16; ++e)
+        if (!isfinite(T[e])) return 1;
+    if (T[12] != 0.0 || T[13] != 0.0 || T[14] != 0.0 || T[15] != 1.0) return 1;
+    for (int i = 0; i < 3; ++i)
+        for (int k = 0; k < 3; ++k) {
+            double g = T[i] * T[k] + T[4 + i] * T[4 + k] + T[8 + i] * T[8 + k];
+            if (fabs(g - (i == k ? 1.0 : 0.0)) > 1e-6) return 1;
+        }
+    double det = T[0] * (T[5] * T[10] - T[6] * T[9]) - T[1] * (T[4] * T[10] - T[6] * T[8]) +
+                 T[2] * (T[4] * T[9] - T[5] * T[8]);
+    return det < 0.0;
+}
+
 /* ------------------------------------------------------------------------------------------ */
 /* one kernel per vector width, each compiled for the instruction set that has it */
 
@@ -183,6 +270,7 @@ static void aligned_free(unsigned char *p) {
 #define LANES 2 /* SSE2 on x86-64, NEON on arm64: every CPU these run on */
 #define TARGET
 #include "_kernel_core.h"
+#include "_ik_all.h"
 #undef LANES
 #undef TARGET
 
@@ -190,18 +278,24 @@ static void aligned_free(unsigned char *p) {
 #define LANES 4
 #define TARGET __attribute__((target("avx2,fma")))
 #include "_kernel_core.h"
+#include "_ik_all.h"
 #undef LANES
 #undef TARGET
 
 #define LANES 8
 #define TARGET __attribute__((target("avx512f,avx512dq,avx512vl,avx512bw,avx2,fma")))
 #include "_kernel_core.h"
+#include "_ik_all.h"
 #undef LANES
 #undef TARGET
 #endif
 
 typedef void (*TaskFn)(Task *);
 static TaskFn g_run_task = run_task_2;
+typedef void (*IkAllTaskFn)(IkAllTask *);
+static IkAllTaskFn g_ik_all_task = ik_all_task_2;
+typedef void (*IKTaskFn)(IKTask *);
+static IKTaskFn g_ik_run_task = ik_run_task_2;
 static int g_lanes = 2;
 
 /* The widest kernel this CPU runs; widest = 0 picks the best, else 2, 4 or 8. -1: not here. */
@@ -220,38 +314,33 @@ static int choose_width(int widest) {
     g_lanes = w;
 #ifdef X86_DISPATCH
     g_run_task = w == 8 ? run_task_8 : w == 4 ? run_task_4 : run_task_2;
+    g_ik_all_task = w == 8 ? ik_all_task_8 : w == 4 ? ik_all_task_4 : ik_all_task_2;
+    g_ik_run_task = w == 8 ? ik_run_task_8 : w == 4 ? ik_run_task_4 : ik_run_task_2;
 #endif
     return w;
 }
 
+/* One share of a batch: fn(arg), on a thread of its own or on the caller's. */
+typedef struct {
+    void (*fn)(void *);
+    void *arg;
+} Share;
+
 #ifdef _WIN32
-static DWORD WINAPI thread_main(LPVOID arg) {
-    g_run_task((Task *)arg);
+static DWORD WINAPI share_main(LPVOID share) {
+    ((Share *)share)->fn(((Share *)share)->arg);
     return 0;
 }
 #else
-static void *thread_main(void *arg) {
-    g_run_task((Task *)arg);
+static void *share_main(void *share) {
+    ((Share *)share)->fn(((Share *)share)->arg);
     return NULL;
 }
 #endif
 
-/* Run prog on n configurations on up to g_threads threads. 0: done, 1: a q is not finite,
- * -1: out of memory. */
-static int run_program(const Program *prog, const double *q, npy_intp n, double *out, int form,
-                       int threads) {
-    Task tasks[MAX_THREADS];
-    npy_intp per_thread = MIN_WORK_PER_THREAD / (prog->n_ops > 0 ? prog->n_ops : 1);
-    npy_intp most = n / (per_thread > 0 ? per_thread : 1);
-    int nt = threads < most ? threads : (int)(most > 0 ? most : 1);
-    if (nt > MAX_THREADS) nt = MAX_THREADS;
-    npy_intp chunk = (n + nt - 1) / nt;
-    chunk = (chunk + 7) / 8 * 8; /* whole blocks of every width */
-    for (int k = 0; k < nt; ++k) {
-        npy_intp lo = k * chunk < n ? k * chunk : n;
-        npy_intp hi = lo + chunk < n ? lo + chunk : n;
-        tasks[k] = (Task){prog, q, out, lo, hi, form, 0};
-    }
+/* Run the nt shares: the first here, the others on threads of their own (or here, where no
+ * thread is to be had), and wait for them all. */
+static void run_shares(Share *shares, int nt) {
 #ifdef _WIN32
     HANDLE handles[MAX_THREADS];
 #else
@@ -260,14 +349,13 @@ static int run_program(const Program *prog, const double *q, npy_intp n, double 
     int started[MAX_THREADS];
     for (int k = 1; k < nt; ++k) {
 #ifdef _WIN32
-        handles[k] = CreateThread(NULL, 0, thread_main, &tasks[k], 0, NULL);
+        handles[k] = CreateThread(NULL, 0, share_main, &shares[k], 0, NULL);
         started[k] = handles[k] != NULL;
 #else
-        started[k] = pthread_create(&handles[k], NULL, thread_main, &tasks[k]) == 0;
+        started[k] = pthread_create(&handles[k], NULL, share_main, &shares[k]) == 0;
 #endif
     }
-    g_run_task(&tasks[0]);
-    int status = tasks[0].bad;
+    shares[0].fn(shares[0].arg);
     for (int k = 1; k < nt; ++k) {
         if (started[k]) {
 #ifdef _WIN32
@@ -277,10 +365,43 @@ static int run_program(const Program *prog, const double *q, npy_intp n, double 
             pthread_join(handles[k], NULL);
 #endif
         } else {
-            g_run_task(&tasks[k]); /* no thread to be had: do its share here */
+            shares[k].fn(shares[k].arg);
         }
-        if (tasks[k].bad && !status) status = tasks[k].bad;
     }
+}
+
+/* How many threads share n items, at least per_thread each, and the items per thread (whole
+ * blocks of every width). */
+static int split_batch(npy_intp n, npy_intp per_thread, int threads, npy_intp *chunk) {
+    npy_intp most = n / (per_thread > 0 ? per_thread : 1);
+    int nt = threads < most ? threads : (int)(most > 0 ? most : 1);
+    if (nt > MAX_THREADS) nt = MAX_THREADS;
+    npy_intp c = (n + nt - 1) / nt;
+    *chunk = (c + 7) / 8 * 8;
+    return nt;
+}
+
+static void fk_share(void *task) { g_run_task((Task *)task); }
+
+/* Run prog on n configurations on up to g_threads threads. 0: done, 1: a q is not finite,
+ * -1: out of memory. */
+static int run_program(const Program *prog, const double *q, npy_intp n, double *out, int form,
+                       int threads) {
+    Task tasks[MAX_THREADS];
+    Share shares[MAX_THREADS];
+    npy_intp chunk;
+    int nt = split_batch(n, MIN_WORK_PER_THREAD / (prog->n_ops > 0 ? prog->n_ops : 1), threads,
+                         &chunk);
+    for (int k = 0; k < nt; ++k) {
+        npy_intp lo = k * chunk < n ? k * chunk : n;
+        npy_intp hi = lo + chunk < n ? lo + chunk : n;
+        tasks[k] = (Task){prog, q, out, lo, hi, form, 0};
+        shares[k] = (Share){fk_share, &tasks[k]};
+    }
+    run_shares(shares, nt);
+    int status = 0;
+    for (int k = 0; k < nt; ++k)
+        if (tasks[k].bad && !status) status = tasks[k].bad;
     return status;
 }
 
@@ -511,6 +632,11 @@ static PyTypeObject KernelType = {
 };
 
 /* ------------------------------------------------------------------------------------------ */
+/* Python type: IKSolver, a chain's inverse kinematics */
+
+#include "_ik_type.h"
+
+/* ------------------------------------------------------------------------------------------ */
 /* Python type: FastMethod(kernel_attr, fallback, names), a method that runs the kernel first */
 
 /* A method whose call `obj.m(q, out, form)` (or `obj.m(q)`) first runs `getattr(obj,
@@ -675,6 +801,113 @@ static PyObject *expose_python(PyObject *Py_UNUSED(mod), PyObject *args) {
     Py_RETURN_NONE;
 }
 
+/* ------------------------------------------------------------------------------------------ */
+/* ik_all(kind, params, T, limits): the compiled twin of poekin.ik.analytic.solve_numpy */
+
+/* Targets per thread below which another thread does not pay for its start. */
+#define IK_MIN_PER_THREAD 2048
+
+static void ik_share(void *task) { g_ik_all_task((IkAllTask *)task); }
+
+static void ik_all_run(IkAllTask proto, npy_intp n, int threads) {
+    IkAllTask tasks[MAX_THREADS];
+    Share shares[MAX_THREADS];
+    npy_intp chunk;
+    int nt = split_batch(n, IK_MIN_PER_THREAD, threads, &chunk);
+    for (int k = 0; k < nt; ++k) {
+        tasks[k] = proto;
+        tasks[k].lo = k * chunk < n ? k * chunk : n;
+        tasks[k].hi = tasks[k].lo + chunk < n ? tasks[k].lo + chunk : n;
+        shares[k] = (Share){ik_share, &tasks[k]};
+    }
+    run_shares(shares, nt);
+}
+
+/* A batch smaller than the kernel's width on the narrowest width that holds it: a block costs
+ * about the same whatever it holds. Every width gives the same bits. */
+static void ik_run_small(IkAllTask task, npy_intp n) {
+    task.lo = 0;
+    task.hi = n;
+#ifdef X86_DISPATCH
+    if (n <= 2) {
+        ik_all_task_2(&task);
+        return;
+    }
+    if (n <= 4 && g_lanes >= 4) {
+        ik_all_task_4(&task);
+        return;
+    }
+#endif
+    g_ik_all_task(&task);
+}
+
+/* ik_all(kind, params, T, limits) -> (q, valid, bad): q (n, 8, 6) and valid (n, 8) for the n
+ * targets of T (a C-contiguous float64 array of shape (..., 4, 4)), or (None, None, i) where
+ * target i is not a rigid transform (the caller's validation then says why). */
+static PyObject *ik_all(PyObject *Py_UNUSED(mod), PyObject *args) {
+    int kind;
+    PyObject *params_obj, *T_obj, *limits_obj;
+    if (!PyArg_ParseTuple(args, "iOOO:ik_all", &kind, &params_obj, &T_obj, &limits_obj))
+        return NULL;
+    PyArrayObject *params = (PyArrayObject *)PyArray_FROMANY(params_obj, NPY_FLOAT64, 1, 1,
+                                                              NPY_ARRAY_CARRAY_RO);
+    if (params == NULL) return NULL;
+    PyArrayObject *limits = (PyArrayObject *)PyArray_FROMANY(limits_obj, NPY_FLOAT64, 2, 2,
+                                                              NPY_ARRAY_CARRAY_RO);
+    if (limits == NULL) {
+        Py_DECREF(params);
+        return NULL;
+    }
+    PyArrayObject *T = (PyArrayObject *)T_obj;
+    int nd = PyArray_Check(T_obj) ? PyArray_NDIM(T) : 0;
+    if (ik_params_size(kind) < 0 || PyArray_DIM(params, 0) != ik_params_size(kind) ||
+        PyArray_DIM(limits, 0) != 6 || PyArray_DIM(limits, 1) != 2 || nd < 2 ||
+        PyArray_TYPE(T) != NPY_FLOAT64 || !PyArray_IS_C_CONTIGUOUS(T) || !PyArray_ISALIGNED(T) ||
+        PyArray_ISBYTESWAPPED(T) || PyArray_DIM(T, nd - 1) != 4 || PyArray_DIM(T, nd - 2) != 4) {
+        Py_DECREF(params);
+        Py_DECREF(limits);
+        PyErr_SetString(PyExc_ValueError,
+                        "ik_all(kind, params, T, limits): a known kind with its constants, T a "
+                        "C-contiguous float64 (..., 4, 4) array, limits (6, 2)");
+        return NULL;
+    }
+    npy_intp n = PyArray_SIZE(T) / 16;
+    const double *Td = PyArray_DATA(T);
+    for (npy_intp i = 0; i < n; ++i) {
+        if (ik_bad_target(Td + 16 * i)) {
+            Py_DECREF(params);
+            Py_DECREF(limits);
+            return Py_BuildValue("(OOn)", Py_None, Py_None, (Py_ssize_t)i);
+        }
+    }
+    npy_intp qdims[3] = {n, 8, 6}, vdims[2] = {n, 8};
+    PyArrayObject *q = (PyArrayObject *)PyArray_SimpleNew(3, qdims, NPY_FLOAT64);
+    PyArrayObject *valid = (PyArrayObject *)PyArray_SimpleNew(2, vdims, NPY_BOOL);
+    if (q == NULL || valid == NULL) {
+        Py_XDECREF(q);
+        Py_XDECREF(valid);
+        Py_DECREF(params);
+        Py_DECREF(limits);
+        return NULL;
+    }
+    if (n > 0) {
+        IkAllTask proto = {kind, PyArray_DATA(params), Td, PyArray_DATA(limits), PyArray_DATA(q),
+                        PyArray_DATA(valid), 0, 0};
+        if (n >= 64) {
+            int threads = g_threads;
+            Py_BEGIN_ALLOW_THREADS ik_all_run(proto, n, threads);
+            Py_END_ALLOW_THREADS
+        } else if (n < g_lanes) {
+            ik_run_small(proto, n);
+        } else {
+            ik_all_run(proto, n, 1);
+        }
+    }
+    Py_DECREF(params);
+    Py_DECREF(limits);
+    return Py_BuildValue("(NNi)", q, valid, -1);
+}
+
 static PyObject *set_threads(PyObject *Py_UNUSED(mod), PyObject *arg) {
     long n = PyLong_AsLong(arg);
     if (n == -1 && PyErr_Occurred()) return NULL;
@@ -710,6 +943,8 @@ static PyMethodDef module_methods[] = {
     {"get_threads", get_threads, METH_NOARGS, "get_threads() -> int"},
     {"set_width", set_width, METH_O, "set_width(n): 2, 4, 8 lanes, or 0 for the widest"},
     {"get_width", get_width, METH_NOARGS, "get_width() -> configurations per block"},
+    {"ik_all", ik_all, METH_VARARGS,
+     "ik_all(kind, params, T, limits) -> (q, valid, bad): every closed-form IK branch"},
     {"expose_python", expose_python, METH_VARARGS,
      "expose_python(get, call): FastMethod's __get__ and __call__ for tools that trace Python"},
     {NULL, NULL, 0, NULL},
@@ -725,12 +960,20 @@ PyMODINIT_FUNC PyInit__kernel(void) {
     static const char *FORM_NAMES[3] = {"4x4", "3x4", "pos_quat"};
     for (int k = 0; k < 3; ++k)
         if ((g_form_names[k] = PyUnicode_InternFromString(FORM_NAMES[k])) == NULL) return NULL;
-    if (PyType_Ready(&KernelType) < 0 || PyType_Ready(&FastMethodType) < 0) return NULL;
+    if (PyType_Ready(&KernelType) < 0 || PyType_Ready(&FastMethodType) < 0 ||
+        PyType_Ready(&IKSolverType) < 0)
+        return NULL;
     PyObject *m = PyModule_Create(&module_def);
     if (m == NULL) return NULL;
     Py_INCREF(&KernelType);
     if (PyModule_AddObject(m, "Kernel", (PyObject *)&KernelType) < 0) {
         Py_DECREF(&KernelType);
+        Py_DECREF(m);
+        return NULL;
+    }
+    Py_INCREF(&IKSolverType);
+    if (PyModule_AddObject(m, "IKSolver", (PyObject *)&IKSolverType) < 0) {
+        Py_DECREF(&IKSolverType);
         Py_DECREF(m);
         return NULL;
     }

@@ -19,8 +19,10 @@
 #define about_point GLUE(about_point, LANES)
 #define jacobian_column GLUE(jacobian_column, LANES)
 #define jacobian_emit GLUE(jacobian_emit, LANES)
+#define world_velocity GLUE(world_velocity, LANES)
 #define axis_turn GLUE(axis_turn, LANES)
 #define quat_rotation GLUE(quat_rotation, LANES)
+#define rotation_quat GLUE(rotation_quat, LANES)
 #define pose_quat GLUE(pose_quat, LANES)
 #define transpose8 GLUE(transpose8, LANES)
 #define transpose4 GLUE(transpose4, LANES)
@@ -193,10 +195,10 @@ AI void quat_rotation(const vd *q, vd *Rj) {
 /* ------------------------------------------------------------------------------------------ */
 /* output */
 
-/* Quaternion wxyz with w >= 0 of R (Shepperd's method, as poekin.lie.rotation_to_quat): the
- * largest component from the diagonal (the first of equals), the others divided by it. */
-AI void pose_quat(const Pose *p, vd *q) {
-    const vd *M = p->R;
+/* Quaternion wxyz with w >= 0 of the rotation M (9, row-major; Shepperd's method, as
+ * poekin._pose.rotation_quat): the largest component from the diagonal (the first of equals),
+ * the others divided by it. */
+AI void rotation_quat(const vd *M, vd *q) {
     vd a = M[7] - M[5], b = M[2] - M[6], c = M[3] - M[1];
     vd xy = M[1] + M[3], xz = M[2] + M[6], yz = M[5] + M[7];
     vd d[4] = {((1 + M[0]) + M[4]) + M[8], ((1 + M[0]) - M[4]) - M[8],
@@ -224,6 +226,8 @@ AI void pose_quat(const Pose *p, vd *q) {
     vl negative = q[0] < 0;
     for (int i = 0; i < 4; ++i) q[i] = vselect(negative, -q[i], q[i]);
 }
+
+AI void pose_quat(const Pose *p, vd *q) { rotation_quat(p->R, q); }
 
 #if LANES == 8
 /* r[e][l] -> r[l][e]: an 8x8 transpose in three rounds of two-vector shuffles. */
@@ -363,6 +367,14 @@ AI void jacobian_column(const Pose *cur, const double *P, vd *col) {
     for (int r = 0; r < 6; ++r) col[r] = col[r] + P[6] * c[r];
 }
 
+/* v + a x p for a space column col = [a; v]: the velocity of the point p (the frame's origin)
+ * in the world frame (poekin.chain.world_columns). */
+AI void world_velocity(const vd *col, const vd *p, vd *v) {
+    v[0] = col[3] + (col[1] * p[2] - col[2] * p[1]);
+    v[1] = col[4] + (col[2] * p[0] - col[0] * p[2]);
+    v[2] = col[5] + (col[0] * p[1] - col[1] * p[0]);
+}
+
 /* Write the n space-Jacobian columns in jac, turned into convention (JAC_SPACE, JAC_BODY,
  * JAC_WORLD) at the end pose cur, as each lane's (6, n) block of out (poekin.chain.
  * jacobian_from_world's arithmetic: world v + a x p, body R^T of the world rows). */
@@ -372,11 +384,7 @@ AI void jacobian_emit(const Pose *cur, int convention, const vd *jac, int n, dou
     for (int c = 0; c < n; ++c) {
         const vd *col = jac + 6 * c;
         vd J[6] = {col[0], col[1], col[2], col[3], col[4], col[5]};
-        if (convention != JAC_SPACE) { /* the velocity of the frame's origin: v + a x p */
-            J[3] = J[3] + (col[1] * p[2] - col[2] * p[1]);
-            J[4] = J[4] + (col[2] * p[0] - col[0] * p[2]);
-            J[5] = J[5] + (col[0] * p[1] - col[1] * p[0]);
-        }
+        if (convention != JAC_SPACE) world_velocity(col, p, J + 3);
         if (convention == JAC_BODY) { /* R^T of both rows */
             vd W[6] = {J[0], J[1], J[2], J[3], J[4], J[5]};
             for (int h = 0; h < 2; ++h)
@@ -389,13 +397,17 @@ AI void jacobian_emit(const Pose *cur, int convention, const vd *jac, int n, dou
 }
 
 /* Run the program on one block of LANES configurations, q transposed in qT; slots hold the
- * stored poses, ang the angles. huge: some |q| may give an angle beyond REDUCE_MAX. */
+ * stored poses, ang the angles. huge: some |q| may give an angle beyond REDUCE_MAX. With out
+ * NULL nothing is written (EMIT and JEMIT are skipped): the caller reads the state the
+ * program ends in from *end and the Jacobian's space columns from jac (the IK solver). */
 AI void run_ops(const Program *prog, Pose *restrict slots, const vd *restrict qT,
                 Angle *restrict ang, vd *restrict jac, double *out, int form, int lanes,
-                int huge) {
+                int huge, Pose *end) {
     const int size = out_size(prog, form);
     const npy_intp stride = (npy_intp)prog->n_out * size;
     Pose cur;
+    if (end != NULL) /* programs start with IDENTITY or LOAD; the compiler cannot know it */
+        for (int i = 0; i < 9; ++i) cur.R[i] = cur.t[i % 3] = (vd){0};
     for (int k = 0; k < 6 * prog->jac_cols; ++k) jac[k] = (vd){0}; /* columns add up */
     /* every angle's sin and cos first, two at a time: independent work whose latencies overlap */
     for (int k = 0; k < prog->n_angles; k += 2) {
@@ -476,15 +488,17 @@ AI void run_ops(const Program *prog, Pose *restrict slots, const vd *restrict qT
                 jacobian_column(&cur, P, jac + 6 * slot);
                 break;
             case OP_JEMIT:
-                jacobian_emit(&cur, (int)P[0], jac, prog->jac_cols, out, stride, lanes);
+                if (out != NULL)
+                    jacobian_emit(&cur, (int)P[0], jac, prog->jac_cols, out, stride, lanes);
                 break;
             case OP_EMIT:
-                emit(&cur, form, out + (npy_intp)slot * size, stride, lanes);
+                if (out != NULL) emit(&cur, form, out + (npy_intp)slot * size, stride, lanes);
                 break;
             default: /* Kernel_init took only the codes above */
                 __builtin_unreachable();
         }
     }
+    if (end != NULL) copy_pose(end, &cur);
 }
 
 AI void run_block(const Program *prog, const double *q, npy_intp n_rows,
@@ -515,7 +529,7 @@ AI void run_block(const Program *prog, const double *q, npy_intp n_rows,
                     return;
                 }
     }
-    run_ops(prog, slots, qT, ang, jac, out, form, lanes, !ok);
+    run_ops(prog, slots, qT, ang, jac, out, form, lanes, !ok, NULL);
 }
 
 TARGET static void run_task(Task *task) {
@@ -545,6 +559,8 @@ TARGET static void run_task(Task *task) {
     aligned_free(heap);
 }
 
+#include "_ik_core.h"
+
 #undef vd
 #undef vl
 #undef vd_unaligned
@@ -559,8 +575,10 @@ TARGET static void run_task(Task *task) {
 #undef about_point
 #undef jacobian_column
 #undef jacobian_emit
+#undef world_velocity
 #undef axis_turn
 #undef quat_rotation
+#undef rotation_quat
 #undef pose_quat
 #undef transpose8
 #undef transpose4

@@ -87,15 +87,23 @@ def settle(values: Sequence[Entry], xp: Any) -> list[Entry]:
     configuration, measured, against 0.3 us). Under JAX the values are therefore stacked and
     multiplied by the identity (a dot, which XLA does not fuse; exact, as every product but one
     is with zero); other libraries compute each operation once anyway and get ``values`` back.
+    Python floats among ``values`` (constants) stay as they are; arrays are broadcast together.
     """
     if getattr(xp, "__name__", "") != "jax.numpy" or not values:
         return list(values)
     import jax
 
-    stacked = xp.stack(values, -1)
-    eye = xp.eye(len(values), dtype=stacked.dtype)
+    out = list(values)
+    live = [i for i, v in enumerate(values) if not isinstance(v, float)]  # constants stay
+    if not live:
+        return out
+    shape = np.broadcast_shapes(*(tuple(values[i].shape) for i in live))
+    stacked = xp.stack([xp.broadcast_to(values[i], shape) for i in live], -1)
+    eye = xp.eye(len(live), dtype=stacked.dtype)
     once = xp.matmul(stacked, eye, precision=jax.lax.Precision.HIGHEST)
-    return [once[..., i] for i in range(len(values))]
+    for k, i in enumerate(live):
+        out[i] = once[..., k]
+    return out
 
 
 def sincos(angles: Sequence[Entry], xp: Any) -> tuple[list[Entry], list[Entry]]:

@@ -30,7 +30,16 @@ import numpy as np
 
 from poekin.errors import InputError
 
-__all__ = ["Kind", "as_numpy", "convert", "float_dtype", "kind_of", "namespace", "namespace_of"]
+__all__ = [
+    "Kind",
+    "as_numpy",
+    "convert",
+    "float_dtype",
+    "kind_of",
+    "namespace",
+    "namespace_of",
+    "scalar",
+]
 
 Kind = Literal["jax", "torch"]
 _namespaces: dict[str, Any] = {}
@@ -50,19 +59,25 @@ def kind_of(x: object) -> Kind | None:
 
 
 def namespace(kind: Kind) -> Any:
-    """The array-API namespace of ``kind``'s arrays (``jax.numpy``; array-api-compat's torch)."""
+    """The array-API namespace of ``kind``'s arrays (``jax.numpy``; array-api-compat's torch).
+
+    Imported by ``import`` statements, never ``importlib``: under ``torch.compile``, the first
+    call of a process runs inside Dynamo's trace, which executes an ``import`` statement but
+    refuses ``importlib.import_module`` (a graph break, an error with ``fullgraph=True``).
+    """
     xp = _namespaces.get(kind)
     if xp is None:
-        from poekin._extras import require
+        try:
+            import array_api_compat  # noqa: F401  # the extra's requirement, JAX's included
+        except ImportError as e:
+            from poekin._extras import missing_extra
 
-        what = "JAX arrays" if kind == "jax" else "PyTorch tensors"
-        array_api_compat = require("array_api_compat", kind, what, package="array-api-compat")
+            what = "JAX arrays" if kind == "jax" else "PyTorch tensors"
+            raise missing_extra("array-api-compat", kind, what) from e
         if kind == "jax":
             import jax.numpy as xp
         else:
-            import torch
-
-            xp = array_api_compat.array_namespace(torch.empty(0))
+            import array_api_compat.torch as xp
         _namespaces[kind] = xp
     return xp
 
@@ -113,6 +128,16 @@ def convert(x: Any, xp: Any, dtype: Any, like: Any) -> Any:
     if kind_of(like) == "torch":  # a copy: torch would warn of a read-only array's view
         return xp.asarray(np.asarray(x), dtype=dtype, device=like.device, copy=True)
     return xp.asarray(np.asarray(x), dtype=dtype)
+
+
+def scalar(c: float, xp: Any, like: Any) -> Any:
+    """The constant ``c`` as an operand of ``xp``'s ``minimum`` or ``maximum`` with ``like``:
+    itself for NumPy (and for JAX, whose Python floats are weakly typed), else a 0-d array of
+    ``like``'s dtype and device (array-api-compat's PyTorch ``minimum`` promotes a Python float
+    through ``result_type``, which torch.compile cannot trace)."""
+    if kind_of(like) != "torch":
+        return c
+    return xp.asarray(c, dtype=like.dtype, device=like.device)
 
 
 def as_numpy(x: Any, what: str) -> Any:

@@ -16,8 +16,8 @@ from __future__ import annotations
 
 import dataclasses
 import functools
-from collections.abc import Sequence
-from typing import Any, Literal, NamedTuple
+from collections.abc import Callable, Sequence
+from typing import TYPE_CHECKING, Any, Literal, NamedTuple
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -25,6 +25,10 @@ from numpy.typing import ArrayLike, NDArray
 from poekin import _fast, _pose, arrays, lie
 from poekin._fast import Form
 from poekin.errors import InputError, did_you_mean
+
+if TYPE_CHECKING:
+    from poekin.ik.analytic import IKSolutions
+    from poekin.ik.numerical import IKResult
 
 __all__ = [
     "JACOBIAN_CONVENTIONS",
@@ -38,6 +42,7 @@ __all__ = [
     "jacobian_from_world",
     "poe",
     "readonly_array",
+    "relative_jacobian",
 ]
 
 JointType = Literal["revolute", "prismatic"]
@@ -67,19 +72,40 @@ def check_pose(T: FloatArray, name: str) -> None:
         raise InputError(f"{name}: the last row must be [0, 0, 0, 1]")
 
 
+def _shown(x: object) -> str:
+    """``repr(x)`` on one line, cut to 60 characters."""
+    text = " ".join(repr(x).split())
+    return text if len(text) <= 60 else text[:57] + "..."
+
+
 def as_joint_values(
     q: ArrayLike, n: int, *, what: str = "joint values", layout: str = ""
 ) -> FloatArray:
     """Validate joint values ``q`` of shape ``(..., n)`` and return them as float64.
 
-    Integers and float32 are accepted and converted. Anything non-numeric, a wrong last axis,
+    Integers, booleans and float32 are accepted and converted. Anything that is not a real
+    number (``None``, text, complex numbers: never cast to their real part), a wrong last axis,
     NaN or inf raises :class:`~poekin.errors.InputError`; ``what`` names the values in the
     message, and ``layout`` (if given) is appended to a wrong-shape message.
     """
     try:
-        arr = np.asarray(q, dtype=np.float64)
-    except (TypeError, ValueError) as e:
-        raise InputError(f"{what} must be numbers, got {q!r:.60}") from e
+        raw = np.asarray(q)
+    except (TypeError, ValueError) as e:  # ragged nested lists
+        raise InputError(f"{what} must be numbers, got {_shown(q)}") from e
+    values = list(raw.flat) if raw.dtype.kind in "OUS" else []
+    not_number = [x for x in values if x is None or isinstance(x, str | bytes)]
+    if not_number:
+        bad = not_number[0].item() if isinstance(not_number[0], np.generic) else not_number[0]
+        raise InputError(f"{what} must be numbers, got {bad!r} in {_shown(q)}")
+    if raw.dtype.kind == "c" or any(isinstance(x, complex | np.complexfloating) for x in values):
+        raise InputError(
+            f"{what} must be real numbers, got complex numbers; pass their real part "
+            "(numpy.real) if that is what you mean"
+        )
+    try:
+        arr = np.asarray(raw, dtype=np.float64)
+    except (TypeError, ValueError) as e:  # objects that are no numbers
+        raise InputError(f"{what} must be numbers, got {_shown(q)}") from e
     if arr.ndim == 0 or arr.shape[-1] != n:
         raise InputError(
             f"expected {n} {what} (shape (..., {n})), got an array of shape {arr.shape}"
@@ -122,14 +148,15 @@ class _ScrewTerms:
         about a coordinate axis (:func:`poekin.lie.coordinate_axis`) turns by ``cos`` and
         ``+-sin`` entries, as the kernel's AXIS operations do."""
         out = []
-        for w, r, u in zip(self.w, self.r, self.u, strict=True):
-            W = lie.hat_so3(w)
+        Ws = lie.hat_so3(self.w)  # every joint's at once (entry by entry, as one at a time)
+        W2s = lie.rotate_compose(Ws, Ws)
+        for w, r, u, W, W2 in zip(self.w, self.r, self.u, Ws, W2s, strict=True):
             out.append(
                 _Screw(
                     axis=lie.coordinate_axis(w),
                     prismatic=not w.any(),
                     W=_floats(W),
-                    W2=_floats(lie.rotate_compose(W, W)),
+                    W2=_floats(W2),
                     r=tuple(float(x) for x in r),  # type: ignore[arg-type]
                     u=tuple(float(x) for x in u),  # type: ignore[arg-type]
                 )
@@ -191,12 +218,16 @@ def _turn(pose: _pose.Pose, screw: _Screw, th: Any, s: Any, c: Any) -> _pose.Pos
     return _pose.compose(pose, R_j, t_j)
 
 
+Trig = Callable[[Sequence[Any], Any], tuple[list[Any], list[Any]]]
+
+
 def _turns(
-    screws: Sequence[_Screw], q: Sequence[Any], xp: Any
+    screws: Sequence[_Screw], q: Sequence[Any], xp: Any, trig: Trig = _pose.sincos
 ) -> list[tuple[_Screw, Any, Any, Any]]:
-    """Each screw with its angle, sine and cosine (computed once: :func:`_pose.sincos`)."""
+    """Each screw with its angle, sine and cosine (computed once by ``trig``:
+    :func:`_pose.sincos`, or the compiled kernel's own, :func:`poekin._sincos.sincos`)."""
     turning = [i for i, screw in enumerate(screws) if not screw.prismatic]
-    sines, cosines = _pose.sincos([q[i] for i in turning], xp)
+    sines, cosines = trig([q[i] for i in turning], xp)
     s: list[Any] = [None] * len(screws)
     c: list[Any] = [None] * len(screws)
     for i, si, ci in zip(turning, sines, cosines, strict=True):
@@ -245,16 +276,17 @@ def space_jacobian(
     q: Sequence[Any],
     xp: Any,
     home: _pose.Pose,
+    trig: Trig = _pose.sincos,
 ) -> tuple[list[Column], _pose.Pose]:
     """The space Jacobian's columns and the end pose ``T = exp([S_1] q_1) ... M``.
 
     Column ``i`` is ``Ad(T_{i-1}) S_i = [R w; p x R w + R v]`` with ``T_{i-1} = (R, p) =
     exp([S_1] q_1) ... exp([S_{i-1}] q_{i-1})``, rows ``[w; v]``; the partial products are
-    those of :func:`poe`.
+    those of :func:`poe`. ``trig`` computes the sines and cosines (see :func:`_turns`).
     """
     pose: _pose.Pose = (_pose.IDENTITY, _pose.ORIGIN)
     columns: list[Column] = []
-    for (screw, th, s, c), S_i in zip(_turns(screws, q, xp), S, strict=True):
+    for (screw, th, s, c), S_i in zip(_turns(screws, q, xp, trig), S, strict=True):
         R, p = pose
         a = _pose.mat_vec(R, S_i[:3])
         lever, Rv = _pose.cross(p, a), _pose.mat_vec(R, S_i[3:])
@@ -295,6 +327,45 @@ def jacobian_from_world(
             R_t = _pose.transpose(R)
             out.append((*_pose.mat_vec(R_t, c[:3]), *_pose.mat_vec(R_t, c[3:])))
     return out
+
+
+def relative_jacobian(
+    J_frame: Any, J_ref: Any, T_world_frame: Any, T_world_ref: Any, convention: str
+) -> Any:
+    """The Jacobian of ``T_ref_frame(q) = T_world_ref^-1 T_world_frame``: how a frame moves as
+    seen from another, moving or not, frame ``ref``, which takes the world's role.
+
+    Args:
+        J_frame, J_ref: ``(..., 6, n)`` world-convention Jacobians of both frames (rows
+            ``[w; v_origin]`` in world coordinates, as ``Tree.jacobian(..., "world")``), over the
+            same ``n`` velocities.
+        T_world_frame, T_world_ref: ``(..., 4, 4)`` their poses.
+        convention: ``"world"``: ``[w; v]``, the angular velocity of ``frame`` relative to
+            ``ref`` and the velocity of its origin in ``ref``, both in ``ref``'s coordinates;
+            ``"space"``: the twist of ``T_ref_frame`` in ``ref``'s frame; ``"body"``: in
+            ``frame``'s (:func:`jacobian_from_world` with ``ref`` as the world).
+
+    Returns:
+        ``(..., 6, n)``, of the inputs' library.
+    """
+    check_jacobian_convention(convention)
+    kind = arrays.kind_of(J_frame)
+    xp = np if kind is None else arrays.namespace(kind)
+    R_ref, p_ref = pose_of(T_world_ref)
+    R_frame, p_frame = pose_of(T_world_frame)
+    R_t = _pose.transpose(R_ref)
+    d = (p_frame[0] - p_ref[0], p_frame[1] - p_ref[1], p_frame[2] - p_ref[2])
+    columns = []
+    for c in range(J_frame.shape[-1]):
+        f = [J_frame[..., r, c] for r in range(6)]
+        a = [J_ref[..., r, c] for r in range(6)]
+        arm = _pose.cross(a[:3], d)  # the velocity of ref's points where frame's origin is
+        w = [f[k] - a[k] for k in range(3)]
+        v = [f[3 + k] - a[3 + k] - arm[k] for k in range(3)]
+        columns.append((*_pose.mat_vec(R_t, w), *_pose.mat_vec(R_t, v)))
+    pose = (_pose.mat_mat(R_t, R_frame), _pose.mat_vec(R_t, d))  # T_ref_frame
+    like = xp.zeros_like(J_frame[..., 0, 0])
+    return jacobian_array(jacobian_from_world(columns, pose, convention), xp, like)
 
 
 def jacobian_array(columns: Sequence[Column], xp: Any, like: Any) -> Any:
@@ -432,6 +503,8 @@ class Chain:
     _jacobian_space_kernel: Any = dataclasses.field(init=False, repr=False)
     _jacobian_body_kernel: Any = dataclasses.field(init=False, repr=False)
     _jacobian_world_kernel: Any = dataclasses.field(init=False, repr=False)
+    # what inverse kinematics derives from the chain, at first use (poekin.ik.numerical)
+    _ik_cache: dict[Any, Any] = dataclasses.field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         n = len(self.joint_names)
@@ -461,6 +534,10 @@ class Chain:
         set_(self, "_body", body)
         rows = [tuple(float(x) for x in row) for row in self.screws]
         set_(self, "_constants", _Model(space.joints(), rows, pose_of(self.home), body.joints()))
+        set_(self, "_ik_cache", {})
+        from poekin.ik.numerical import keep_chain_terms  # (a cycle: it imports this module)
+
+        keep_chain_terms(self)
         terms = dataclasses.astuple
         set_(self, "_space_kernel", _fast.chain_program(*terms(space), left=None, right=self.home))
         set_(self, "_body_kernel", _fast.chain_program(*terms(body), left=self.home, right=None))
@@ -698,6 +775,133 @@ class Chain:
         th = [q[..., i] for i in range(self.n_joints)]
         pose = poe(self._constants.body, th, np, left=self._constants.home)
         return _pose.to_array(pose, "4x4", np, zeros_like_batch(q, np))  # type: ignore[no-any-return]
+
+    def ik(
+        self,
+        T: ArrayLike,
+        q0: ArrayLike | None = None,
+        *,
+        seed: int = 0,
+        pos_tol: float = 1e-10,
+        ori_tol: float = 1e-10,
+        position_only: bool = False,
+        orientation_weight: float = 0.3,
+        max_iterations: int = 50,
+        max_attempts: int | None = None,
+        params: ChainParams | None = None,
+    ) -> IKResult:
+        """Joint values that put the end frame at ``T``: numerical inverse kinematics, inside
+        the joint limits, batched (:mod:`poekin.ik.numerical` describes the algorithm).
+
+        NumPy input runs in the compiled kernel. JAX arrays and PyTorch tensors (targets,
+        ``q0`` or ``params``) run a fixed-iteration solve that traces under ``jax.jit`` and
+        ``jax.vmap``, and come back as the caller's arrays, with ``q`` differentiable with
+        respect to ``T`` and ``params`` by the implicit function theorem
+        (:mod:`poekin.ik.fixed`).
+
+        Args:
+            T: ``(..., 4, 4)`` targets ``T_world_frame``, in the chain's base (world) frame:
+                rigid transforms (rotation orthonormal to 1e-6; the orientation is met to
+                ``ori_tol`` only if it is orthonormal to about that; JAX and PyTorch values
+                are not checked).
+            q0: ``(..., n)`` starts, broadcast against the targets' batch axes (rad, m): the
+                first attempt starts there (brought into the limits), so that a trajectory
+                solved target by target stays on its branch. None: every attempt starts at a
+                seeded random configuration within the limits.
+            seed: the random starts' seed, an integer from 0 to 2**64 - 1. The same targets,
+                ``q0``, seed and options give the same bits, whatever the batch, the
+                target's place in it, the thread count or the vector width.
+            pos_tol: success needs the frame's origin within this distance of the target's
+                (m, > 0).
+            ori_tol: and its rotation within this geodesic angle of the target's (rad, > 0).
+            position_only: reach the target's position only, whatever the orientation (for
+                5-joint arms and point targets); success on ``pos_tol`` alone.
+            orientation_weight: metres per radian: how much one radian of orientation error
+                weighs against one metre of position error in the least-squares residual
+                (it shapes the path to a solution and the best fit of an unreachable
+                target, not the tolerances).
+            max_iterations: iterations per attempt (each one FK and Jacobian).
+            max_attempts: attempts per target; the solve stops at the first success. Default
+                100; for JAX and PyTorch, the number of attempts run side by side, default 16.
+            params: the screws and home pose to solve with instead of the chain's own
+                (:meth:`parameters`): JAX arrays or tensors to differentiate the answer with
+                respect to, or NumPy arrays (the NumPy solve of :meth:`with_parameters`).
+
+        Returns:
+            An :class:`~poekin.ik.IKResult`: ``q`` ``(..., n)`` (always within the joint
+            limits; a revolute angle is moved by whole turns into them, an unlimited one
+            comes back in ``(-pi, pi]``), ``success``, ``pos_err`` (m), ``ori_err`` (rad),
+            ``iterations`` and ``attempts`` ``(...,)``. An unreachable target gets
+            ``success`` False and the least-squares best ``q`` found; it never raises.
+            NumPy arrays, or arrays of the inputs' library, float dtype and device.
+
+        Raises:
+            InputError: targets of the wrong shape, not finite or not rigid transforms, ``q0``
+                of the wrong length or batch shape, a tolerance or weight that is not > 0, a
+                count below 1, a bad seed, JAX arrays mixed with PyTorch tensors.
+
+        Example:
+            >>> chain = poekin.load("universal_robots_ur5e")
+            >>> found = chain.ik(chain.fk([0.3, -1.2, 1.4, -0.5, 1.1, 0.2]))
+            >>> bool(found.success), found.q.shape
+            (True, (6,))
+        """
+        from poekin.ik.numerical import DEFAULT_MAX_ATTEMPTS, settings, solve
+
+        numpy = params is None and arrays.kind_of(T) is None
+        if numpy and (q0 is None or arrays.kind_of(q0) is None):  # the kernel's path, quickly
+            options = settings(
+                pos_tol=pos_tol,
+                ori_tol=ori_tol,
+                position_only=position_only,
+                orientation_weight=orientation_weight,
+                max_iterations=max_iterations,
+                max_attempts=DEFAULT_MAX_ATTEMPTS if max_attempts is None else max_attempts,
+            )
+            return solve(self, T, q0, seed=seed, options=options)
+        from poekin.ik import fixed
+
+        kind = fixed.array_kind(T, q0, params)
+        if max_attempts is None:
+            max_attempts = DEFAULT_MAX_ATTEMPTS if kind is None else fixed.DEFAULT_ATTEMPTS
+        given: dict[str, Any] = {
+            "pos_tol": pos_tol,
+            "ori_tol": ori_tol,
+            "position_only": position_only,
+            "orientation_weight": orientation_weight,
+            "max_iterations": max_iterations,
+            "max_attempts": max_attempts,
+        }
+        if kind is not None:
+            return fixed.solve_arrays(self, T, q0, kind, seed=seed, params=params, **given)
+        chain = self if params is None else self.with_parameters(params)
+        return solve(chain, T, q0, seed=seed, options=settings(**given))
+
+    def ik_all(self, T: ArrayLike) -> IKSolutions:
+        """Every closed-form inverse kinematics solution: the joint values that put the end
+        frame at ``T``, all branches at once (:mod:`poekin.ik.analytic`).
+
+        For six revolute joints whose axes admit a closed form: three parallel axes (2, 3, 4)
+        with axes 5 and 6 meeting (the UR arms), or a spherical wrist (axes 4, 5, 6 meeting)
+        with axes 2 and 3 parallel, axes 1 and 2 meeting, or axes 2 and 3 meeting. The
+        geometry is read from the screws (:func:`poekin.ik.analytic.geometry`).
+
+        Args:
+            T: ``(..., 4, 4)`` target poses ``T_world_frame`` of :attr:`frame`.
+
+        Returns:
+            :class:`~poekin.ik.analytic.IKSolutions`: ``q`` ``(..., k, 6)`` (``k = 8``),
+            ``valid`` ``(..., k)``, and ``pos_err``, ``ori_err`` ``(..., k)``. Each angle is
+            within the limits where a whole turn brings it there.
+
+        Raises:
+            AnalyticIKError: the chain fits no supported geometry; the message names the
+                condition that fails and by how much.
+            InputError: ``T`` is not ``(..., 4, 4)`` finite rigid transforms.
+        """
+        from poekin.ik.analytic import ik_all
+
+        return ik_all(self, T)
 
     def __repr__(self) -> str:
         joints = ", ".join(

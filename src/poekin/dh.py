@@ -26,20 +26,30 @@ from poekin import lie
 from poekin.chain import Chain, JointType, as_joint_values, check_pose, readonly_array
 from poekin.errors import InputError
 
-__all__ = ["CONVENTIONS", "Convention", "DHTable", "dh_from_chain", "joint_lines"]
+__all__ = [
+    "CONVENTIONS",
+    "NEAR_PARALLEL_SIN",
+    "PARALLEL_SIN",
+    "Convention",
+    "DHTable",
+    "dh_from_chain",
+    "joint_lines",
+]
 
 Convention = Literal["standard", "modified"]
 CONVENTIONS: tuple[Convention, ...] = ("standard", "modified")
 FloatArray = NDArray[np.float64]
 
-# Two joint axes count as parallel when the sine of the angle between them is below this. Axes
-# a model declares parallel agree to ~1e-16; a deliberately tilted axis is tilted by far more.
-_PARALLEL_SIN = 1e-8
+#: Two joint axes count as parallel when the sine of the angle between them is below this. Axes
+#: a model declares parallel agree to ~1e-16; a deliberately tilted axis is tilted by far more.
+PARALLEL_SIN = 1e-8
 # Two axis lines count as intersecting (or coincident) when closer than this, in metres.
 _INTERSECT_DIST = 1e-12
-# Axes closer than this to parallel (sine of the angle), but not parallel, put their common
-# normal far away (offset / sine): DH is ill-conditioned there, and extraction says so.
-_NEAR_PARALLEL_SIN = 1e-3
+#: Axes closer than this to parallel (sine of the angle), but not parallel, put their common
+#: normal far away (d ~ offset / sine^2): DH is ill-conditioned there, and extraction says so.
+#: A calibrated arm's "parallel" axes are 1 to 10 mrad apart (the real arm in ur_calibration's
+#: documentation has d2 = +439 m and d3 = -446 m at 1.4 and 6.9 mrad), so this is 0.05 (3 deg).
+NEAR_PARALLEL_SIN = 0.05
 
 
 def _link_matrices(
@@ -306,7 +316,7 @@ def _end_step(
     ez, ex = end[:3, 2], end[:3, 0]
     if a > _INTERSECT_DIST:
         x = r / a
-    elif np.linalg.norm(np.cross(z, ez)) > _PARALLEL_SIN:
+    elif np.linalg.norm(np.cross(z, ez)) > PARALLEL_SIN:
         x = np.cross(z, ez)
         x /= np.linalg.norm(x)
     else:
@@ -316,7 +326,7 @@ def _end_step(
         return _std_step(F, x, d, 0.0, z)
     u = ez - x * (ez @ x)
     norm = float(np.linalg.norm(u))
-    return _std_step(F, x, d, a, u / norm if norm > _PARALLEL_SIN else z)
+    return _std_step(F, x, d, a, u / norm if norm > PARALLEL_SIN else z)
 
 
 def joint_lines(chain: Chain) -> tuple[FloatArray, FloatArray]:
@@ -341,7 +351,7 @@ def joint_lines(chain: Chain) -> tuple[FloatArray, FloatArray]:
 
 
 def dh_from_chain(
-    chain: Chain, convention: Convention = "standard", *, parallel_tol: float = _PARALLEL_SIN
+    chain: Chain, convention: Convention = "standard", *, parallel_tol: float = PARALLEL_SIN
 ) -> DHTable:
     """Extract a DH table whose FK equals ``chain.fk`` to float precision.
 
@@ -395,7 +405,7 @@ def dh_from_chain(
         th, di, ai, al, F, choice = _to_line(F, points[i + 1], dirs[i + 1], parallel_tol)
         tilt = float(np.linalg.norm(np.cross(dirs[i], dirs[i + 1])))
         pair = f"joints {names[i]!r} and {names[i + 1]!r}"
-        if choice and tilt > _PARALLEL_SIN:
+        if choice and tilt > PARALLEL_SIN:
             notes.append(
                 f"{pair} are {tilt:.2g} rad from parallel, treated as parallel (d{i + 1} = 0): "
                 f"FK is off by about {tilt:.1g} rad times the reach"
@@ -404,7 +414,7 @@ def dh_from_chain(
             notes.append(f"{pair} have parallel axes: chose d{i + 1} = 0")
         elif choice == "coincident":
             notes.append(f"{pair} share one axis line: a = d = 0, x axis kept")
-        elif tilt < _NEAR_PARALLEL_SIN:
+        elif tilt < NEAR_PARALLEL_SIN:
             notes.append(
                 f"{pair} are nearly parallel ({tilt:.2g} rad): DH is ill-conditioned here "
                 f"(d{i + 1} = {di:.3g} m)"

@@ -35,15 +35,22 @@ from numpy.typing import NDArray
 
 from poekin import lie
 from poekin.chain import Chain
-from poekin.dh import Convention, DHTable, dh_from_chain, joint_lines
+from poekin.dh import (
+    NEAR_PARALLEL_SIN,
+    PARALLEL_SIN,
+    Convention,
+    DHTable,
+    dh_from_chain,
+    joint_lines,
+)
 from poekin.errors import InputError
-from poekin.verify import pose_errors, sample_joint_values, whole_number
+from poekin.verify import check_sample_memory, pose_errors, sample_joint_values, whole_number
 
 if TYPE_CHECKING:
     from poekin.sources import LoadedModel
     from poekin.tree import Tree
 
-__all__ = ["BisectStep", "Diagnosis", "Finding", "diagnose"]
+__all__ = ["BisectStep", "Diagnosis", "Finding", "diagnose", "joint_differences"]
 
 FloatArray = NDArray[np.float64]
 
@@ -56,6 +63,7 @@ _AGREE_DIST = 1e-4
 _FLIP_ANGLE = 0.02  # an axis within this of the reversed direction counts as flipped
 _BISECT_SAMPLES = 200
 _SAME = 1e-12  # parts of two parameter sets that differ by less are the same part
+_SMALL = 0.005  # differences below this (m, rad), a calibration's size, are printed in mm, mrad
 
 
 @dataclasses.dataclass(frozen=True)
@@ -63,9 +71,11 @@ class Finding:
     """One difference between your parameters and the model's.
 
     ``kind`` is one of ``base_rotation``, ``base_shift``, ``joint_type``, ``axis_flipped``,
-    ``axis_tilted``, ``axis_offset``, ``link_length``, ``link_twist``, ``home_position``,
-    ``home_rotation``. ``joint`` is a 0-based joint index (None for base and M); ``value`` the
-    size of the difference (m or rad); ``message`` says it in plain words.
+    ``axis_tilted``, ``axis_offset``, ``link_length``, ``link_twist``, ``near_parallel``,
+    ``home_position``, ``home_rotation``. ``joint`` is a 0-based joint index (None for base and
+    M; for ``near_parallel``, the first of two joints whose axes are nearly parallel, so that
+    their DH lengths are not compared); ``value`` the size of the difference (m or rad);
+    ``message`` says it in plain words.
     """
 
     kind: str
@@ -135,6 +145,16 @@ class Diagnosis:
         """Whether a base alignment other than the identity reduced the errors (else your base
         is compared as it is)."""
         return not np.array_equal(self.base, np.eye(4))
+
+    def placement(self, aligned: bool) -> str:
+        """Where your parameters are drawn, in words, for a figure that draws them ``aligned``
+        or not: after the base alignment only where it reduced the errors
+        (:attr:`base_aligned`), as :meth:`report` says."""
+        if not aligned:
+            return "as given"
+        if self.base_aligned:
+            return "after aligning your base to the model's"
+        return "as given: aligning your base does not reduce the error"
 
     @property
     def unattributed(self) -> tuple[float, float] | None:
@@ -212,6 +232,16 @@ class Diagnosis:
         }
 
 
+def _is_param_set(spec: str | os.PathLike[str]) -> bool:
+    """Whether ``spec`` names a parameter set (a named set, or a .json/.yaml/.yml file), not a
+    model (a Menagerie name, an MJCF or URDF file)."""
+    from poekin.paramfile import FILE_SUFFIXES
+    from poekin.params import PARAM_SETS
+
+    text = os.fspath(spec)
+    return text in PARAM_SETS or os.path.splitext(text)[1].lower() in FILE_SUFFIXES
+
+
 def _yours(yours: object) -> Chain | DHTable:
     if isinstance(yours, Chain | DHTable):
         return yours
@@ -228,6 +258,16 @@ def _yours(yours: object) -> Chain | DHTable:
 def _model_chain(model: object, frame: str | None) -> Chain:
     if isinstance(model, Chain):
         return model
+    if isinstance(model, str | os.PathLike) and _is_param_set(model):
+        from poekin.paramfile import load_params
+
+        if frame is not None:
+            raise InputError(
+                f"frame={frame!r} picks a model's end frame; the parameter set "
+                f"{os.fspath(model)!r} has one end frame: leave frame out"
+            )
+        params = load_params(model)
+        return params.to_chain() if isinstance(params, DHTable) else params
     from poekin.loading import default_frame, load
     from poekin.sources import LoadedModel
     from poekin.tree import Tree
@@ -267,11 +307,27 @@ def _deg(x: float) -> str:
 def _both(yours: float, model: float, digits: int) -> tuple[str, str]:
     """``yours`` and ``model`` with ``digits`` significant digits, or as many more as it takes
     for two different numbers to print differently (``1.5708`` vs ``1.5707963``)."""
+    yours, model = (0.0 if abs(x) < _SAME else x + 0.0 for x in (yours, model))
     for k in range(digits, 18):
-        a, b = f"{yours + 0.0:.{k}g}", f"{model + 0.0:.{k}g}"
+        a, b = f"{yours:.{k}g}", f"{model:.{k}g}"
         if a != b or yours == model:
             return a, b
     return a, b
+
+
+def _radians(x: float) -> str:
+    """An angle in rad, or below 5 mrad in mrad."""
+    return f"{x * 1000:.3g} mrad" if x < _SMALL else f"{x:.4g} rad"
+
+
+def _angle_text(x: float) -> str:
+    """An angle in rad (or mrad), then in degrees."""
+    return f"{_radians(x)} ({_deg(x)})"
+
+
+def _length_text(x: float) -> str:
+    """A length in m, or below 5 mm in mm."""
+    return f"{x * 1000:.3g} mm" if x < _SMALL else f"{x:.4g} m"
 
 
 def _vec(v: FloatArray, digits: int = 4) -> str:
@@ -410,13 +466,29 @@ def _base_findings(B: FloatArray, tol_p: float, tol_r: float) -> list[Finding]:
     return out
 
 
+def joint_differences(yours: Chain, model: Chain) -> tuple[FloatArray, FloatArray]:
+    """Per joint, ``(n,)`` each: the angle between your axis and the model's (rad, in
+    ``[0, pi]``), and the distance from the model's joint point to your axis line (m; 0 for a
+    prismatic joint, whose line has no place), both chains in the same base frame."""
+    du, pu = joint_lines(yours)
+    dk, pk = joint_lines(model)
+    tilt, offset = np.zeros(model.n_joints), np.zeros(model.n_joints)
+    for i in range(model.n_joints):
+        tilt[i] = _angle(du[i], dk[i])
+        if model.joint_types[i] == "revolute":
+            r = pk[i] - pu[i]
+            offset[i] = float(np.linalg.norm(r - du[i] * (r @ du[i])))
+    return tilt, offset
+
+
 def _joint_findings(
     aligned: Chain, model: Chain, tol_p: float, tol_r: float
 ) -> tuple[list[Finding], set[int]]:
     out: list[Finding] = []
     flipped: set[int] = set()
-    du, pu = joint_lines(aligned)
-    dk, pk = joint_lines(model)
+    du, _ = joint_lines(aligned)
+    dk, _ = joint_lines(model)
+    angles, offsets = joint_differences(aligned, model)
     for i, name in enumerate(model.joint_names):
         label = f"joint {i + 1} ({name})"
         if aligned.joint_types[i] != model.joint_types[i]:
@@ -430,7 +502,7 @@ def _joint_findings(
                 )
             )
             continue
-        angle = _angle(du[i], dk[i])
+        angle = float(angles[i])
         if angle > np.pi - _FLIP_ANGLE:
             flipped.add(i)
             out.append(
@@ -447,20 +519,19 @@ def _joint_findings(
             out.append(
                 Finding(
                     "axis_tilted",
-                    f"{label}: axis tilted by {angle:.4g} rad ({_deg(angle)}), "
+                    f"{label}: axis tilted by {_angle_text(angle)}, "
                     f"{_vec(du[i], 3)} vs {_vec(dk[i], 3)}",
                     joint=i,
                     value=angle,
                 )
             )
         if model.joint_types[i] == "revolute":
-            r = pk[i] - pu[i]
-            offset = float(np.linalg.norm(r - du[i] * (r @ du[i])))
+            offset = float(offsets[i])
             if offset > tol_p:
                 out.append(
                     Finding(
                         "axis_offset",
-                        f"{label}: axis line offset by {offset:.4g} m (distance from the "
+                        f"{label}: axis line offset by {_length_text(offset)} (distance from the "
                         "model's joint point to your axis line)",
                         joint=i,
                         value=offset,
@@ -469,16 +540,64 @@ def _joint_findings(
     return out, flipped
 
 
+def _near_parallel(aligned: Chain, model: Chain) -> list[tuple[int, float, float]]:
+    """``(i, tilt in yours, tilt in the model)`` (rad) for each pair of joints ``i, i + 1``
+    whose axes are nearly, but not exactly, parallel in either chain (a calibrated arm's)."""
+    du, dk = joint_lines(aligned)[0], joint_lines(model)[0]
+    out = []
+    for i in range(model.n_joints - 1):
+        tilts = [float(np.linalg.norm(np.cross(d[i], d[i + 1]))) for d in (du, dk)]
+        if any(PARALLEL_SIN <= t < NEAR_PARALLEL_SIN for t in tilts):
+            out.append((i, tilts[0], tilts[1]))
+    return out
+
+
+def _from_parallel(tilt: float) -> str:
+    if tilt < PARALLEL_SIN:
+        return "parallel"
+    return f"{_radians(tilt)} from parallel"
+
+
+def _near_parallel_findings(
+    near: list[tuple[int, float, float]], t_y: DHTable, model: Chain, convention: Convention
+) -> tuple[list[Finding], set[tuple[str, int]]]:
+    """A finding per nearly parallel pair, and the ``("a" | "d", row)`` entries not compared."""
+    shift = 1 if convention == "modified" else 0
+    names = t_y.param_names()
+    out, skip = [], set()
+    for i, tilt_y, tilt_m in near:
+        entries = [("a", i + shift), ("d", i), ("d", i + 1)]
+        skip.update(entries)
+        skipped = [names[row][0 if key == "a" else 2] for key, row in entries]
+        far = ", ".join(f"{names[row][2]} = {t_y.d[row]:.4g} m" for _, row in entries[1:])
+        joints = model.joint_names
+        out.append(
+            Finding(
+                "near_parallel",
+                f"joints {i + 1} and {i + 2} ({joints[i]}, {joints[i + 1]}): axes "
+                f"{_from_parallel(tilt_y)} in yours, {_from_parallel(tilt_m)} in the model. DH "
+                f"puts the common normal of nearly parallel axes far away (yours: {far}), so "
+                f"{', '.join(skipped)} are not compared: the axis tilts and offsets say what "
+                "differs",
+                joint=i,
+                value=abs(tilt_y - tilt_m),
+            )
+        )
+    return out, skip
+
+
 def _length_findings(
     aligned: Chain,
     model: Chain,
     yours_table: DHTable | None,
     convention: Convention,
     flipped: set[int],
+    near: list[tuple[int, float, float]],
     tol_p: float,
     tol_r: float,
 ) -> list[Finding]:
-    """Row-by-row DH comparison; the model's table is extracted with the same choices as yours."""
+    """Row-by-row DH comparison; the model's table is extracted with the same choices as yours.
+    The a and d of nearly parallel axes (``near``) are left out, with a finding that says so."""
     if aligned.joint_types != model.joint_types:
         return []
     t_y = dh_from_chain(aligned, convention)
@@ -486,14 +605,14 @@ def _length_findings(
     literal = (
         yours_table if yours_table is not None and yours_table.convention == convention else None
     )
-    out: list[Finding] = []
+    out, skip = _near_parallel_findings(near, t_y, model, convention)
     shift = 1 if convention == "modified" else 0
     lengths, twists = [], []
     for i, (a_name, al_name, d_name, _) in enumerate(t_m.param_names()):
         # a is a distance between axis lines; d is measured along joint i's axis, whose sign
         # flips with a flipped axis (reported already). alpha is meaningless next to a flip.
         near_flip = bool(flipped & ({i - 1, i} if shift else {i, i + 1}))  # alpha's two axes
-        if abs(t_y.a[i] - t_m.a[i]) > tol_p:
+        if ("a", i) not in skip and abs(t_y.a[i] - t_m.a[i]) > tol_p:
             sign = 1.0
             if (
                 literal is not None
@@ -502,7 +621,7 @@ def _length_findings(
             ):
                 sign = -1.0
             lengths.append((a_name, sign * t_y.a[i], sign * t_m.a[i], i))
-        if i not in flipped and abs(t_y.d[i] - t_m.d[i]) > tol_p:
+        if i not in flipped and ("d", i) not in skip and abs(t_y.d[i] - t_m.d[i]) > tol_p:
             lengths.append((d_name, t_y.d[i], t_m.d[i], i))
         dal = abs(np.angle(np.exp(1j * (t_y.alpha[i] - t_m.alpha[i]))))
         if not near_flip and dal > tol_r and abs(dal - np.pi) > _FLIP_ANGLE:
@@ -535,13 +654,15 @@ def _length_findings(
 def _home_findings(aligned: Chain, model: Chain, tol_p: float, tol_r: float) -> list[Finding]:
     out = []
     dp = aligned.home[:3, 3] - model.home[:3, 3]
-    if np.linalg.norm(dp) > tol_p:
+    off = float(np.linalg.norm(dp))
+    if off > tol_p:
+        delta = f"{_vec(dp * 1000, 3)} mm" if off < _SMALL else _vec(dp)
         out.append(
             Finding(
                 "home_position",
-                f"home pose M: its origin is off by {np.linalg.norm(dp):.4g} m, "
-                f"yours - model's = {_vec(dp)} in the model's base frame",
-                value=float(np.linalg.norm(dp)),
+                f"home pose M: its origin is off by {_length_text(off)}, yours - model's = "
+                f"{delta} in the model's base frame",
+                value=off,
             )
         )
     axis, turn = _axis_angle(model.home[:3, :3].T @ aligned.home[:3, :3])
@@ -549,7 +670,7 @@ def _home_findings(aligned: Chain, model: Chain, tol_p: float, tol_r: float) -> 
         out.append(
             Finding(
                 "home_rotation",
-                f"home pose M: yours is turned {_deg(turn)} ({turn:.4g} rad) about "
+                f"home pose M: yours is turned {_angle_text(turn)} about "
                 f"{_vec(axis, 3)} (in the end frame) from the model's",
                 value=turn,
             )
@@ -749,8 +870,11 @@ def diagnose(
         yours: your PoE chain or DH table, for the same joints in the same order, or the name
             or file of one (:func:`poekin.load_params`).
         model: the model's chain (e.g. :func:`poekin.load`), or what :func:`poekin.load` takes
-            (a Menagerie robot name, an MJCF or URDF path), or a tree.
-        frame: the end frame when ``model`` is not a chain (default: the model's only site).
+            (a Menagerie robot name, an MJCF or URDF path), or a tree; or another parameter set
+            (a name or file :func:`poekin.load_params` reads), e.g. ``"ur5e-dh"``, UR's nominal
+            UR5e, to see how a UR calibration file differs from the nominal arm.
+        frame: the end frame when ``model`` is a model or a tree (default: the model's only
+            site).
         samples, seed: random configurations for the error figures (revolute joints in
             ``[-2 pi, 2 pi]``, prismatic ones within their limits).
         pos_tol, ori_tol: differences below these (m, rad) are not reported.
@@ -770,6 +894,7 @@ def diagnose(
             "give one row or screw per joint, base to tip"
         )
     whole_number(samples, "samples", 1)
+    check_sample_memory(samples, model.n_joints + 2 * 16)  # q, the model's and your poses
     convention: Convention = table.convention if table is not None else "standard"
     q = sample_joint_values(model, samples, seed=seed)
     T_ref = model.fk(q)
@@ -785,15 +910,18 @@ def diagnose(
         aligned = _moved(chain, B)
         al_p, al_r = max_p, max_r
     joints, flipped = _joint_findings(aligned, model, pos_tol, ori_tol)
+    near = _near_parallel(aligned, model)
     findings = [
         *_base_findings(B, pos_tol, ori_tol),
         *joints,
-        *_length_findings(aligned, model, table, convention, flipped, pos_tol, ori_tol),
+        *_length_findings(aligned, model, table, convention, flipped, near, pos_tol, ori_tol),
         *_home_findings(aligned, model, pos_tol, ori_tol),
     ]
     q_few = q[:_BISECT_SAMPLES]
-    same_types = chain.joint_types == model.joint_types
-    rows = _bisect_rows(aligned, model, convention, q_few, pos_tol, ori_tol) if same_types else []
+    # DH rows are parts to replace only where they are lengths of the arm (no nearly parallel
+    # axes, whose rows are the ill-conditioned far-away normals)
+    by_rows = chain.joint_types == model.joint_types and not near
+    rows = _bisect_rows(aligned, model, convention, q_few, pos_tol, ori_tol) if by_rows else []
     if table is not None and rows:
         steps = rows  # a DH user typed rows: replace rows
     else:  # a PoE user typed screws; a link-by-link account wins when it is shorter

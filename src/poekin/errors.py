@@ -10,6 +10,8 @@ import difflib
 from collections.abc import Iterable
 
 __all__ = [
+    "AnalyticIKError",
+    "CalibrationWarning",
     "InputError",
     "MenagerieUnavailableError",
     "MetricsFileError",
@@ -40,6 +42,12 @@ class ModelError(PoekinError):
 
 class URDFError(ModelError):
     """A URDF file that poekin cannot read as a robot: malformed, or outside what it supports."""
+
+
+class AnalyticIKError(ModelError):
+    """A chain whose joints have no closed-form inverse in :meth:`poekin.Chain.ik_all`: not six
+    revolute joints, or axes that fit none of the supported geometries (the message names the
+    condition that fails and by how much)."""
 
 
 class UnknownRobotError(ModelError, LookupError):
@@ -88,3 +96,8 @@ class MissingExtraError(PoekinError, ImportError):
 
 class UnitWarning(UserWarning):
     """Values that look like another unit than the one they are read in (degrees as radians)."""
+
+
+class CalibrationWarning(UserWarning):
+    """A calibration's data leave parameters unidentified (too few or too similar poses), or its
+    fit did not converge; the message says what to measure."""

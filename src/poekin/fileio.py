@@ -1,16 +1,22 @@
 """The files poekin reads and writes for its user: arrays of joint values and results, and figures.
 
 The suffix names the format, case-insensitively; a suffix poekin does not know is refused before
-any work is done, naming those it knows. A file is written exactly where the user said, never
-under another name, and through a temporary file in the same folder that replaces the target in
-one step, so a failed write leaves no half-written file. An existing file is replaced only when
-the caller says so (``--force``).
+any work is done, naming those it knows. So is a path poekin cannot write to: a folder that does
+not exist or takes no new files (permission denied, a read-only file system, ``/proc``), or a
+folder given where a file is expected (:func:`check_new_file`, :func:`check_writable`). A file is
+written exactly where the user said, never under another name, and through a temporary file in
+the same folder that replaces the target in one step, so a failed write leaves no half-written
+file; what the OS refuses at write time becomes one :class:`~poekin.errors.InputError` line that
+names the path and the reason (:func:`cannot_write`). An existing file is replaced only when the
+caller says so (``--force``).
 
 Arrays (:data:`ARRAY_FORMATS`):
 
 * ``.npy``: NumPy's array file, read without unpickling (``allow_pickle=False``);
-* ``.npz``: NumPy's archive; read: the one array it holds; written: the result under its name
-  (``T`` or ``J``) and the frame or column names beside it;
+* ``.npz``: NumPy's archive; read: the one array it holds (or the one the reader names, among
+  several); written: the result under its name
+  (``T``, ``J`` or ``q``) and what describes it beside it (frame or column names; ``poekin ik``'s
+  success flags and residuals);
 * ``.csv``: one row per configuration, values separated by commas; an optional first line of
   column names is skipped when read and written when saving; ``#`` starts a comment;
 * ``.txt``: the same, separated by whitespace (``np.savetxt``'s format), names in a ``#`` line.
@@ -25,6 +31,8 @@ from __future__ import annotations
 
 import contextlib
 import csv
+import errno
+import functools
 import io
 import os
 import pathlib
@@ -33,18 +41,22 @@ from collections.abc import Iterator, Mapping, Sequence
 from typing import IO, Any
 
 import numpy as np
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
 
-from poekin.errors import InputError
+from poekin.errors import InputError, PoekinError
 
 __all__ = [
     "ARRAY_FORMATS",
     "FIGURE_FORMATS",
     "array_format",
+    "cannot_write",
     "check_new_file",
+    "check_writable",
     "figure_format",
     "read_array",
+    "save_figure",
     "write_array",
+    "write_text",
 ]
 
 #: Array file suffixes and what they hold.
@@ -74,11 +86,16 @@ _ZIP_MAGIC = b"PK\x03\x04"
 
 
 def _suffix(path: str | os.PathLike[str], formats: Mapping[str, str], what: str) -> str:
-    suffix = pathlib.Path(path).suffix.lower()
+    p = pathlib.Path(path)
+    known = ", ".join(formats)
+    if p.is_dir():
+        raise InputError(
+            f"{what} {os.fspath(path)} is a folder; give a file path ending in one of {known}"
+        )
+    suffix = p.suffix.lower()
     if suffix not in formats:
-        known = ", ".join(formats)
-        said = f"its suffix {suffix!r}" if suffix else "it has no suffix"
-        raise InputError(f"{what} {os.fspath(path)}: {said} names no format poekin knows: {known}")
+        said = f"its suffix {suffix!r} names" if suffix else "it has no suffix, so it names"
+        raise InputError(f"{what} {os.fspath(path)}: {said} no format poekin knows: {known}")
     return suffix
 
 
@@ -94,17 +111,84 @@ def figure_format(path: str | os.PathLike[str], what: str = "figure") -> str:
     return FIGURE_FORMATS[_suffix(path, FIGURE_FORMATS, what)]
 
 
-def check_new_file(path: str | os.PathLike[str], what: str, *, force: bool = False) -> pathlib.Path:
-    """``path`` as a :class:`pathlib.Path` if a file can be written there: its folder exists, it
-    is not a folder, and it does not exist yet (unless ``force``). Else :class:`InputError`."""
+def _not_a_folder(p: pathlib.Path) -> pathlib.Path | None:
+    """The first of ``p``'s folders, from the root down, that exists but is not a folder."""
+    for parent in reversed(p.parents):
+        if parent.exists() and not parent.is_dir():
+            return parent
+    return None
+
+
+def _reason(e: OSError, p: pathlib.Path) -> str:
+    """Why the OS refused to write the file ``p`` (``e``), in words, naming what it refused."""
+    folder = p.parent
+    # an existing file refused itself; a new one (or a probe beside it), its folder
+    named = e.filename is None or pathlib.Path(os.fsdecode(e.filename)) == p
+    subject = f"{p}" if named and p.exists() else f"folder {folder}"
+    code = e.errno
+    if code in (errno.EACCES, errno.EPERM):
+        return f"{subject} is not writable (permission denied)"
+    if code == errno.EROFS:
+        return f"{subject} is not writable (read-only file system)"
+    if code == errno.EISDIR or p.is_dir():
+        return "it is a folder; give a file path"
+    if code == errno.ENOTDIR:
+        blocker = _not_a_folder(p)
+        return f"{blocker or folder} is a file, not a folder"
+    if code == errno.ENOENT:
+        if folder.is_dir():  # /proc: the folder is there but takes no new files
+            return f"folder {folder} is not writable (it takes no new files)"
+        return f"folder {folder} does not exist; create it or choose another path"
+    return e.strerror or str(e) or type(e).__name__
+
+
+def cannot_write(path: str | os.PathLike[str], what: str, e: OSError) -> str:
+    """One line for an :class:`OSError` ``e`` met writing ``what`` (``"the plot"``) to ``path``:
+    ``"cannot write the plot to /proc/fk.png: folder /proc is not writable (permission
+    denied)"``. The reason names what was refused: permission, a read-only file system, a folder
+    that takes no new files or does not exist, a file where a folder should be, a folder where a
+    file should be; else the OS's own words (``No space left on device``)."""
     p = pathlib.Path(path)
-    if not p.parent.is_dir():
-        raise InputError(f"cannot write the {what} to {p}: folder {p.parent} does not exist")
-    if p.is_dir():
-        raise InputError(f"cannot write the {what} to {p}: it is a folder")
-    if p.exists() and not force:
-        raise InputError(f"{p} already exists; pass --force to replace it, or choose another path")
+    return f"cannot write {what} to {p}: {_reason(e, p)}"
+
+
+def check_writable(
+    path: str | os.PathLike[str],
+    what: str,
+    *,
+    append: bool = False,
+    error: type[PoekinError] = InputError,
+) -> pathlib.Path:
+    """``path`` as a :class:`pathlib.Path` if ``what`` (``"the plot"``) can be written there
+    now, else ``error`` with :func:`cannot_write`'s line. Nothing is written: a file is made in
+    its folder and removed again (a file is written through one, see the module docstring); with
+    ``append``, an existing file is opened for appending instead, and closed.
+
+    The only reliable test: permission bits do not tell what root may do, nor that ``/proc``
+    takes no new files, nor that a file system is mounted read-only."""
+    p = pathlib.Path(path)
+    try:
+        if p.is_dir():
+            raise IsADirectoryError(errno.EISDIR, os.strerror(errno.EISDIR), os.fspath(p))
+        if append and p.exists():
+            os.close(os.open(p, os.O_WRONLY | os.O_APPEND))
+        else:
+            fd, probe = tempfile.mkstemp(dir=p.parent, prefix=f".{p.name}.", suffix=".part")
+            os.close(fd)
+            os.unlink(probe)
+    except OSError as e:
+        raise error(cannot_write(p, what, e)) from None
     return p
+
+
+def check_new_file(path: str | os.PathLike[str], what: str, *, force: bool = False) -> pathlib.Path:
+    """``path`` as a :class:`pathlib.Path` if the ``what`` (``"plot"``) can be written there: it
+    does not exist yet (unless ``force``) and :func:`check_writable` says its folder takes it.
+    Else :class:`InputError`."""
+    p = pathlib.Path(path)
+    if p.exists() and not p.is_dir() and not force:
+        raise InputError(f"{p} already exists; pass --force to replace it, or choose another path")
+    return check_writable(p, f"the {what}")
 
 
 # --- reading -----------------------------------------------------------------------------------
@@ -135,7 +219,7 @@ def _read_npy(p: pathlib.Path, where: str) -> NDArray[Any]:
     return arr
 
 
-def _read_npz(p: pathlib.Path, where: str) -> NDArray[Any]:
+def _read_npz(p: pathlib.Path, where: str, name: str | None) -> NDArray[Any]:
     with p.open("rb") as f:
         head = f.read(len(_ZIP_MAGIC))
     if head != _ZIP_MAGIC:
@@ -143,12 +227,13 @@ def _read_npz(p: pathlib.Path, where: str) -> NDArray[Any]:
     try:
         with np.load(p, allow_pickle=False) as archive:
             names = list(archive.keys())
-            if len(names) != 1:
+            if len(names) != 1 and name not in names:
                 listed = ", ".join(repr(n) for n in names) or "none"
+                named = f", or one with an array named {name!r}" if name else ""
                 raise InputError(
-                    f"{where} holds {len(names)} arrays ({listed}); give a file with one"
+                    f"{where} holds {len(names)} arrays ({listed}); give a file with one{named}"
                 )
-            arr: NDArray[Any] = archive[names[0]]
+            arr: NDArray[Any] = archive[names[0] if len(names) == 1 else name]
     except ValueError as e:
         raise InputError(f"{where} is not a readable .npz archive: {e}") from None
     return arr
@@ -182,8 +267,12 @@ def _read_text(p: pathlib.Path, where: str, delimiter: str | None) -> NDArray[An
     return arr
 
 
-def read_array(path: str | os.PathLike[str], what: str = "--input") -> NDArray[np.float64]:
-    """The float64 array in the file at ``path``, read in the format its suffix names.
+def read_array(
+    path: str | os.PathLike[str], what: str = "--input", *, name: str | None = None
+) -> NDArray[np.float64]:
+    """The float64 array in the file at ``path``, read in the format its suffix names: of a
+    ``.npz`` archive, the one array it holds, or the one called ``name`` among several (the
+    joint values ``q`` that ``poekin ik`` writes beside its flags, the poses ``T``).
 
     Raises:
         InputError: unknown suffix, no such file, not that format, or values that are not real
@@ -197,7 +286,7 @@ def read_array(path: str | os.PathLike[str], what: str = "--input") -> NDArray[n
     if suffix == ".npy":
         arr = _read_npy(p, where)
     elif suffix == ".npz":
-        arr = _read_npz(p, where)
+        arr = _read_npz(p, where, name)
     else:
         arr = _read_text(p, where, "," if suffix == ".csv" else None)
     return _numbers(arr, where)
@@ -206,17 +295,36 @@ def read_array(path: str | os.PathLike[str], what: str = "--input") -> NDArray[n
 # --- writing -----------------------------------------------------------------------------------
 
 
+@functools.cache
+def _new_file_mode() -> int:
+    """The permissions ``open()`` gives a new file: ``0o666`` less the process's umask (read
+    by setting it and setting it back, once)."""
+    umask = os.umask(0o022)
+    os.umask(umask)
+    return 0o666 & ~umask
+
+
 @contextlib.contextmanager
-def _replacing(p: pathlib.Path) -> Iterator[IO[bytes]]:
-    """A binary file in ``p``'s folder that replaces ``p`` when the block ends without error."""
-    fd, tmp = tempfile.mkstemp(dir=p.parent, prefix=f".{p.name}.", suffix=".part")
+def _replacing(p: pathlib.Path, what: str) -> Iterator[IO[bytes]]:
+    """A binary file in ``p``'s folder that replaces ``p`` when the block ends without error,
+    with the permissions a file made by ``open()`` would have. What the OS refuses, while the
+    block writes or after, becomes :class:`InputError` (:func:`cannot_write`); ``p`` is left
+    as it was and no temporary file stays."""
+    try:
+        fd, tmp = tempfile.mkstemp(dir=p.parent, prefix=f".{p.name}.", suffix=".part")
+    except OSError as e:
+        raise InputError(cannot_write(p, what, e)) from None
     try:
         with os.fdopen(fd, "wb") as f:
+            if hasattr(os, "fchmod"):  # POSIX (Windows: Python 3.13 on)
+                os.fchmod(f.fileno(), _new_file_mode())
             yield f
         os.replace(tmp, p)
-    except BaseException:
+    except BaseException as e:
         with contextlib.suppress(OSError):
             os.unlink(tmp)
+        if isinstance(e, OSError):
+            raise InputError(cannot_write(p, what, e)) from None
         raise
 
 
@@ -232,7 +340,8 @@ def write_array(
     *,
     name: str,
     columns: Sequence[str],
-    extras: Mapping[str, Sequence[str]] | None = None,
+    extras: Mapping[str, ArrayLike] | None = None,
+    what: str = "",
 ) -> pathlib.Path:
     """Write ``array`` to ``path`` in the format its suffix names, replacing any file there.
 
@@ -241,19 +350,25 @@ def write_array(
         array: ``(N, ...)`` results, one configuration per leading index.
         name: the array's name in a ``.npz`` archive (``"T"``).
         columns: one name per value of a configuration, for the text formats' header.
-        extras: string arrays stored beside it in a ``.npz`` archive (e.g. ``{"frames": ...}``).
+        extras: arrays stored beside it in a ``.npz`` archive: names (``{"frames": ...}``),
+            flags, residuals.
+        what: what it is, for an error message (``"poses"``); default ``"<name> array"``.
 
     Returns:
         The path written.
+
+    Raises:
+        InputError: an unknown suffix, or what the OS refuses (:func:`cannot_write`); the file
+            at ``path`` is then left as it was.
     """
     suffix = array_format(path, "output")
     p = pathlib.Path(path)
-    with _replacing(p) as f:
+    with _replacing(p, f"the {what or name + ' array'}") as f:
         if suffix == ".npy":
             np.save(f, array)
         elif suffix == ".npz":
             arrays: dict[str, Any] = {name: array}
-            arrays.update({k: np.array(list(v)) for k, v in (extras or {}).items()})
+            arrays.update({k: np.asarray(v) for k, v in (extras or {}).items()})
             np.savez(f, allow_pickle=False, **arrays)
         else:
             rows = _rows(array)
@@ -267,4 +382,29 @@ def write_array(
             else:
                 np.savetxt(text, rows, fmt="%.17g", header=" ".join(columns))
             f.write(text.getvalue().encode())
+    return p
+
+
+def save_figure(
+    figure: Any, path: str | os.PathLike[str], *, dpi: float, what: str = "figure"
+) -> pathlib.Path:
+    """Save the matplotlib ``figure`` to ``path`` in the format its suffix names
+    (:data:`FIGURE_FORMATS`), replacing any file there, as :func:`write_array` writes.
+
+    Raises:
+        InputError: an unknown suffix, or what the OS refuses (:func:`cannot_write`).
+    """
+    file_format = figure_format(path, what)
+    p = pathlib.Path(path)
+    with _replacing(p, f"the {what}") as f:
+        figure.savefig(f, format=file_format, dpi=dpi)
+    return p
+
+
+def write_text(path: str | os.PathLike[str], text: str, *, what: str = "file") -> pathlib.Path:
+    """Write ``text`` (UTF-8) to ``path``, replacing any file there in one step (see the module
+    docstring). Returns the path written."""
+    p = pathlib.Path(path)
+    with _replacing(p, f"the {what}") as f:
+        f.write(text.encode())
     return p

@@ -229,9 +229,9 @@ def parse_urdf(path: str, *, visuals: bool = False) -> Any:
     or with ``visuals`` from all of it (links' visual geometry and materials, for drawing)."""
     from poekin._extras import require
 
-    yourdfpy = require("yourdfpy", "urdf", f"reading {os.path.basename(path)}")
-    if not os.path.isfile(path):
+    if not os.path.isfile(path):  # said first: installing yourdfpy would not help
         raise URDFError(f"{path}: no such URDF file; check the path")
+    yourdfpy = require("yourdfpy", "urdf", f"reading {os.path.basename(path)}")
     try:
         text = _xml_text(pathlib.Path(path).read_bytes())
     except OSError as exc:

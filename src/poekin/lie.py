@@ -67,6 +67,7 @@ __all__ = [
     "rotate_compose",
     "rotation_angle",
     "rotation_to_quat",
+    "rotation_to_rpy",
     "vec_to_se3",
     "vec_to_so3",
     "vee_se3",
@@ -82,6 +83,11 @@ _SMALL_ANGLE = 1e-3
 # (1 - (t/2)cot(t/2))/t^2 use Taylor series. Near 0.3 the truncation error of the series and
 # the ~eps/t^2 cancellation error of the direct formula are both <~1e-14 relative.
 _SERIES_ANGLE = 0.3
+# log_so3 and log_se3 refuse a NumPy rotation block R with |R^T R - I| above this (float64;
+# float32 gets the square root of its epsilon), as a hand-typed pose is good to ~1e-6.
+_RIGID_TOL = 1e-6
+# rotation_to_rpy: below this cos(pitch) the rotation counts as gimbal-locked (pitch +-pi/2).
+_GIMBAL_LOCK = 1e-12
 
 
 # --------------------------------------------------------------------------------------------
@@ -117,6 +123,37 @@ def _as_float_array(x: ArrayLike, trailing: tuple[int, ...], func: str, name: st
     if kind is None and not np.all(np.isfinite(arr)):
         raise InputError(f"{func}: {name} contains NaN or inf; every value must be finite")
     return arr  # type: ignore[no-any-return]
+
+
+def _check_rigid(M: Any, func: str, name: str) -> None:
+    """Raise :class:`InputError` unless every NumPy ``M`` (``(..., 3, 3)`` or ``(..., 4, 4)``)
+    is a rotation, or a rigid transform ``[[R, p], [0, 0, 0, 1]]``: ``R^T R = I`` to
+    ``_RIGID_TOL`` (or the square root of the dtype's epsilon, if larger), ``det R > 0``. JAX
+    and PyTorch values are not checked (no check on traced values)."""
+    if arrays.kind_of(M) is not None or M.size == 0:
+        return
+    tol = max(_RIGID_TOL, float(np.sqrt(np.finfo(M.dtype).eps)))
+    R = M[..., :3, :3]
+    off = np.max(np.abs(np.swapaxes(R, -1, -2) @ R - np.eye(3)), axis=(-2, -1))
+    flipped = np.linalg.det(R) <= 0
+    bottom = np.zeros(off.shape)
+    if M.shape[-1] == 4:
+        bottom = np.max(np.abs(M[..., 3, :] - np.array([0.0, 0.0, 0.0, 1.0])), axis=-1)
+    bad = (off > tol) | flipped | (bottom > tol)
+    if not np.any(bad):
+        return
+    first = tuple(int(i) for i in np.argwhere(bad)[0])
+    at = f"{name}[{', '.join(map(str, first))}]" if first else name
+    if off[first] > tol or flipped[first]:
+        block = "its rotation block" if M.shape[-1] == 4 else "it"
+        why = (
+            f"{block} is not orthonormal with det +1 (max |R^T R - I| = "
+            f"{float(off[first]):.3g}, det R = {float(np.linalg.det(R[first])):.3g})"
+        )
+    else:
+        why = f"its last row is {M[first][3].tolist()}, not [0, 0, 0, 1]"
+    what = "a rigid transform [[R, p], [0, 0, 0, 1]]" if M.shape[-1] == 4 else "a rotation"
+    raise InputError(f"{func}: {at} is not {what}: {why}")
 
 
 def _ns(a: Any) -> Any:
@@ -371,8 +408,12 @@ def log_so3(R: ArrayLike) -> Array:
     it is the column of ``B = (R + R^T)/2 - cos(t) I = (1 - cos t) a a^T`` with the largest
     diagonal entry, normalised, with its sign matched to ``vee(R)`` (any sign at exactly
     pi). Shapes: ``R (..., 3, 3) -> (..., 3)``.
+
+    Raises:
+        InputError: a NumPy ``R`` that is not a rotation (orthonormal to 1e-6, det +1).
     """
     M = _as_float_array(R, (3, 3), "log_so3", "R")
+    _check_rigid(M, "log_so3", "R")
     xp = _ns(M)
     return _vec_array(_log_so3(_mat(M), xp), xp, _zeros(M[..., 0, 0], xp))
 
@@ -403,8 +444,13 @@ def log_se3(T: ArrayLike) -> Array:
     ``w = log_so3(R)`` and ``v = V^{-1} p`` with
     ``V^{-1} = I - W/2 + (1 - (t/2) cot(t/2))/t^2 W^2``, ``t = |w|`` in ``[0, pi]``.
     Shapes: ``T (..., 4, 4) -> (..., 6)``.
+
+    Raises:
+        InputError: a NumPy ``T`` that is not a rigid transform: its rotation block not
+            orthonormal to 1e-6 with det +1, or its last row not ``[0, 0, 0, 1]``.
     """
     M = _as_float_array(T, (4, 4), "log_se3", "T")
+    _check_rigid(M, "log_se3", "T")
     xp = _ns(M)
     w = _log_so3(_mat(M[..., :3, :3]), xp)
     t = _pose.norm(w, xp)
@@ -483,6 +529,26 @@ def rotation_to_quat(R: ArrayLike) -> Array:
     xp = _ns(M)
     quat = _pose.rotation_quat(_mat(M), xp)
     return _pose.stack(quat, (4,), xp, _zeros(M[..., 0, 0], xp))  # type: ignore[no-any-return]
+
+
+def rotation_to_rpy(R: ArrayLike) -> Array:
+    """Roll, pitch, yaw ``[r, p, y]`` (rad) of a rotation in URDF's and ROS's fixed-axis
+    convention: ``R = Rz(yaw) Ry(pitch) Rx(roll)``, i.e. turned by roll about the fixed x axis,
+    then by pitch about the fixed y axis, then by yaw about the fixed z axis (SciPy's extrinsic
+    ``Rotation.as_euler("xyz")``). Pitch is in ``[-pi/2, pi/2]``, roll and yaw in ``[-pi, pi]``.
+    At pitch ``+-pi/2`` (gimbal lock: only ``yaw - roll`` or ``yaw + roll`` is defined) roll is
+    0 and yaw takes the rest. Shapes: ``(..., 3, 3) -> (..., 3)``.
+    """
+    M = _as_float_array(R, (3, 3), "rotation_to_rpy", "R")
+    xp = _ns(M)
+    E = _mat(M)
+    atan2 = _atan2(xp)
+    cos_pitch = _pose.norm((E[0][0], E[1][0]), xp)
+    locked = cos_pitch < _GIMBAL_LOCK
+    pitch = atan2(-E[2][0], cos_pitch)
+    roll = xp.where(locked, 0.0, atan2(E[2][1], E[2][2]))
+    yaw = xp.where(locked, atan2(-E[0][1], E[1][1]), atan2(E[1][0], E[0][0]))
+    return _vec_array((roll, pitch, yaw), xp, _zeros(M[..., 0, 0], xp))
 
 
 def rotate(R: Array, v: Array) -> Array:

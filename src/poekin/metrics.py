@@ -39,6 +39,7 @@ from collections.abc import Iterable, Sequence
 import numpy as np
 
 from poekin.errors import InputError, MetricsFileError, ModelError
+from poekin.fileio import cannot_write, check_writable
 from poekin.verify import VerifyReport
 
 __all__ = [
@@ -205,11 +206,13 @@ def check_metrics_file(path: str | os.PathLike[str]) -> None:
     """Fail early, without writing, if :func:`append_metrics` would refuse ``path``.
 
     Raises:
-        MetricsFileError: the directory does not exist, ``path`` is a directory, or an existing
+        MetricsFileError: the directory does not exist, ``path`` is a directory, the file or
+            its folder is not writable (:func:`poekin.fileio.check_writable`), or an existing
             file is not a poekin metrics CSV.
     """
     p = pathlib.Path(path)
     _check_location(p)
+    check_writable(p, "metrics", append=True, error=MetricsFileError)
     if not p.is_file() or p.stat().st_size == 0:
         return
     try:
@@ -263,12 +266,8 @@ def append_metrics(path: str | os.PathLike[str], rows: Sequence[MetricRow]) -> p
             fd = os.open(p, flags)
     except IsADirectoryError:
         raise MetricsFileError(f"{where}: it is a directory; pass a file path") from None
-    except FileNotFoundError:
-        raise MetricsFileError(
-            f"{where}: directory {p.parent} does not exist; create it or choose another path"
-        ) from None
     except OSError as e:
-        raise MetricsFileError(f"{where}: {_os_reason(e)}") from None
+        raise MetricsFileError(cannot_write(p, "metrics", e)) from None
 
     try:
         _lock(fd)  # header check, header and rows as one step among concurrent writers
@@ -287,7 +286,7 @@ def append_metrics(path: str | os.PathLike[str], rows: Sequence[MetricRow]) -> p
         for line in lines:
             _write_line(fd, line)
     except OSError as e:
-        raise MetricsFileError(f"{where}: {_os_reason(e)}") from None
+        raise MetricsFileError(cannot_write(p, "metrics", e)) from None
     finally:
         if fd >= 0:
             os.close(fd)

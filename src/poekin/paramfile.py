@@ -16,6 +16,12 @@ Accepted shapes (JSON shown; YAML holds the same structure)::
     {"robot": "", "frame": "ee", "joints": [{"name": "j1", "type": "revolute",
      "screw": [0, 0, 1, 0, 0, 0]}, ...], "home": [[1, 0, 0, 0.8], ...]}
 
+    # a Universal Robots calibration, as ur_calibration writes it (see poekin.ur_kinematics):
+    # the chain from UR's base frame to tool0
+    {"kinematics": {"shoulder": {"x": 0, "y": 0, "z": 0.1625, "roll": 0, "pitch": 0, "yaw": 0},
+                    "upper_arm": {...}, "forearm": {...}, "wrist_1": {...}, "wrist_2": {...},
+                    "wrist_3": {...}, "hash": "calib_12788084448423163542"}}
+
 A DH table may say ``"angle_unit": "deg"``: its ``alpha`` and ``theta_offset`` are then
 degrees (lengths stay metres). Without it, angles are radians, and a table whose angles look
 like degrees (beyond a full turn, e.g. ``alpha: 90``) gets a :class:`~poekin.errors.UnitWarning`.
@@ -45,6 +51,7 @@ from poekin.chain import Chain, JointType
 from poekin.dh import Convention, DHTable
 from poekin.errors import InputError, UnitWarning, UnknownParamsError, did_you_mean, nearest
 from poekin.params import PARAM_SETS, named_params
+from poekin.ur_kinematics import UR_ORIGIN_KEYS, UR_SEGMENTS, nominal_model, ur_chain
 
 __all__ = ["FILE_SUFFIXES", "load_params", "params_from_dict"]
 
@@ -60,7 +67,8 @@ _DEGREES_LIKELY = 2 * np.pi + 1e-9
 _ROW_HINT = "each row needs a, alpha, d (theta_offset and joint_type are optional)"
 _SCREW_HINT = "each screw is [w1, w2, w3, v1, v2, v3] (angular part first)"
 _NEITHER = (
-    "neither a DH table (needs 'rows') nor a PoE set (needs 'screws' or 'body_screws' with 'home')"
+    "neither a DH table (needs 'rows'), a PoE set (needs 'screws' or 'body_screws' with 'home') "
+    "nor a UR calibration (needs 'kinematics')"
 )
 
 
@@ -330,6 +338,42 @@ def _poe_chain(obj: Mapping[str, Any], source: str) -> Chain:
     )
 
 
+def _ur_calibration(obj: Mapping[str, Any], source: str) -> Chain:
+    """The chain a ``kinematics:`` document (UR's calibration, ur_calibration's file) gives."""
+    segments = ", ".join(UR_SEGMENTS)
+    what = f"the segments {segments} (each with {' '.join(UR_ORIGIN_KEYS)}) and a hash"
+    kin = _mapping(obj["kinematics"], f"{source}: 'kinematics'", what)
+    for key in kin:
+        if key not in (*UR_SEGMENTS, "hash"):
+            raise InputError(
+                f"{source}: 'kinematics' has an unknown segment {key!r}: "
+                f"{did_you_mean(str(key), UR_SEGMENTS)}; a UR arm has exactly these six"
+            )
+    origins = []
+    for name in UR_SEGMENTS:
+        if name not in kin:
+            raise InputError(
+                f"{source}: 'kinematics' has no {name!r} segment; a UR calibration has {segments}"
+            )
+        at = f"{source}: kinematics.{name}"
+        segment = _mapping(kin[name], at, " ".join(UR_ORIGIN_KEYS))
+        for key in segment:
+            if key not in UR_ORIGIN_KEYS:
+                raise InputError(
+                    f"{at} has an unknown key {key!r}: {did_you_mean(str(key), UR_ORIGIN_KEYS)}"
+                )
+        for key in UR_ORIGIN_KEYS:
+            if key not in segment:
+                raise InputError(
+                    f"{at} has no {key!r}; each segment gives x y z (m) and roll pitch yaw (rad)"
+                )
+        origins.append([_number(segment[key], f"{at}.{key}") for key in UR_ORIGIN_KEYS])
+    calibration = _string(kin["hash"], f"{source}: kinematics.hash") if "hash" in kin else ""
+    model = nominal_model(origins) or "UR arm"
+    robot = f"{model}, UR calibration {calibration}" if calibration else model
+    return ur_chain(origins, robot=robot)
+
+
 def params_from_dict(obj: object, source: str) -> Chain | DHTable:
     """A DH table or a PoE chain from parsed JSON/YAML (dicts, lists, numbers). No I/O.
 
@@ -339,8 +383,9 @@ def params_from_dict(obj: object, source: str) -> Chain | DHTable:
 
     Returns:
         A :class:`~poekin.dh.DHTable` (the document has ``rows``) or a :class:`Chain` (it has
-        ``screws``, ``body_screws`` or ``joints``, and ``home``). ``describe()`` of either reads
-        back to the same kinematics.
+        ``screws``, ``body_screws`` or ``joints``, and ``home``; or ``kinematics``, a UR
+        calibration: the chain from UR's ``base`` to ``tool0``, see
+        :mod:`poekin.ur_kinematics`). ``describe()`` of either reads back to the same kinematics.
 
     Raises:
         InputError: the document is malformed; the message names the source and the place.
@@ -353,6 +398,13 @@ def params_from_dict(obj: object, source: str) -> Chain | DHTable:
         raise InputError(
             f"{source}: has both 'rows' (a DH table) and PoE screws; keep one of the two"
         )
+    if "kinematics" in obj:
+        if is_dh or is_poe:
+            raise InputError(
+                f"{source}: has both 'kinematics' (a UR calibration) and "
+                f"{'rows' if is_dh else 'PoE screws'}; keep one of the two"
+            )
+        return _ur_calibration(obj, source)
     if is_dh:
         return _dh_table(obj, source)
     if is_poe:
@@ -433,8 +485,9 @@ def load_params(spec: str | os.PathLike[str]) -> Chain | DHTable:
 
     Args:
         spec: a key of :data:`~poekin.params.PARAM_SETS` (e.g. ``"ur5e-dh"``), or the path of
-            a ``.json``, ``.yaml`` or ``.yml`` file in a shape :func:`params_from_dict` accepts.
-            YAML needs PyYAML (the extra ``poekin[yaml]``).
+            a ``.json``, ``.yaml`` or ``.yml`` file in a shape :func:`params_from_dict` accepts,
+            UR's calibration file (``kinematics:``, from ``ur_calibration``) included. YAML needs
+            PyYAML (the extra ``poekin[yaml]``).
 
     Returns:
         A :class:`Chain` or a :class:`~poekin.dh.DHTable`.

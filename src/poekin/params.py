@@ -45,6 +45,7 @@ __all__ = [
     "UR5E_JOINT_NAMES",
     "UR5E_SCREWS",
     "UR5_DH",
+    "UR_DH_LENGTHS",
     "fk_ur5e_poe",
     "lynch_park_ur5_chain",
     "named_params",
@@ -65,7 +66,7 @@ _REACH = UR5E_UPPER_ARM + UR5E_FOREARM  # 0.817: shoulder axis to wrist axes, al
 _WRIST_Y = UR5E_SHOULDER_OFFSET - UR5E_ELBOW_OFFSET + UR5E_WRIST_1  # 0.134
 _WRIST_3_Z = UR5E_SHOULDER_HEIGHT - UR5E_WRIST_2  # 0.063
 
-UR5E_JOINT_NAMES = (
+UR5E_JOINT_NAMES: tuple[str, ...] = (
     "shoulder_pan_joint",
     "shoulder_lift_joint",
     "elbow_joint",
@@ -191,7 +192,7 @@ def lynch_park_ur5_chain() -> Chain:
 _UR_ALPHA = (np.pi / 2, 0.0, 0.0, np.pi / 2, -np.pi / 2, 0.0)
 
 
-def _ur_dh(robot: str, a2: float, a3: float, d1: float, d4: float, d5: float, d6: float) -> DHTable:
+def _ur_dh(robot: str, d1: float, a2: float, a3: float, d4: float, d5: float, d6: float) -> DHTable:
     """A UR standard-DH table from its six nonzero lengths (m), base to flange."""
     return DHTable(
         convention="standard",
@@ -206,17 +207,31 @@ def _ur_dh(robot: str, a2: float, a3: float, d1: float, d4: float, d5: float, d6
     )
 
 
+#: The six nonzero lengths ``(d1, a2, a3, d4, d5, d6)`` (m) of every UR model's standard DH
+#: table, as Universal Robots publishes them (article 45257, and its linked UR20 and UR30 pages;
+#: see the comment above). ``ur_description``'s ``config/<model>/default_kinematics.yaml`` holds
+#: the same numbers. :mod:`poekin.ur_kinematics` names the model of a calibration file by them.
+UR_DH_LENGTHS: Mapping[str, tuple[float, float, float, float, float, float]] = MappingProxyType(
+    {
+        "ur3": (0.1519, -0.24365, -0.21325, 0.11235, 0.08535, 0.0819),
+        "ur5": (0.089159, -0.425, -0.39225, 0.10915, 0.09465, 0.0823),
+        "ur10": (0.1273, -0.612, -0.5723, 0.163941, 0.1157, 0.0922),
+        "ur3e": (0.15185, -0.24355, -0.2132, 0.13105, 0.08535, 0.0921),
+        "ur5e": (0.1625, -0.425, -0.3922, 0.1333, 0.0997, 0.0996),
+        "ur10e": (0.1807, -0.6127, -0.57155, 0.17415, 0.11985, 0.11655),
+        "ur16e": (0.1807, -0.4784, -0.36, 0.17415, 0.11985, 0.11655),
+        "ur20": (0.2363, -0.862, -0.7287, 0.201, 0.1593, 0.1543),
+        "ur30": (0.2363, -0.637, -0.5037, 0.201, 0.1593, 0.1543),
+    }
+)
+
 #: UR5 (CB3) standard DH table, base to tool flange, as Universal Robots publishes it (article
 #: 45257; see the comment above for the full citation).
-UR5_DH: DHTable = _ur_dh(
-    "ur5-dh", a2=-0.425, a3=-0.39225, d1=0.089159, d4=0.10915, d5=0.09465, d6=0.0823
-)
+UR5_DH: DHTable = _ur_dh("ur5-dh", *UR_DH_LENGTHS["ur5"])
 
 #: UR5e standard DH table, base to tool flange, as Universal Robots publishes it (article 45257;
 #: see the comment above for the full citation).
-UR5E_DH: DHTable = _ur_dh(
-    "ur5e-dh", a2=-0.425, a3=-0.3922, d1=0.1625, d4=0.1333, d5=0.0997, d6=0.0996
-)
+UR5E_DH: DHTable = _ur_dh("ur5e-dh", *UR_DH_LENGTHS["ur5e"])
 
 
 # --- registry ---------------------------------------------------------------------------------

@@ -20,13 +20,13 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 from matplotlib.legend_handler import HandlerTuple
 from matplotlib.lines import Line2D
-from matplotlib.transforms import offset_copy
 
+from poekin._labels import Label, directions_away, place_labels, screen_direction
 from poekin.chain import Chain
 from poekin.dh import joint_lines
 from poekin.diagnose import Diagnosis
 from poekin.errors import InputError
-from poekin.fileio import figure_format
+from poekin.fileio import check_writable, figure_format, save_figure
 
 __all__ = ["plot_diagnosis", "plot_errors"]
 
@@ -263,8 +263,8 @@ def plot_errors(
         ori_err: ``{method: (N,) orientation errors [rad]}``, same keys and lengths.
         title: the figure title.
         path: where to write the figure, in the format its suffix names (``.png``, ``.pdf``,
-            ``.svg``, ``.jpg``...: :data:`poekin.fileio.FIGURE_FORMATS`); its directory must
-            exist. An existing file is overwritten.
+            ``.svg``, ``.jpg``...: :data:`poekin.fileio.FIGURE_FORMATS`); its folder must
+            exist and take new files (checked first). An existing file is overwritten.
         pos_tol: position tolerance [m] to draw, or ``None``.
         ori_tol: orientation tolerance [rad] to draw, or ``None``.
         passed: the verdict, said under the title (``PASS``/``FAIL`` and the tolerances, in
@@ -274,18 +274,13 @@ def plot_errors(
         ``path`` as a :class:`pathlib.Path`.
 
     Raises:
-        FileNotFoundError: the directory of ``path`` does not exist.
-        InputError: the two mappings have different keys or lengths, an array is not 1-D, or
-            the suffix names no figure format.
-        OSError: the file cannot be written (left to the caller).
+        InputError: the two mappings have different keys or lengths, an array is not 1-D, the
+            suffix names no figure format, or the file cannot be written there
+            (:func:`poekin.fileio.cannot_write` says why; checked before any drawing).
     """
     p = pathlib.Path(path)
-    file_format = figure_format(p, "plot")
-    if not p.parent.is_dir():
-        raise FileNotFoundError(
-            f"cannot write the plot to {p}: directory {p.parent} does not exist; "
-            "create it or choose another path"
-        )
+    figure_format(p, "plot")
+    check_writable(p, "the plot")
     if list(pos_err) != list(ori_err):
         raise InputError(
             f"pos_err and ori_err must have the same methods in the same order, "
@@ -327,8 +322,7 @@ def plot_errors(
             color=_PASS_COLOR if passed else _FAIL_COLOR,
         )
     fig.tight_layout(rect=(0, 0, 1, 0.93 if passed is not None else 1))
-    fig.savefig(p, format=file_format, dpi=_DPI)
-    return p
+    return save_figure(fig, p, dpi=_DPI, what="plot")
 
 
 # --- the diagnosis figure -----------------------------------------------------------------------
@@ -357,78 +351,41 @@ _BOX: dict[str, Any] = {
 
 
 def _screen_dir(v: FloatArray) -> FloatArray:
-    """The 2-D direction (right, up) in which the 3-D direction ``v`` shows on screen, for the
-    orthographic view at ``_ELEV``, ``_AZIM``."""
-    el, az = math.radians(_ELEV), math.radians(_AZIM)
-    right = np.array([-math.sin(az), math.cos(az), 0.0])
-    up = np.array([-math.sin(el) * math.cos(az), -math.sin(el) * math.sin(az), math.cos(el)])
-    return np.array([float(v @ right), float(v @ up)])
+    """The 2-D direction (right, up) in which the 3-D direction ``v`` shows on screen."""
+    return screen_direction(v, _ELEV, _AZIM)
 
 
-def _free_direction(obstacles: Sequence[FloatArray]) -> FloatArray:
-    """The screen direction (of 16) farthest in angle from all non-zero 2-D ``obstacles``;
-    up and to the right if there are none."""
-    angles = [math.atan2(o[1], o[0]) for o in obstacles if math.hypot(o[0], o[1]) > 1e-9]
-    candidates = [math.radians(45.0 + 22.5 * k) for k in range(16)]
-
-    def clearance(c: float) -> float:
-        return min((abs(math.remainder(c - a, 2 * math.pi)) for a in angles), default=0.0)
-
-    best = max(candidates, key=clearance)  # the first of equals: up-right when there is none
-    return np.array([math.cos(best), math.sin(best)])
-
-
-def _place_text(
-    ax: Any,
-    fig: Figure,
-    at: FloatArray,
-    text: str,
-    direction: FloatArray,
-    *,
-    offset_pt: float,
-    **style: Any,
-) -> None:
-    """``text`` next to the 3-D point ``at``, ``offset_pt`` points from it on screen along
-    ``direction``, aligned so that it extends away from the point."""
-    dx, dy = float(direction[0]), float(direction[1])
-    ha = "left" if dx > 0.35 else "right" if dx < -0.35 else "center"
-    va = "bottom" if dy > 0.35 else "top" if dy < -0.35 else "center"
-    transform = offset_copy(
-        ax.transData, fig=fig, x=dx * offset_pt, y=dy * offset_pt, units="points"
-    )
-    ax.text(*at, text, ha=ha, va=va, transform=transform, **style)
-
-
-def _tag(
-    ax: Any, fig: Figure, at: FloatArray, text: str, direction: FloatArray, color: str
-) -> None:
-    """A small joint or frame tag (``J3``, ``M``)."""
-    _place_text(ax, fig, at, text, direction, offset_pt=5.0, color=color, fontsize=7.5, zorder=6)
+def _tag(ax: Any, at: FloatArray, text: str, obstacles: Sequence[FloatArray], color: str) -> Label:
+    """A small joint or frame tag (``J3``, ``M``) beside ``at``, away from ``obstacles``."""
+    style = {"color": color, "fontsize": 7.5, "zorder": 6}
+    return Label(ax, text, style, at=at, directions=directions_away(obstacles), offset_pt=4.0)
 
 
 def _note(
     ax: Any,
-    fig: Figure,
     at: FloatArray,
     text: str,
-    direction: FloatArray,
+    obstacles: Sequence[FloatArray],
     color: str,
     *,
-    offset_pt: float = 11.0,
-) -> None:
-    """A boxed, bold finding label (a joint's, the base's, M's) next to the point ``at``."""
-    _place_text(
+    offset_pt: float = 8.0,
+    directions: tuple[FloatArray, ...] = (),
+) -> Label:
+    """A boxed, bold finding label (a joint's, the base's, M's) beside ``at``."""
+    style = {
+        "color": color,
+        "fontsize": 9,
+        "fontweight": "bold",
+        "bbox": {**_BOX, "edgecolor": color},
+        "zorder": 7,
+    }
+    return Label(
         ax,
-        fig,
-        at,
         text,
-        direction,
+        style,
+        at=at,
+        directions=directions or directions_away(obstacles),
         offset_pt=offset_pt,
-        color=color,
-        fontsize=9,
-        fontweight="bold",
-        bbox={**_BOX, "edgecolor": color},
-        zorder=7,
     )
 
 
@@ -557,7 +514,6 @@ def _obstacles(chain: Chain, base: FloatArray, index: int) -> list[FloatArray]:
 
 def _panel(
     ax: Any,
-    fig: Figure,
     model: Chain,
     yours: Chain,
     your_base: FloatArray,
@@ -565,8 +521,9 @@ def _panel(
     labels: Mapping[int, str],
     base_note: str,
     home_note: str,
-) -> None:
-    """One 3-D panel: the model's chain and ``yours`` (its base frame at ``your_base``)."""
+) -> tuple[list[Label], FloatArray]:
+    """One 3-D panel: the model's chain and ``yours`` (its base frame at ``your_base``). Returns
+    its labels, to place once the figure is laid out, and the points they must keep clear."""
     eye = np.eye(4)
     model_path, your_path = _path(model, eye), _path(yours, your_base)
     extent = _span(np.vstack([model_path, your_path]))
@@ -585,27 +542,27 @@ def _panel(
     _skeleton(ax, model, eye, arrow, triad, mine=False)
     _skeleton(ax, yours, your_base, arrow, triad, mine=True)
     draw_triad(ax, eye, triad, dashed=False, zorder=2.5)
-    placed: list[tuple[FloatArray, FloatArray]] = []  # (point, screen direction) of each text
+    notes: list[Label] = []  # the finding labels, placed first
+    tags: list[Label] = []
+    down = directions_away([-_DOWN])  # below first, as notes at a base frame go
     if not np.allclose(your_base, eye, atol=1e-9):
         draw_triad(ax, your_base, triad, dashed=True, zorder=3.5)
-        _note(ax, fig, your_base[:3, 3], "your base", _DOWN, _YOURS_COLOR, offset_pt=20.0)
-        placed.append((your_base[:3, 3], _DOWN))
+        at = your_base[:3, 3]
+        notes.append(_note(ax, at, "your base", [], _YOURS_COLOR, directions=down))
     if base_note:
-        _note(ax, fig, eye[:3, 3], base_note, _DOWN, "0.15", offset_pt=20.0)
-        placed.append((eye[:3, 3], _DOWN))
+        notes.append(_note(ax, eye[:3, 3], base_note, [], "0.15", directions=down))
 
     # Tags: grey at the model's joint points (one per group of coinciding points), the finding
     # labels there in the model's colour, orange at your points where they are apart. Each
-    # goes where nothing else leaves its point on screen: no line, no point close by, no text.
+    # prefers where nothing else leaves its point on screen (no line, no point close by);
+    # place_labels then keeps every text clear of the others.
     chains = ((model, eye), (yours, your_base))
     keypoints = np.vstack([model_path, your_path, *(_tips(c, b, arrow, triad) for c, b in chains)])
 
     def crowd(at: FloatArray) -> list[FloatArray]:
         d = np.linalg.norm(keypoints - at, axis=1)
         close = keypoints[(d > near) & (d < 5 * near)]
-        out = [_screen_dir(k - at) for k in close]
-        out += [direction for p, direction in placed if np.linalg.norm(p - at) <= near]
-        return out
+        return [_screen_dir(k - at) for k in close]
 
     _, pm = joint_lines(model)
     _, py = joint_lines(yours)
@@ -617,24 +574,17 @@ def _panel(
         plain = "/".join(f"J{i + 1}" for i in g if i not in labels)
         found = [f"J{i + 1} {labels[i]}" for i in g if i in labels]
         if found:
-            direction = _free_direction(obstacles)
             text = "\n".join(textwrap.fill(t, _WRAP, subsequent_indent="  ") for t in found)
-            _note(ax, fig, at, text, direction, _MODEL_COLOR)
-            obstacles.append(direction)
-            placed.append((at, direction))
+            notes.append(_note(ax, at, text, obstacles, _MODEL_COLOR))
         if plain:
-            direction = _free_direction(obstacles)
-            _tag(ax, fig, at, plain, direction, _TAG_COLOR)
-            placed.append((at, direction))
+            tags.append(_tag(ax, at, plain, obstacles, _TAG_COLOR))
     apart = 2 * near  # closer than this, your point is read off the model's tag
     for g in _groups(py, near):
         if all(np.linalg.norm(py[i] - pm[i]) > apart for i in g):
             obstacles = crowd(py[g[0]])
             obstacles += [o for i in g for o in _obstacles(yours, your_base, i)]
             text = "/".join(f"J{i + 1}" for i in g)
-            direction = _free_direction(obstacles)
-            _tag(ax, fig, py[g[0]], text, direction, _YOURS_COLOR)
-            placed.append((py[g[0]], direction))
+            tags.append(_tag(ax, py[g[0]], text, obstacles, _YOURS_COLOR))
 
     # The end frame: "M" (or the finding about it) beside the model's; yours tagged if apart.
     for path, chain, mine in ((model_path, model, False), (your_path, yours, True)):
@@ -643,14 +593,12 @@ def _panel(
         at = path[-1]
         obstacles = [*crowd(at), _screen_dir(path[-2] - at)]
         obstacles += [_screen_dir(chain.home[:3, k]) for k in range(3)]
-        direction = _free_direction(obstacles)
-        placed.append((at, direction))
         if mine:
-            _tag(ax, fig, at, "M", direction, _YOURS_COLOR)
+            tags.append(_tag(ax, at, "M", obstacles, _YOURS_COLOR))
         elif home_note:
-            _note(ax, fig, at, home_note, direction, "0.15")
+            notes.append(_note(ax, at, home_note, obstacles, "0.15"))
         else:
-            _tag(ax, fig, at, "M", direction, _TAG_COLOR)
+            tags.append(_tag(ax, at, "M", obstacles, _TAG_COLOR))
 
     for set_lim, c in zip((ax.set_xlim, ax.set_ylim, ax.set_zlim), centre, strict=True):
         set_lim(float(c) - half, float(c) + half)
@@ -661,6 +609,7 @@ def _panel(
     ax.set_ylabel("y [m]", labelpad=2)
     ax.set_zlabel("z [m]", labelpad=2)
     ax.tick_params(labelsize=7, pad=0)
+    return notes + tags, keypoints
 
 
 _LENGTH_KINDS = ("link_length", "link_twist")
@@ -700,10 +649,11 @@ def _diagnosis_figure(diagnosis: Diagnosis, title: str | None = None) -> Figure:
     left = fig.add_subplot(1, 2, 1, projection="3d", computed_zorder=False)
     right = fig.add_subplot(1, 2, 2, projection="3d", computed_zorder=False)
     eye = np.eye(4)
-    _panel(left, fig, d.model, d.yours, eye, labels={}, base_note=_base_note(d), home_note="")
-    _panel(
+    left_labels, left_points = _panel(
+        left, d.model, d.yours, eye, labels={}, base_note=_base_note(d), home_note=""
+    )
+    right_labels, right_points = _panel(
         right,
-        fig,
         d.model,
         d.aligned,
         np.asarray(d.base, dtype=np.float64),
@@ -712,27 +662,19 @@ def _diagnosis_figure(diagnosis: Diagnosis, title: str | None = None) -> Figure:
         home_note=_home_note(d),
     )
     left.set_title("as given (each in its own base frame)", fontsize=11)
-    right.set_title(
-        "after aligning your base to the model's\n"
-        f"{_errors_line(d.aligned_max_pos_err_m, d.aligned_max_ori_err_rad)} after alignment",
-        fontsize=11,
-    )
+    errors = _errors_line(d.aligned_max_pos_err_m, d.aligned_max_ori_err_rad)
+    # what report() says: aligned only where the alignment reduced the errors
+    after = " after alignment" if d.base_aligned else ""
+    right.set_title(f"{d.placement(True)}\n{errors}{after}", fontsize=11)
 
     lengths = [f.message.split(" (")[0] for f in d.findings if f.kind in _LENGTH_KINDS]
-    if lengths:
+    if lengths:  # in a corner of the right panel where it covers no tick label nor label
         shown = lengths[:_MAX_LENGTH_LINES]
         if len(lengths) > len(shown):
             shown.append(f"... and {len(lengths) - len(shown)} more")
-        right.text2D(
-            0.0,
-            0.02,
-            "DH link lengths and twists that differ:\n" + "\n".join(shown),
-            transform=right.transAxes,
-            fontsize=8,
-            va="bottom",
-            ha="left",
-            bbox={"boxstyle": "round", "facecolor": "white", "edgecolor": "0.6"},
-        )
+        box = {"boxstyle": "round", "facecolor": "white", "edgecolor": "0.6"}
+        text = "DH link lengths and twists that differ:\n" + "\n".join(shown)
+        right_labels.append(Label(right, text, {"fontsize": 8, "bbox": box, "zorder": 7}))
 
     yours_name = d.yours.robot or "your parameters"
     model_name = d.model.robot or "the model"
@@ -780,6 +722,9 @@ def _diagnosis_figure(diagnosis: Diagnosis, title: str | None = None) -> Figure:
         fontsize=12,
     )
     fig.subplots_adjust(left=0.0, right=1.0, bottom=0.12, top=0.85, wspace=0.0)
+    place_labels(
+        fig, [*right_labels, *left_labels], points=[(left, left_points), (right, right_points)]
+    )
     return fig
 
 
@@ -801,6 +746,11 @@ def plot_diagnosis(
             :data:`poekin.fileio.FIGURE_FORMATS`); an existing file is overwritten.
         title: the figure title; default ``"<yours> vs <model>: match|mismatch"``. A second line
             gives the largest errors.
+
+    Raises:
+        InputError: the suffix names no figure format, or the file cannot be written there
+            (:func:`poekin.fileio.cannot_write` says why; checked before any drawing).
     """
-    file_format = figure_format(path, "plot")
-    _diagnosis_figure(diagnosis, title).savefig(path, format=file_format, dpi=_DIAG_DPI)
+    figure_format(path, "plot")
+    check_writable(path, "the plot")
+    save_figure(_diagnosis_figure(diagnosis, title), path, dpi=_DIAG_DPI, what="plot")

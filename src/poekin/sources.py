@@ -54,6 +54,7 @@ __all__ = [
     "LoadedModel",
     "MuJoCoWarning",
     "Resolved",
+    "kinematics_spec",
     "load_model",
     "resolve_source",
 ]
@@ -613,6 +614,37 @@ def _compile(spec: mujoco.MjSpec, xml_path: pathlib.Path) -> mujoco.MjModel:
         raise ModelError(f"MuJoCo rejected {xml_path}: {_reason(e)}") from e
 
 
+def _kinematics(
+    xml_path: pathlib.Path, free_root: str | None, read_assets: bool
+) -> tuple[mujoco.MjSpec, mujoco.MjModel, tuple[str, ...], tuple[pathlib.Path, ...]]:
+    """The spec as compiled for kinematics (see :func:`load_model`), the model, what was
+    stripped, and the model's files."""
+    xml = _model_xml(xml_path)
+    spec = _read_spec(xml_path, free_root)
+    found, missing, present = _scan_assets(spec, xml)
+    files = tuple(sorted({p.resolve() for p in [*xml.files, *found]}))
+    stripped, stubs = _strip_for_kinematics(spec, missing, [] if read_assets else present)
+    model = _compile(spec, xml_path)
+    needed = _check_alignment(spec, model, stubs, xml_path)
+    if needed:  # read those files after all: compile again, with them
+        spec = _read_spec(xml_path, free_root)
+        _, missing, present = _scan_assets(spec, xml)
+        kept = [a for a in present if _asset_key(a) not in needed]
+        _strip_for_kinematics(spec, missing, kept)
+        model = _compile(spec, xml_path)
+    return spec, model, stripped, files
+
+
+def kinematics_spec(source: str | os.PathLike[str]) -> mujoco.MjSpec:
+    """The ``mujoco.MjSpec`` of ``source`` that :func:`load_model` compiles (asset files not
+    needed for kinematics left out), to edit and compile again: e.g. a robot that differs from
+    its model (:mod:`poekin.calibration.simulate`). MuJoCo's warnings are dropped; load the
+    model with :func:`load_model` to see them."""
+    with _mujoco_warnings():
+        spec, _, _, _ = _kinematics(resolve_source(source).path, None, False)
+    return spec
+
+
 def load_model(
     source: str | os.PathLike[str], *, free_root: str | None = None, read_assets: bool = False
 ) -> LoadedModel:
@@ -646,20 +678,8 @@ def load_model(
     """
     resolved = resolve_source(source)
     xml_path = resolved.path
-    xml = _model_xml(xml_path)
     with _mujoco_warnings() as said:
-        spec = _read_spec(xml_path, free_root)
-        found, missing, present = _scan_assets(spec, xml)
-        files = tuple(sorted({p.resolve() for p in [*xml.files, *found]}))
-        stripped, stubs = _strip_for_kinematics(spec, missing, [] if read_assets else present)
-        model = _compile(spec, xml_path)
-        needed = _check_alignment(spec, model, stubs, xml_path)
-        if needed:  # read those files after all: compile again, with them
-            spec = _read_spec(xml_path, free_root)
-            _, missing, present = _scan_assets(spec, xml)
-            kept = [a for a in present if _asset_key(a) not in needed]
-            _strip_for_kinematics(spec, missing, kept)
-            model = _compile(spec, xml_path)
+        _, model, stripped, files = _kinematics(xml_path, free_root, read_assets)
     for message in dict.fromkeys(said):
         warnings.warn(f"{xml_path.name}: MuJoCo: {message}", MuJoCoWarning, stacklevel=2)
     builtin = resolved.robot in BUILTIN_ROBOTS and xml_path == _builtin(resolved.robot)

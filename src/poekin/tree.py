@@ -25,7 +25,7 @@ from __future__ import annotations
 
 import dataclasses
 from collections.abc import Sequence
-from typing import Any, Literal, NamedTuple
+from typing import TYPE_CHECKING, Any, Literal, NamedTuple
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -44,9 +44,13 @@ from poekin.chain import (
     jacobian_array,
     jacobian_from_world,
     readonly_array,
+    relative_jacobian,
     zeros_like_batch,
 )
 from poekin.errors import InputError, ModelError, UnknownFrameError, did_you_mean
+
+if TYPE_CHECKING:
+    from poekin.ik.numerical import IKResult
 
 __all__ = ["Mimic", "Tree", "TreeJointType", "TreeParams"]
 
@@ -195,6 +199,8 @@ class Tree:
     _jacobian_kernels: dict[tuple[str, str], Any] = dataclasses.field(
         init=False, repr=False, compare=False
     )
+    # frame name -> how Tree.ik solves for it (poekin.ik.trees.TreePlan), built at first use
+    _ik_cache: dict[str, Any] = dataclasses.field(init=False, repr=False, compare=False)
     _layout_text: str = dataclasses.field(init=False, repr=False, compare=False)
     _plan: _levels.Plan = dataclasses.field(init=False, repr=False, compare=False)
     _static: _TreeLayout = dataclasses.field(init=False, repr=False, compare=False)
@@ -254,6 +260,7 @@ class Tree:
         set_(self, "_spec", spec)
         set_(self, "_kernel", _fast.tree_program(spec))
         set_(self, "_jacobian_kernels", {})
+        set_(self, "_ik_cache", {})
         # computed now, not cached at first use: torch.compile cannot trace a cache's lock
         set_(self, "_layout_text", self._layout_words())
         set_(
@@ -645,6 +652,7 @@ class Tree:
         convention: JacobianConvention = "world",
         *,
         params: TreeParams | None = None,
+        relative_to: str | None = None,
     ) -> FloatArray:
         """Jacobian of ``frame`` (a body or site name): ``(..., 6, nv)``.
 
@@ -659,10 +667,26 @@ class Tree:
         (:func:`poekin.chain.jacobian_from_world`). ``qpos`` and ``params`` as for
         :meth:`fk`, and the result in ``qpos``'s library, as there.
 
+        With ``relative_to`` (a body or site name, as for :meth:`pose`), the Jacobian of
+        ``T_relative_frame(qpos)``, that frame in the world's role
+        (:func:`poekin.chain.relative_jacobian`): the rows of ``"world"`` in its coordinates,
+        ``"space"`` the twist in it, ``"body"`` in ``frame``.
+
         Raises:
             UnknownFrameError: no such frame.
             InputError: ``qpos`` is not ``(..., nq)`` finite numbers, or an unknown convention.
         """
+        if relative_to is not None:
+            check_jacobian_convention(convention)
+            index, reference = self.frame_index(frame), self.frame_index(relative_to)
+            T = self.fk(qpos, params=params)
+            return relative_jacobian(  # type: ignore[no-any-return]
+                self.jacobian(qpos, frame, "world", params=params),
+                self.jacobian(qpos, relative_to, "world", params=params),
+                T[..., index, :, :],
+                T[..., reference, :, :],
+                convention,
+            )
         # the one-call fast path: a frame and convention seen before (so valid) and qpos the
         # kernel takes as it is
         if params is None and type(qpos) is np.ndarray:
@@ -786,27 +810,31 @@ class Tree:
 
     def path_joints(self, frame: str) -> tuple[int, ...]:
         """Indices of the joints between the world and ``frame``, base to tip."""
-        body = self._frame_body(self.frame_index(frame))
-        path = []
-        while body >= 0:
-            path.append(body)
-            body = int(self.body_parents[body])
-        return tuple(k for b in reversed(path) for k in self._body_joints[b])
+        return self._path_joints_of_body(self._frame_body(self.frame_index(frame)))
 
-    def chain(self, frame: str) -> Chain:
-        """The serial PoE chain from the world to ``frame`` (a body or site name).
+    def chain(self, frame: str, base: str | None = None) -> Chain:
+        """The serial PoE chain from the world (or the body ``base``) to ``frame``, a body or
+        site name.
 
         The chain's joint values are the positions of the joints on the path, as stored in
         ``qpos`` (a mimic joint becomes an independent joint of the chain). Joints off the path
-        do not move ``frame``.
+        do not move ``frame``. With ``base``, the chain starts in that body's frame: its screws
+        and home pose are in the base's coordinates, its joints those between the base and
+        ``frame`` (``T_base_frame``; e.g. a leg from a floating base, whose own free joint the
+        chain leaves out).
 
         Raises:
-            UnknownFrameError: no such frame.
+            UnknownFrameError: no such frame, or no body ``base``.
             ModelError: a ball or free joint lies on the path (PoE chains are hinge/slide);
-                use :meth:`fk` for such frames.
+                use :meth:`fk` for such frames, or a ``base`` below it; ``base`` is not on the
+                path to ``frame``.
         """
         index = self.frame_index(frame)
         joints = self.path_joints(frame)
+        start = -1
+        if base is not None:
+            start = self._base_body(base, frame)
+            joints = joints[len(self._path_joints_of_body(start)) :]
         for k in joints:
             if self.joint_types[k] in ("ball", "free"):
                 raise ModelError(
@@ -821,13 +849,21 @@ class Tree:
         lib = _levels.Lib(np, np.zeros(()), 0)
         poses = _levels.evaluate(self._plan, x, lib, None, joints=True)
         home = _levels.frames_array(poses, self._plan, "4x4", lib)[index]
+        axes = np.zeros((len(joints), 3))
+        anchors = np.zeros((len(joints), 3))
+        for row, k in enumerate(joints):
+            axis_w, anchor_w = _levels.joint_axis_anchor(poses, self._plan, k)
+            axes[row], anchors[row] = axis_w, anchor_w
+        if start >= 0:  # everything in the base's frame: T_base_world = (R^T, -R^T p)
+            body_start = _levels.body_pose(poses, self._plan, start)
+            T_world_base = _pose.to_array(body_start, "4x4", np, np.zeros(()))
+            R, p = T_world_base[:3, :3], T_world_base[:3, 3]
+            home = lie.inverse(T_world_base) @ home
+            axes, anchors = axes @ R, (anchors - p) @ R
         screws = np.zeros((len(joints), 6))
         types: list[JointType] = []
         for row, k in enumerate(joints):
-            axis, anchor = (
-                np.array(v, dtype=np.float64)
-                for v in _levels.joint_axis_anchor(poses, self._plan, k)
-            )
+            axis, anchor = axes[row], anchors[row]
             if self.joint_types[k] == "revolute":
                 screws[row, :3] = axis
                 screws[row, 3:] = -np.cross(axis, anchor)
@@ -846,6 +882,99 @@ class Tree:
             robot=self.robot,
             qpos_indices=tuple(int(self.qpos_adr[k]) for k in joints) if independent else None,
         )
+
+    def ik(
+        self,
+        T: ArrayLike,
+        frame: str,
+        qpos: ArrayLike | None = None,
+        *,
+        warm_start: bool = False,
+        seed: int = 0,
+        pos_tol: float = 1e-10,
+        ori_tol: float = 1e-10,
+        position_only: bool = False,
+        orientation_weight: float = 0.3,
+        max_iterations: int = 50,
+        max_attempts: int = 100,
+    ) -> IKResult:
+        """The ``qpos`` that puts ``frame`` at ``T``: numerical inverse kinematics over the
+        hinge and slide joints on the path to ``frame``, every other joint held at ``qpos``.
+
+        One arm of a two-armed robot or one leg of a quadruped: the other arm, the other legs
+        and a floating base keep their values. A ball or free joint on the path is held too,
+        and the joints below it are solved in its body's frame. The options, the algorithm and
+        the result are those of :meth:`poekin.Chain.ik`.
+
+        Args:
+            T: ``(..., 4, 4)`` targets ``T_world_frame`` (world frame).
+            frame: the body or site to place.
+            qpos: ``(..., nq)`` the values of every joint (MuJoCo's layout), broadcast against
+                the targets; default :attr:`qpos0`.
+            warm_start: start the first attempt at ``qpos``'s values of the solved joints
+                (a trajectory stays on its branch), rather than at a random configuration.
+            seed: the random starts' seed, as for :meth:`poekin.Chain.ik`.
+            pos_tol: success: position within this (m), as for :meth:`poekin.Chain.ik`.
+            ori_tol: and orientation within this (rad).
+            position_only: reach the position only, whatever the orientation.
+            orientation_weight: metres per radian in the least-squares residual.
+            max_iterations: iterations per attempt.
+            max_attempts: attempts per target.
+
+        Returns:
+            An :class:`~poekin.ik.IKResult` whose ``q`` is the whole ``(..., nq)`` qpos: the
+            solved joints' values (within their limits), every other entry as given.
+
+        Raises:
+            UnknownFrameError: no such frame.
+            InputError: bad targets, ``qpos`` or options; a mimic joint on the path, or a ball
+                or free joint below a hinge or slide one (Tree.ik solves independent hinge and
+                slide joints below the last ball or free joint only).
+
+        Example:
+            >>> tree = poekin.load_tree("aloha")
+            >>> qpos = poekin.sample_qpos(tree, 1, seed=1, within_limits=True)[0]
+            >>> T = tree.pose(qpos, "left/gripper")
+            >>> found = tree.ik(T, "left/gripper")  # the right arm stays at qpos0
+            >>> bool(found.success), found.q.shape
+            (True, (16,))
+        """
+        from poekin.ik.numerical import settings
+        from poekin.ik.trees import solve_tree
+
+        options = settings(
+            pos_tol=pos_tol,
+            ori_tol=ori_tol,
+            position_only=position_only,
+            orientation_weight=orientation_weight,
+            max_iterations=max_iterations,
+            max_attempts=max_attempts,
+        )
+        return solve_tree(self, T, frame, qpos, warm_start=warm_start, seed=seed, options=options)
+
+    def _path_joints_of_body(self, body: int) -> tuple[int, ...]:
+        path = []
+        while body >= 0:
+            path.append(body)
+            body = int(self.body_parents[body])
+        return tuple(k for b in reversed(path) for k in self._body_joints[b])
+
+    def _base_body(self, base: str, frame: str) -> int:
+        """The index of body ``base``, which must lie on the path from the world to ``frame``."""
+        if base not in self.body_names:
+            raise UnknownFrameError(
+                f"no body named {base!r}: {did_you_mean(base, list(self.body_names))}"
+            )
+        b = self.body_names.index(base)
+        body = self._frame_body(self.frame_index(frame))
+        while body >= 0 and body != b:
+            body = int(self.body_parents[body])
+        if body != b:
+            raise ModelError(
+                f"body {base!r} is not on the path from the world to {frame!r}: a chain's base "
+                "must be the frame's body or one of its ancestors"
+            )
+        return b
 
     def __repr__(self) -> str:
         source = f"{self.robot!r}, " if self.robot else ""

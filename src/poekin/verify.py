@@ -35,6 +35,7 @@ __all__ = [
     "DEFAULT_ORI_TOL",
     "DEFAULT_POS_TOL",
     "VerifyReport",
+    "check_sample_memory",
     "mujoco_frame_poses",
     "mujoco_poses",
     "pose_errors",
@@ -57,6 +58,43 @@ def whole_number(value: object, name: str, minimum: int) -> int:
     if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < minimum:
         raise InputError(f"{name} must be a whole number, {minimum} or more, got {value!r}")
     return int(value)
+
+
+def _physical_memory() -> int | None:
+    """This machine's memory in bytes, or None where the OS does not say (``sysconf``)."""
+    try:
+        return int(os.sysconf("SC_PAGE_SIZE")) * int(os.sysconf("SC_PHYS_PAGES"))
+    except (AttributeError, ValueError, OSError):
+        return None
+
+
+def _bytes(n: float) -> str:
+    """``n`` bytes as ``"4.37 TiB"``."""
+    for unit in ("B", "KiB", "MiB", "GiB", "TiB", "PiB"):
+        if n < 1024 or unit == "PiB":
+            return f"{n:.3g} {unit}"
+        n /= 1024
+    raise AssertionError("unreachable")
+
+
+def check_sample_memory(samples: int, floats_per_sample: int) -> None:
+    """Refuse, before anything is allocated, ``samples`` configurations whose arrays cannot fit:
+    ``floats_per_sample`` float64 values each (a lower bound: what is held at once, e.g. the
+    joint values and two poses) more than this machine's memory.
+
+    Raises:
+        InputError: naming the memory needed, the machine's, and the most samples that fit.
+    """
+    total = _physical_memory()
+    needed = 8 * samples * floats_per_sample
+    if total is None or needed <= total:
+        return
+    most = total // (8 * floats_per_sample)
+    raise InputError(
+        f"{samples} samples need at least {_bytes(needed)} of memory for their joint values "
+        f"and poses, more than this machine's {_bytes(total)}; use fewer (at most about "
+        f"{most:,}), or several runs with different seeds"
+    )
 
 
 def random_generator(seed: int) -> np.random.Generator:
@@ -438,11 +476,14 @@ def _verify(
     if by_chain:  # one frame reached by hinges and slides: its chain's joints move, as in the lab
         chain = chain or tree.chain(names[0])
         names = [chain.frame]
+        # held at once: q, MuJoCo's poses and one FK's
+        check_sample_memory(samples, chain.n_joints + 2 * 16)
         q = sample_joint_values(chain, samples, seed=seed, within_limits=within_limits)
         errors = _chain_errors(loaded, chain, params, q, progress)
     elif params is not None:
         raise InputError("--params is checked against MJCF models and Menagerie robots")
-    else:  # the whole tree moves
+    else:  # the whole tree moves: qpos, MuJoCo's and the tree's poses of every frame
+        check_sample_memory(samples, tree.nq + 16 * (len(names) + len(tree.frame_names)))
         qpos = sample_qpos(tree, samples, seed=seed, within_limits=within_limits)
         errors = _tree_errors(loaded, tree, names, qpos, progress)
     return VerifyReport(

@@ -1,8 +1,9 @@
 """The ``poekin`` command line: ``verify``, ``diagnose``, ``screws``, ``dh``, ``fk``,
-``jacobian``, ``view`` and ``draw``.
+``jacobian``, ``ik``, ``view``, ``draw`` and ``calibrate``.
 
-Exit codes: 0 success (verify: within tolerance; diagnose: parameters match), 1 verify out of
-tolerance or diagnose found differences, 2 bad input. Every expected failure prints one
+Exit codes: 0 success (verify: within tolerance; diagnose: parameters match; ik: every target
+solved), 1 verify out of tolerance, diagnose found differences or ik left targets unsolved, 2
+bad input. Every expected failure prints one
 ``poekin: error: ...`` line and no traceback; notes (``poekin: note: ...``) say what poekin
 assumed or noticed, on stderr.
 """
@@ -16,7 +17,7 @@ import warnings
 from collections.abc import Callable, Sequence
 from typing import Any
 
-from poekin.cli import _describe, _fk, _verify, _view
+from poekin.cli import _calibrate, _describe, _fk, _ik, _verify, _view
 from poekin.cli._args import EXIT_USAGE, Parser
 from poekin.errors import PoekinError
 
@@ -60,7 +61,8 @@ def _build_parser() -> argparse.ArgumentParser:
     parser = Parser(
         prog="poekin",
         description="Product-of-Exponentials forward kinematics derived from MuJoCo models.",
-        epilog="example:\n  poekin verify --plot fk.png --metrics metrics.csv",
+        epilog="examples:\n  poekin verify universal_robots_ur5e\n"
+        "  poekin fk universal_robots_ur5e --q 0 -1.57 1.57 0 0 0",
         formatter_class=fmt,
     )
     parser.add_argument("--version", action=_Version)
@@ -68,7 +70,9 @@ def _build_parser() -> argparse.ArgumentParser:
     _verify.register(sub, fmt)
     _describe.register(sub, fmt)
     _fk.register(sub, fmt)
+    _ik.register(sub, fmt)
     _view.register(sub, fmt)
+    _calibrate.register(sub, fmt)
     return parser
 
 

@@ -105,7 +105,8 @@ def add_params(p: argparse.ArgumentParser, what: str) -> None:
     p.add_argument(
         "--params",
         metavar="FILE|NAME",
-        help=f"{what}: a DH table or PoE set as a .json/.yaml file, or a named set ({PARAM_NAMES})",
+        help=f"{what}: a DH table or PoE set as a .json/.yaml file, UR's calibration .yaml "
+        f"(ur_calibration's kinematics:), or a named set ({PARAM_NAMES})",
     )
 
 
@@ -246,7 +247,7 @@ def read_joint_values(args: argparse.Namespace, space: JointSpace) -> NDArray[np
     from poekin.fileio import read_array
 
     path = getattr(args, "input", None)  # commands without --input (draw) read --q only
-    q = read_array(path) if path is not None else np.asarray(args.q, dtype=np.float64)
+    q = read_array(path, name="q") if path is not None else np.asarray(args.q, dtype=np.float64)
     n = len(space.names)
     if q.ndim == 0 or q.shape[-1] != n or not np.all(np.isfinite(q)):
         return q
@@ -264,20 +265,28 @@ def read_joint_values(args: argparse.Namespace, space: JointSpace) -> NDArray[np
 
 
 def _note_limits(q: NDArray[np.float64], space: JointSpace) -> None:
+    """One note naming every joint with a value outside its limits (in a batch: in how many
+    rows, and the first such value)."""
     lo, hi = space.limits[:, 0], space.limits[:, 1]
-    outside = (q < lo) | (q > hi)
+    rows = q.reshape(-1, q.shape[-1])
+    outside = (rows < lo) | (rows > hi)
     if not np.any(outside):
         return
-    rows = q.reshape(-1, q.shape[-1])
-    bad_rows = np.flatnonzero(outside.reshape(rows.shape).any(axis=-1))
-    row = int(bad_rows[0])
-    j = int(np.flatnonzero(outside.reshape(rows.shape)[row])[0])
-    unit = "rad" if space.angles[j] else "m"
-    which = f"{space.names[j]!r} = {rows[row, j]:.6g} {unit}, not in [{lo[j]:.6g}, {hi[j]:.6g}]"
-    if rows.shape[0] == 1:
-        note(f"outside the joint limits: {which} (computed all the same)")
+    one = rows.shape[0] == 1
+    joints = []
+    for j in np.flatnonzero(outside.any(axis=0)):
+        bad = np.flatnonzero(outside[:, j])
+        r = int(bad[0])
+        value = f"{rows[r, j]:.6g} {'rad' if space.angles[j] else 'm'}"
+        rows_word = f"{len(bad)} row{'s' if len(bad) > 1 else ''}"
+        where = f"= {value}" if one else f"in {rows_word} (first row {r}: {value})"
+        joints.append(f"{space.names[j]!r} {where}, not in [{lo[j]:.6g}, {hi[j]:.6g}]")
+    named = "; ".join(joints)
+    if one:
+        note(f"outside the joint limits: {named} (computed all the same)")
     else:
+        n_bad = int(np.count_nonzero(outside.any(axis=-1)))
         note(
-            f"{len(bad_rows)} of {rows.shape[0]} configurations are outside the joint limits, "
-            f"the first (row {row}): {which} (computed all the same)"
+            f"{n_bad} of {rows.shape[0]} configurations are outside the joint limits: {named} "
+            "(computed all the same)"
         )

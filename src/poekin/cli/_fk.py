@@ -5,8 +5,12 @@ Both speak one vocabulary for what ``q`` is and which frame is meant:
 * by default ``q`` holds the joint values of the chain from the world to ``--frame`` (the model's
   only site if not given); ``--params`` gives that chain as a parameter set instead;
 * ``--tree``: ``q`` is the whole model's ``qpos`` (MuJoCo's layout, free and ball joints
-  included), and ``--frame`` is any body or site; ``fk --all-frames`` poses every one of them,
-  and ``fk --relative-to A`` gives a frame's pose in frame ``A`` (both imply ``--tree``).
+  included), and ``--frame`` is any body or site; ``--all-frames`` gives every one of them, and
+  ``--relative-to A`` a frame's pose (or Jacobian) in frame ``A`` (both imply ``--tree``).
+
+``fk --form`` says how a pose is written: its 4 x 4 matrix, ``pos_quat`` (x y z, then the
+quaternion w x y z) or ``xyz_rpy`` (x y z, then roll pitch yaw in URDF's fixed-axis convention,
+``R = Rz(yaw) Ry(pitch) Rx(roll)``: :func:`poekin.lie.rotation_to_rpy`).
 """
 
 from __future__ import annotations
@@ -30,13 +34,13 @@ from poekin.cli._args import (
     read_joint_values,
 )
 from poekin.cli._describe import params_or_chain
-from poekin.cli._text import matrix_lines
+from poekin.cli._text import fixed, matrix_lines, table
 from poekin.errors import InputError
 
 if TYPE_CHECKING:
     from poekin.tree import Tree
 
-__all__ = ["register"]
+__all__ = ["end_chain", "register"]
 
 FloatArray = NDArray[np.float64]
 _ROWS = ("wx", "wy", "wz", "vx", "vy", "vz")
@@ -72,10 +76,10 @@ def _load_tree(args: argparse.Namespace) -> Tree:
     return load_tree(model_source(args, None), floating_base=args.floating_base)
 
 
-def _chain(args: argparse.Namespace) -> Any:
+def end_chain(args: argparse.Namespace) -> Any:
     """The chain (or DH table) to the frame, refusing a frame behind a ball or free joint with
-    the way to pose it (``--tree``)."""
-    if args.floating_base:
+    the way to pose it (``--tree``); ``poekin ik`` solves it too."""
+    if getattr(args, "floating_base", False):
         raise InputError("--floating-base gives a whole model's qpos: pass --tree too")
     if args.params:
         return params_or_chain(args)
@@ -88,7 +92,7 @@ def _chain(args: argparse.Namespace) -> Any:
         if kind in ("ball", "free"):
             raise InputError(
                 f"{frame!r} sits behind the {kind} joint {tree.joint_names[k]!r}, which a chain "
-                f"of hinges and slides cannot hold: pass --tree and give the whole qpos "
+                f"of hinges and slides cannot hold: pass --tree, with which q is the whole qpos "
                 f"({tree.nq} values: {tree.qpos_layout()})"
             )
     return tree.chain(frame)
@@ -96,7 +100,7 @@ def _chain(args: argparse.Namespace) -> Any:
 
 def _fk_target(args: argparse.Namespace) -> _Target:
     if not _tree_mode(args):
-        chain = _chain(args)
+        chain = end_chain(args)
         return _Target(chain.fk, JointSpace.of(chain), (chain.frame,))
     from poekin import lie
     from poekin.loading import default_frame
@@ -121,10 +125,10 @@ def _fk_target(args: argparse.Namespace) -> _Target:
 
 def _jacobian_target(args: argparse.Namespace) -> _Target:
     convention = args.convention
-    if not args.tree:
+    if not _tree_mode(args):
         from poekin.chain import Chain
 
-        chain = _chain(args)
+        chain = end_chain(args)
         if not isinstance(chain, Chain):
             chain = chain.to_chain()
         method = getattr(chain, f"jacobian_{convention}")
@@ -132,14 +136,24 @@ def _jacobian_target(args: argparse.Namespace) -> _Target:
     from poekin.loading import default_frame
 
     tree = _load_tree(args)
-    frame = args.frame or default_frame(tree)
-    tree.frame_index(frame)  # an unknown frame is said now, before q is read
+    if args.all_frames and args.frame:
+        raise InputError("--all-frames gives every frame: drop --frame, or drop --all-frames")
+    frames = tree.frame_names if args.all_frames else (args.frame or default_frame(tree),)
+    for f in (*frames, *([args.relative_to] if args.relative_to else [])):
+        tree.frame_index(f)  # an unknown frame is said now, before q is read
 
     def jacobian(qpos: FloatArray) -> FloatArray:
-        J: FloatArray = tree.jacobian(qpos, frame, convention)
-        return J
+        Js = [tree.jacobian(qpos, f, convention, relative_to=args.relative_to) for f in frames]
+        return np.stack(Js, axis=-3) if args.all_frames else Js[0]
 
-    return _Target(jacobian, JointSpace.of_tree(tree), (frame,), columns=tree.dof_names())
+    return _Target(
+        jacobian,
+        JointSpace.of_tree(tree),
+        frames,
+        args.all_frames,
+        columns=tree.dof_names(),
+        reference=args.relative_to or "world",
+    )
 
 
 def _check_q_args(args: argparse.Namespace, result: str) -> None:
@@ -147,7 +161,12 @@ def _check_q_args(args: argparse.Namespace, result: str) -> None:
     known format; ``--json`` only with ``--q``. Checked before any model is loaded."""
     from poekin.fileio import array_format, check_new_file
 
-    if (args.q is None) == (args.input is None):
+    if args.q is not None and args.input is not None:
+        raise InputError(
+            "both --q and --input were given; give one: --q Q1 ... Qn for one configuration, "
+            "or --input FILE for a batch"
+        )
+    if args.q is None and args.input is None:
         raise InputError("give joint values with --q Q1 ... Qn, or a batch with --input FILE")
     if args.input is not None:
         array_format(args.input, "--input")
@@ -177,41 +196,82 @@ def _save(
 ) -> None:
     from poekin.fileio import write_array
 
-    write_array(args.output, result, name=name, columns=columns, extras=extras)
+    write_array(args.output, result, name=name, columns=columns, extras=extras, what=what)
     print(f"{what} {name} of shape {result.shape} written to {args.output}", file=out)
 
 
 # --- fk ---------------------------------------------------------------------------------------
 
 
+_FORM_CELLS = {
+    "matrix": tuple(f"T{r}{c}" for r in range(4) for c in range(4)),
+    "pos_quat": ("x", "y", "z", "qw", "qx", "qy", "qz"),
+    "xyz_rpy": ("x", "y", "z", "roll", "pitch", "yaw"),
+}
+
+
+def _in_form(T: FloatArray, form: str) -> FloatArray:
+    """``(..., 4, 4)`` poses as ``form``: themselves, ``(..., 7)`` or ``(..., 6)``."""
+    from poekin import lie
+
+    if form == "matrix":
+        return T
+    R = T[..., :3, :3]
+    turn = lie.rotation_to_quat(R) if form == "pos_quat" else lie.rotation_to_rpy(R)
+    return np.concatenate([T[..., :3, 3], turn], axis=-1)
+
+
+def _form_lines(pose: FloatArray, form: str, precision: int) -> list[str]:
+    """One pose in ``form`` as aligned, labelled lines."""
+    if form == "matrix":
+        return matrix_lines(pose, precision)
+    label = "quat [wxyz]" if form == "pos_quat" else "rpy [rad]"
+    rows = [["xyz [m]", *(fixed(x, precision) for x in pose[:3])]]
+    rows.append([label, *(fixed(x, precision) for x in pose[3:])])
+    return table(rows)
+
+
 def _cmd_fk(args: argparse.Namespace, out: TextIO) -> int:
     _check_q_args(args, "poses")
     target = _fk_target(args)
     q = read_joint_values(args, target.space)
-    T = target.evaluate(q)
+    T = _in_form(target.evaluate(q), args.form)
     frames = target.frames
     ref = target.reference
+    name = "T" if args.form == "matrix" else args.form
     if args.input is not None:
-        cells = [f"T{r}{c}" for r in range(4) for c in range(4)]
-        columns = [f"{f}.{c}" for f in frames for c in cells] if target.many else cells
-        _save(args, T, "poses", "T", columns, {"frames": frames}, out)
+        cells = _FORM_CELLS[args.form]
+        columns = [f"{f}.{c}" for f in frames for c in cells] if target.many else list(cells)
+        _save(args, T, "poses", name, columns, {"frames": frames}, out)
         if target.many:
-            print(f"frames (axis -3): {', '.join(frames)}", file=out)
+            print(
+                f"frames (axis {-3 if args.form == 'matrix' else -2}): {', '.join(frames)}",
+                file=out,
+            )
         return 0
     poses = T if target.many else T[None]
     if args.json:
         named = {f: poses[k].tolist() for k, f in enumerate(frames)}
-        body = {"frames": named} if target.many else {"frame": frames[0], "T": named[frames[0]]}
+        body = {"frames": named} if target.many else {"frame": frames[0], name: named[frames[0]]}
         extra = {"relative_to": ref} if ref != "world" else {}
-        print(json.dumps({**body, **extra, "q": list(args.q), "deg": args.deg}), file=out)
+        form = {"form": args.form} if args.form != "matrix" else {}
+        print(json.dumps({**body, **extra, **form, "q": list(args.q), "deg": args.deg}), file=out)
         return 0
     for k, f in enumerate(frames):
         print(f"T_{ref}_{f} =", file=out)
-        print("\n".join(matrix_lines(poses[k], args.precision)), file=out)
+        print("\n".join(_form_lines(poses[k], args.form, args.precision)), file=out)
     return 0
 
 
 # --- jacobian ----------------------------------------------------------------------------------
+
+
+def _jacobian_rows(convention: str, reference: str) -> str:
+    """What the rows of a Jacobian are, in words."""
+    if convention == "world":
+        where = "world" if reference == "world" else repr(reference)
+        return f"[w; v_frame] in {where} coordinates"
+    return "[w; v]"
 
 
 def _cmd_jacobian(args: argparse.Namespace, out: TextIO) -> int:
@@ -219,20 +279,50 @@ def _cmd_jacobian(args: argparse.Namespace, out: TextIO) -> int:
     target = _jacobian_target(args)
     q = read_joint_values(args, target.space)
     J = target.evaluate(q)
-    frame, columns = target.frames[0], target.columns
+    frames, columns, ref = target.frames, target.columns, target.reference
     if args.input is not None:
         cells = [f"{r}:{c}" for r in _ROWS for c in columns]
-        _save(args, J, "Jacobians", "J", cells, {"columns": columns}, out)
+        if target.many:
+            cells = [f"{f}.{cell}" for f in frames for cell in cells]
+        extras = {"columns": columns, **({"frames": frames} if target.many else {})}
+        _save(args, J, "Jacobians", "J", cells, extras, out)
+        if target.many:
+            print(f"frames (axis -3): {', '.join(frames)}", file=out)
         return 0
+    per_frame = J if target.many else J[None]
     if args.json:
-        body = {"frame": frame, "convention": args.convention, "q": list(args.q), "deg": args.deg}
-        print(json.dumps({**body, "columns": list(columns), "J": J.tolist()}), file=out)
+        named = {f: per_frame[k].tolist() for k, f in enumerate(frames)}
+        body = {"frames": named} if target.many else {"frame": frames[0]}
+        extra = {"relative_to": ref} if ref != "world" else {}
+        head = {**body, **extra, "convention": args.convention, "q": list(args.q)}
+        tail = {"J": named[frames[0]]} if not target.many else {}
+        print(json.dumps({**head, "deg": args.deg, "columns": list(columns), **tail}), file=out)
         return 0
-    rows = "[w; v_frame] in world coordinates" if args.convention == "world" else "[w; v]"
-    print(f"J_{args.convention} of {frame!r} (6 x {J.shape[-1]}), rows {rows}", file=out)
-    print(f"columns: {', '.join(columns)}", file=out)
-    print("\n".join(matrix_lines(J, args.precision)), file=out)
+    rows = _jacobian_rows(args.convention, ref)
+    relative = f" relative to {ref!r}" if ref != "world" else ""
+    for k, f in enumerate(frames):
+        size = f"6 x {per_frame.shape[-1]}"
+        print(f"J_{args.convention} of {f!r}{relative} ({size}), rows {rows}", file=out)
+        if k == 0:
+            print(f"columns: {', '.join(columns)}", file=out)
+        print("\n".join(matrix_lines(per_frame[k], args.precision)), file=out)
     return 0
+
+
+def _frame_options(p: argparse.ArgumentParser, what: str) -> None:
+    """The frame options of fk and jacobian: ``--tree``, ``--floating-base``, ``--all-frames``
+    and ``--relative-to``; ``what`` is what each frame gets (``"pose"``)."""
+    _tree_options(p)
+    p.add_argument(
+        "--all-frames",
+        action="store_true",
+        help=f"the {what} of every body and site (implies --tree)",
+    )
+    p.add_argument(
+        "--relative-to",
+        metavar="A",
+        help=f"the {what} in body or site A instead of in the world (implies --tree)",
+    )
 
 
 def _tree_options(p: argparse.ArgumentParser) -> None:
@@ -254,27 +344,30 @@ def register(sub: Any, fmt: type[argparse.HelpFormatter]) -> None:
         "With --tree, q is the model's whole qpos (MuJoCo's layout: a free joint is "
         "x y z qw qx qy qz, a ball joint a quaternion wxyz) and --frame any body or site; "
         "--all-frames poses every body and site, (N, frames, 4, 4), and --relative-to A gives "
-        "T_A_frame; both imply --tree.",
+        "T_A_frame; both imply --tree. --form pos_quat writes each pose as x y z (m) and its "
+        "quaternion w x y z, (N, 7); --form xyz_rpy as x y z (m) and roll pitch yaw (rad) in "
+        "URDF's fixed-axis convention, R = Rz(yaw) Ry(pitch) Rx(roll) (roll about the fixed x "
+        "axis first, then pitch about y, then yaw about z; pitch in [-pi/2, pi/2]), (N, 6).",
         epilog="examples:\n  poekin fk universal_robots_ur5e --q 0 -1.57 1.57 0 0 0\n"
         "  poekin fk universal_robots_ur5e --q 0 -90 90 0 0 0 --deg\n"
+        "  poekin fk universal_robots_ur5e --q 0 -90 90 0 0 0 --deg --form xyz_rpy\n"
         "  poekin fk universal_robots_ur5e --input q.npy --output T.csv\n"
         "  poekin fk --params lynch-park-ur5 --q 0 -1.5708 0 0 1.5708 0\n"
         "  poekin fk unitree_go2 --all-frames --input qpos.npy --output T_all.npy\n"
-        "  poekin fk unitree_go2 --frame FL_calf --relative-to base --q 0 0 0.3 1 0 0 0 "
-        "0 0.9 -1.8 0 0.9 -1.8 0 0.9 -1.8 0 0.9 -1.8",
+        "  poekin fk unitree_go2 --frame FL_calf --relative-to base --form pos_quat --q 0 0 0.3 "
+        "1 0 0 0 0 0.9 -1.8 0 0.9 -1.8 0 0.9 -1.8 0 0.9 -1.8",
         formatter_class=fmt,
     )
     add_source(f)
     add_params(f, "use these parameters instead of a model")
-    add_joint_values(f, "FILE", "(N, 4, 4) poses")
-    _tree_options(f)
+    add_joint_values(f, "FILE", "poses ((N, 4, 4), or as --form says)")
+    _frame_options(f, "pose")
     f.add_argument(
-        "--all-frames", action="store_true", help="pose every body and site (implies --tree)"
-    )
-    f.add_argument(
-        "--relative-to",
-        metavar="A",
-        help="the pose in body or site A, T_A_frame, instead of in the world (implies --tree)",
+        "--form",
+        choices=list(_FORM_CELLS),
+        default="matrix",
+        help="each pose as its 4 x 4 matrix (default), pos_quat (x y z qw qx qy qz) or "
+        "xyz_rpy (x y z roll pitch yaw, R = Rz(yaw) Ry(pitch) Rx(roll))",
     )
     f.set_defaults(run=_cmd_fk)
 
@@ -286,12 +379,17 @@ def register(sub: Any, fmt: type[argparse.HelpFormatter]) -> None:
         "file. Rows are [w; v]. --convention space: the twist in the world frame (Modern "
         "Robotics' J_s); body: in the end frame (J_b); world: v is the velocity of the frame's "
         "origin in world coordinates, as MuJoCo's mj_jacSite. With --tree, q is the whole qpos "
-        "and the columns are MuJoCo's qvel (6 x nv): frames behind ball and free joints too.",
+        "and the columns are MuJoCo's qvel (6 x nv): frames behind ball and free joints too. "
+        "--all-frames gives the Jacobian of every body and site, (N, frames, 6, nv); "
+        "--relative-to A the Jacobian of T_A_frame, A in the world's role (space: the twist in "
+        "A; world: rows in A's coordinates); both imply --tree.",
         epilog="examples:\n  poekin jacobian universal_robots_ur5e --q 0 -1.57 1.57 0 0 0\n"
         "  poekin jacobian universal_robots_ur5e --q 0 0 0 0 0 0 --convention body --json\n"
         "  poekin jacobian universal_robots_ur5e --input q.npy --output J.npy\n"
         "  poekin jacobian unitree_go2 --tree --frame FL_calf --convention world --input "
-        "qpos.npy --output J.npy",
+        "qpos.npy --output J_FL_calf.npy\n"
+        "  poekin jacobian unitree_go2 --frame FL_calf --relative-to base --q 0 0 0.3 1 0 0 0 "
+        "0 0.9 -1.8 0 0.9 -1.8 0 0.9 -1.8 0 0.9 -1.8",
         formatter_class=fmt,
     )
     add_source(j)
@@ -303,5 +401,5 @@ def register(sub: Any, fmt: type[argparse.HelpFormatter]) -> None:
         default="space",
         help="space (J_s, default), body (J_b) or world (as mj_jacSite)",
     )
-    _tree_options(j)
+    _frame_options(j, "Jacobian")
     j.set_defaults(run=_cmd_jacobian)

@@ -155,19 +155,18 @@ def _print_report(report: Any, args: argparse.Namespace, out: TextIO) -> None:
 
 def _cmd_diagnose(args: argparse.Namespace, out: TextIO) -> int:
     from poekin.diagnose import diagnose
-    from poekin.loading import load
 
     _check_run_options(args)
-    yours = params(args.params)
-    model = load(model_source(args), args.frame)
     d = diagnose(
-        yours,
-        model,
+        params(args.params),
+        model_source(args),
+        frame=args.frame,
         samples=args.samples,
         seed=args.seed,
         pos_tol=args.pos_tol,
         ori_tol=args.ori_tol,
     )
+    model = d.model
     if args.plot:
         from poekin.plotting import plot_diagnosis
 
@@ -178,8 +177,11 @@ def _cmd_diagnose(args: argparse.Namespace, out: TextIO) -> int:
     if args.json:
         print(json.dumps(d.summary()), file=out)
         return 0 if d.matches else EXIT_FAIL
+    # what the file is, where it says more than its name (a UR calibration's model and hash)
+    robot = d.yours.robot
+    yours = args.params if robot in ("", args.params) else f"{args.params} ({robot})"
     print(
-        f"{args.params} vs {model.robot}  frame {model.frame!r}  {d.samples} random q in "
+        f"{yours} vs {model.robot}  frame {model.frame!r}  {d.samples} random q in "
         f"[-2 pi, 2 pi], seed {d.seed}",
         file=out,
     )
@@ -253,20 +255,22 @@ def register(sub: Any, fmt: type[argparse.HelpFormatter]) -> None:
         "1 if not, 2 on bad input.",
         epilog="examples:\n  poekin diagnose --params lynch-park-ur5\n"
         "  poekin diagnose --params my_ur5e.json --against universal_robots_ur5e "
-        "--plot why.png",
+        "--plot why.png\n"
+        "  poekin diagnose --params my_robot_calibration.yaml --against ur5e-dh",
         formatter_class=fmt,
     )
     g.add_argument(
         "--params",
         metavar="FILE|NAME",
         required=True,
-        help="your parameters: a DH table or PoE set as a .json/.yaml file, or a named set "
-        f"({PARAM_NAMES})",
+        help="your parameters: a DH table or PoE set as a .json/.yaml file, UR's calibration "
+        f".yaml (ur_calibration's kinematics:), or a named set ({PARAM_NAMES})",
     )
     g.add_argument(
         "--against",
         metavar="SOURCE",
-        help=f"Menagerie robot name, MJCF or URDF path (default: {DEFAULT_ROBOT})",
+        help=f"Menagerie robot name, MJCF or URDF path (default: {DEFAULT_ROBOT}), or another "
+        "parameter set (a named set or .json/.yaml file), e.g. ur5e-dh, UR's nominal UR5e",
     )
     g.add_argument(
         "--frame", metavar="F", help="end frame: site or body name (default: the only site)"

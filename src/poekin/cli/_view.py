@@ -16,6 +16,7 @@ from poekin.cli._args import (
     model_source,
     read_joint_values,
 )
+from poekin.errors import InputError
 
 __all__ = ["register"]
 
@@ -63,6 +64,11 @@ def _cmd_draw(args: argparse.Namespace, out: TextIO) -> int:
     from poekin.loading import load_tree
     from poekin.viewer.draw import draw
 
+    if args.aligned and not args.params:
+        raise InputError(
+            "--aligned draws the arm of --params after aligning its base to the model's: "
+            "give --params FILE|NAME too, or drop --aligned"
+        )
     figure_format(args.out, "--out")
     check_new_file(args.out, "drawing", force=args.force)
     source = model_source(args)
@@ -88,7 +94,8 @@ def register(sub: Any, fmt: type[argparse.HelpFormatter]) -> None:
         "view",
         help="see the robot, its screw axes and its PoE in the browser",
         description="Serve an interactive page (viser) with a slider per joint, the screw axes "
-        "S_i / B_i at the current q, T(q) and the Jacobian, the PoE step by step and DH frames; "
+        "S_i / B_i at the current q, T(q) and the Jacobian, the PoE step by step and DH frames, "
+        "an IK mode (drag a target handle, the arm follows; every closed-form solution a ghost); "
         "with --params, your parameters as a ghost arm with diagnose's findings. Needs the "
         "extra poekin[view]. Ctrl-C stops it.",
         epilog="examples:\n  poekin view\n  poekin view unitree_go2 --no-browser --port 8081\n"

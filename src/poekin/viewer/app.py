@@ -18,6 +18,7 @@ import ipaddress
 import math
 import os
 import threading
+import time
 import webbrowser
 from collections.abc import Callable
 from typing import Any, Literal
@@ -33,6 +34,7 @@ from poekin.errors import InputError, did_you_mean
 from poekin.tree import Tree
 from poekin.viewer import panel
 from poekin.viewer.geometry import Geometry, Part, mjcf_geometry, stand_in, urdf_geometry
+from poekin.viewer.ik import Reach, follow, ghost_poses, pick, reach, support
 from poekin.viewer.loading import Shown, load_params_comparison, load_shown
 from poekin.viewer.scene import (
     Comparison,
@@ -45,10 +47,10 @@ from poekin.viewer.scene import (
     dh_frames,
     ghost,
     jacobian,
+    joint_anchors,
     make_subject,
     manipulability,
     nearest_point,
-    rpy_from_rotation,
     screw_kind,
     snapshot,
 )
@@ -65,7 +67,12 @@ MISMATCH_COLOR = (200, 20, 20)
 PARTIAL_COLOR = (110, 40, 170)
 DH_COLOR = (0, 130, 130)
 LEVER_COLOR = (110, 110, 110)
+TARGET_COLOR = (20, 170, 60)  # the IK target, reached
+UNREACHABLE_COLOR = (225, 20, 20)  # the IK target, out of reach
+SOLUTION_COLOR = (40, 170, 120)  # the other closed-form solutions, as ghosts
+SOLUTION_OPACITY = 0.28
 _SYMBOL = {"space": "S", "body": "B"}
+_NO_SOLUTION = "(pick one)"
 _REVOLUTE_STEP = 1e-4  # rad: four decimals in the number box
 _DEGREE_STEP = 0.01
 _SLIDE_STEP = 1e-4  # m
@@ -158,6 +165,10 @@ class Viewer:
         self._rng = np.random.default_rng(0)
         self._closed = False
         self._extent = subject.extent
+        self._ik_support = support(subject)
+        self._reach: Reach | None = None
+        self._ik_solve_s: float | None = None
+        self._solution_meshes = False
         self.server = _start_server(host, port)
         self.host = host
         self.port = int(self.server.get_port())
@@ -245,25 +256,136 @@ class Viewer:
         too): e.g. ``set_option("DH frames", True)``, ``set_option("Jacobian", "body")``.
 
         Raises:
-            InputError: no such setting; the message lists them.
+            InputError: no such setting, or a value the control cannot show: a choice not in
+                its list, not True or False for a check box, not a number in a slider's range.
+                The message lists the valid ones.
         """
         if name not in self._options:
             raise InputError(f"no panel setting {name!r}: {did_you_mean(name, self._options)}")
-        self._options[name].value = value
+        handle = self._options[name]
+        if handle is self._ik_input and value is True:
+            self._check_ik()
+        choices = getattr(handle, "options", None)
+        if choices is not None:  # a dropdown
+            if value not in choices:
+                raise InputError(
+                    f"{name!r} has no choice {value!r}: {did_you_mean(str(value), choices)}"
+                )
+        elif isinstance(handle.value, bool):  # a check box
+            if not isinstance(value, bool | np.bool_):
+                raise InputError(f"{name!r} is a check box: give True or False, got {value!r}")
+            value = bool(value)
+        else:  # a slider
+            lo, hi = handle.min, handle.max
+            if (
+                isinstance(value, bool)
+                or not isinstance(value, int | float | np.integer | np.floating)
+                or not lo <= value <= hi
+            ):
+                raise InputError(f"{name!r} takes a number in [{lo:g}, {hi:g}], got {value!r}")
+        handle.value = value
 
     def snapshot(self) -> Snapshot:
         """What is drawn now (:func:`poekin.viewer.scene.snapshot` at :attr:`q`)."""
         return snapshot(self.subject, self._qpos)
 
+    # --- the IK mode ------------------------------------------------------------------------
+
+    @property
+    def reach(self) -> Reach | None:
+        """What the IK mode shows (:class:`poekin.viewer.ik.Reach`: the target, the
+        configuration, success, the residual, the closed-form solutions), or None when the
+        mode is off."""
+        return self._reach if self._ik_input.value else None
+
+    @property
+    def target(self) -> FloatArray | None:
+        """The IK target ``T_world_target`` ``(4, 4)`` (a copy), or None when the mode is off."""
+        shown = self.reach
+        return None if shown is None else shown.target.copy()
+
+    def set_target(self, T_world_target: ArrayLike) -> Reach:
+        """Put the IK target at ``T_world_target`` ``(4, 4)`` (world frame) and solve for it
+        from the configuration shown, as a drag of the target handle does: the arm, the
+        sliders, the handle, the ghosts of the other solutions and the residual all follow.
+        Turns the IK mode on.
+
+        Returns:
+            What is shown (:attr:`reach`): ``success`` False and the best fit for a target
+            out of reach.
+
+        Raises:
+            InputError: the IK mode does not apply to this end frame (the reason), or a target
+                that is not a finite rigid transform.
+        """
+        with self._lock:
+            self._check_ik()
+            shown = self._solve(T_world_target)  # validates before anything changes
+            if not self._ik_input.value:
+                self._syncing = True
+                try:
+                    self._ik_input.value = True
+                finally:
+                    self._syncing = False
+                self._show_ik_availability()
+            self._show(shown, move_target=True)
+            return shown
+
+    def pick_solution(self, index: int) -> Reach:
+        """Show the closed-form solution ``index`` (``0..m-1``, the ghost labelled
+        ``index + 1``) of the current target, as picking it on the page does.
+
+        Raises:
+            InputError: the IK mode is off, or no such solution.
+        """
+        with self._lock:
+            shown = self.reach
+            if shown is None:
+                raise InputError("the IK mode is off: set a target first (set_target)")
+            picked = pick(self.subject, shown, index)
+            self._show(picked, move_target=False)
+            return picked
+
+    def _check_ik(self) -> None:
+        why = self._ik_support.numerical
+        if why is not None:
+            raise InputError(f"no IK mode for the end frame {self.subject.frame!r}: {why}")
+
+    def _solve(self, T: ArrayLike) -> Reach:
+        start = time.perf_counter()
+        found = reach(
+            self.subject,
+            self._qpos,
+            T,
+            position_only=bool(self._ik_position_input.value),
+            ik_support=self._ik_support,
+        )
+        self._ik_solve_s = time.perf_counter() - start
+        return found
+
+    def _show(self, shown: Reach, *, move_target: bool) -> None:
+        """Show ``shown``: its configuration on the arm and the sliders, its target (the handle
+        moved there when ``move_target``; a drag has put it there already)."""
+        if shown.how == "picked":
+            self._ik_solve_s = None
+        self._reach = shown
+        self._qpos = shown.qpos
+        if move_target:
+            self._pose("/ik/target", shown.target)
+        self._refresh()
+        self._sync_controls()
+
     def texts(self) -> dict[str, str]:
         """The panel's readouts as sent to the page: ``pose``, ``jacobian``, ``poe``, ``screws``,
-        ``dh``, ``q`` (and ``compare`` with parameters)."""
+        ``dh``, ``q`` (and ``compare`` with parameters, ``ik`` in the IK mode)."""
         return dict(self._texts)
 
     def node_names(self, kind: str | None = None) -> list[str]:
         """Names of the scene nodes this viewer made (of one ``kind``: ``body``, ``frame``,
         ``end``, ``home``, ``screw``, ``partial``, ``dh``, ``ghost_link``, ``ghost_screw``,
-        ``ghost_end``, ``ghost_home``, ``part``, ``world``)."""
+        ``ghost_end``, ``ghost_home``, ``part``, ``world``; the IK mode's ``ik_target`` (the
+        handle), ``ik_marker``, ``ik_miss``, ``solution`` (one batched mesh per part: an
+        instance per ghost) and ``solution_label``)."""
         return [n for n, node in self._nodes.items() if kind is None or node.kind == kind]
 
     def node_poses(self, kind: str | None = None) -> dict[str, FloatArray]:
@@ -377,6 +499,7 @@ class Viewer:
         self._build_chain_nodes()
         if self.comparison is not None:
             self._build_ghost_nodes()
+        self._build_ik_nodes()
         position, look_at = self._camera(snapshot(subject, self._qpos))
         self.server.initial_camera.position = position
         self.server.initial_camera.look_at = look_at
@@ -388,6 +511,10 @@ class Viewer:
         if self.comparison is not None:  # your arm too: as given, it may point elsewhere
             gh = ghost(self.comparison, snap, aligned=self._aligned)
             origins = np.vstack([origins, gh.points, gh.T[None, :3, 3]])
+        shown = self._reach  # None while the page is built
+        if shown is not None and self._ik_input.value:  # the IK target and the ghosts
+            _, anchors = ghost_poses(self.subject, shown.solutions[shown.ghosts])
+            origins = np.vstack([origins, shown.target[None, :3, 3], *anchors])
         lo, hi = origins.min(axis=0), origins.max(axis=0)
         centre, size = (lo + hi) / 2, max(float(np.linalg.norm(hi - lo)), 0.1)
         position = centre + size * np.array([0.52, -0.72, 0.4])  # fills the view left of it
@@ -524,6 +651,82 @@ class Viewer:
         self._triad("/ghost/end", "ghost_end", scale=1.1, label=f"yours: {self.comparison.name}")
         self._triad("/ghost/home", "ghost_home", scale=0.7, label="your M")
 
+    def _build_ik_nodes(self) -> None:
+        """The IK mode's target handle (a transform control, dragged on the page) with its
+        marker and label, and the line from the end frame to a target out of reach."""
+        scene, e = self.server.scene, self._extent
+        handle = self._add(
+            "/ik/target",
+            "ik_target",
+            scene.add_transform_controls(
+                "/ik/target", scale=0.3 * e, line_width=3.0, depth_test=False, visible=False
+            ),
+        )
+        handle.on_update(lambda _: self._on_target_drag())
+        self._add(
+            "/ik/target/marker",
+            "ik_marker",
+            scene.add_icosphere(
+                "/ik/target/marker", radius=0.025 * e, color=TARGET_COLOR, visible=False
+            ),
+        )
+        self._add(
+            "/ik/target/label",
+            "label",
+            scene.add_label(
+                "/ik/target/label",
+                "IK target",
+                position=(0.0, 0.0, -0.04 * e),
+                anchor="top-left",
+                visible=False,
+            ),
+        )
+        self._add(
+            "/ik/miss",
+            "ik_miss",
+            scene.add_line_segments(
+                "/ik/miss",
+                np.zeros((1, 2, 3)),
+                UNREACHABLE_COLOR,
+                thickness=0.004 * e,
+                visible=False,
+            ),
+        )
+
+    def _build_solution_meshes(self, geometry: Geometry) -> None:
+        """One batched mesh per part of the robot, an instance per ghost solution (posed by its
+        body's pose in that solution), clickable; sent once, when the IK mode first shows
+        ghosts."""
+        for k, part in enumerate(geometry.parts):
+            name = f"/ik/solutions/part{k}"
+            handle = self.server.scene.add_batched_meshes_simple(
+                name,
+                part.vertices,
+                part.faces,
+                batched_wxyzs=np.array([[1.0, 0.0, 0.0, 0.0]]),
+                batched_positions=np.zeros((1, 3)),
+                batched_colors=SOLUTION_COLOR,
+                opacity=SOLUTION_OPACITY,
+                cast_shadow=False,
+                receive_shadow=False,
+                visible=False,
+            )
+            handle.on_click(lambda event: self._on_ghost_click(event.instance_index))
+            self._add(name, "solution", handle, part.body)
+        self._solution_meshes = True
+
+    def _solution_label(self, j: int) -> Any:
+        """The ``j``-th label of the ghost solutions (made when first needed)."""
+        name = f"/ik/solutions/label{j}"
+        if name not in self._nodes:
+            self._add(
+                name,
+                "solution_label",
+                self.server.scene.add_label(name, "", anchor="bottom-center", visible=False),
+                j,
+            )
+        return self._nodes[name].handle
+
     def _load_geometry(self) -> None:
         try:
             geometry = self._geometry_fn(self.subject)
@@ -537,6 +740,8 @@ class Viewer:
                     self._add_part(k, part)
                 self._geometry = geometry
                 self._geometry_note.content = f"geometry: {geometry.note}"
+                if self._ik_input.value:  # the ghost solutions can be drawn now
+                    self._refresh()
         self._geometry_ready.set()
 
     def _add_part(self, k: int, part: Part) -> None:
@@ -568,6 +773,8 @@ class Viewer:
                 "end frame", list(subject.tree.frame_names), initial_value=subject.frame
             )
             self._frame_input.on_update(lambda _: self._on_frame())
+        with gui.add_folder("Inverse kinematics"):
+            self._build_ik_controls()
         tabs = gui.add_tab_group()
         with tabs.add_tab("Joints"):
             self._build_joint_controls()
@@ -636,10 +843,68 @@ class Viewer:
                 self._convention_input,
                 self._show_dh,
                 self._dh_input,
+                self._ik_input,
+                self._ik_position_input,
+                self._show_solutions_input,
                 *([self._frame_input] if hasattr(self, "_frame_input") else []),
                 *([self._align_input] if self.comparison is not None else []),
             )
         }
+
+    def _build_ik_controls(self) -> None:
+        gui = self.server.gui
+        self._ik_input: Any = gui.add_checkbox(
+            "IK target",
+            False,
+            hint="a target handle at the end frame: drag it and the arm follows (inverse "
+            "kinematics from the configuration shown)",
+        )
+        self._ik_input.on_update(lambda _: self._on_ik_option())
+        self._ik_position_input: Any = gui.add_checkbox(
+            "position only",
+            self.subject.n_joints < 6,
+            hint="reach the target's position whatever the orientation (arms with fewer than "
+            "six joints, legs)",
+        )
+        self._ik_position_input.on_update(lambda _: self._on_ik_option())
+        self._show_solutions_input: Any = gui.add_checkbox(
+            "ghost solutions",
+            True,
+            hint="the other closed-form solutions as ghost arms, numbered as in the picker",
+        )
+        self._show_solutions_input.on_update(lambda _: self._on_view_option())
+        self._ik_note = gui.add_markdown("")
+        self._ik_text = gui.add_markdown("")
+        self._solution_input: Any = gui.add_dropdown(
+            "solution", [_NO_SOLUTION], hint="the closed-form solutions; the number is the ghost's"
+        )
+        self._solution_input.on_update(lambda _: self._on_solution_choice())
+        self._target_input: Any = gui.add_text(
+            "target", "", hint="x y z qw qx qy qz: metres, a unit quaternion, world frame"
+        )
+        self._target_button = gui.add_button("set target")
+        self._target_button.on_click(lambda _: self._on_set_target())
+        self._ik_rows = (
+            self._ik_position_input,
+            self._show_solutions_input,
+            self._ik_text,
+            self._solution_input,
+            self._target_input,
+            self._target_button,
+        )
+        self._show_ik_availability()
+
+    def _show_ik_availability(self) -> None:
+        """Enable the IK mode's check box for an end frame it applies to; else disable it and
+        say why."""
+        why = self._ik_support.numerical
+        self._ik_input.disabled = why is not None
+        self._ik_note.content = "" if why is None else f"IK mode: not for this frame: {why}"
+        on = bool(self._ik_input.value)
+        for row in self._ik_rows:
+            row.visible = on
+        closed_form = on and self._ik_support.analytic is None and not self._ik_position_input.value
+        self._solution_input.visible = self._show_solutions_input.visible = closed_form
 
     def _build_joint_controls(self) -> None:
         gui = self.server.gui
@@ -778,6 +1043,66 @@ class Viewer:
                 self._nodes[f"/screws/s{i}/label"].handle.text = f"{symbol}{i + 1}"
             self._refresh()
 
+    def _on_ik_option(self) -> None:
+        """The IK check box or "position only": the target starts at the end frame, or is
+        solved again for the other kind of target."""
+        if self._syncing:
+            return
+        with self._lock:
+            if self._ik_input.value and self._ik_support.numerical is not None:
+                self._syncing = True
+                try:
+                    self._ik_input.value = False  # a disabled box: refused
+                finally:
+                    self._syncing = False
+            shown = self._reach
+            self._show_ik_availability()
+            if self._ik_input.value and shown is not None and shown.how != "follow":
+                self._show(self._solve(shown.target), move_target=False)
+                return
+            self._reach = None  # on: the target at the end frame
+            self._refresh()
+
+    def _on_target_drag(self) -> None:
+        """A drag of the target handle (each pose the page sends, in viser's thread pool):
+        solve for the handle's pose as it is now, the latest one."""
+        with self._lock:
+            if self._closed or not self._ik_input.value:
+                return
+            handle = self._nodes["/ik/target"].handle
+            T = np.eye(4)
+            T[:3, :3] = lie.quat_to_rotation(lie.quat_normalize(handle.wxyz))
+            T[:3, 3] = handle.position
+            if self._reach is not None and np.array_equal(T, self._reach.target):
+                return  # an update already solved
+            self._show(self._solve(T), move_target=False)
+
+    def _on_set_target(self) -> None:
+        try:
+            T = _pose_from_text(self._target_input.value)
+            self.set_target(T)
+        except InputError as exc:
+            self._ik_note.content = f"**target not set:** {exc}"
+            return
+        self._ik_note.content = ""
+
+    def _on_solution_choice(self) -> None:
+        if self._syncing:
+            return
+        choice = self._solution_input.value
+        if choice != _NO_SOLUTION:
+            with self._lock:
+                if self.reach is not None:
+                    self.pick_solution(int(choice.split(":")[0]) - 1)
+
+    def _on_ghost_click(self, instance: int | None) -> None:
+        """A click on a ghost: show its solution. The instances are the ghosts in the order
+        of :attr:`Reach.ghosts <poekin.viewer.ik.Reach.ghosts>`."""
+        with self._lock:
+            shown = self.reach
+            if shown is not None and instance is not None and 0 <= instance < len(shown.ghosts):
+                self.pick_solution(shown.ghosts[instance])
+
     def _frame_client(self, client: Any) -> None:
         if client is None:
             return
@@ -826,6 +1151,16 @@ class Viewer:
                 finally:
                     self._syncing = False
                 self._k = new.n_joints
+                self._ik_support = support(new)
+                self._reach = None  # the IK target: at the new end frame
+                self._syncing = True
+                try:
+                    self._ik_position_input.value = new.n_joints < 6
+                    if not self._ik_support.available:
+                        self._ik_input.value = False
+                finally:
+                    self._syncing = False
+                self._show_ik_availability()
                 title = f"**{new.name}**, end frame `{new.frame}`, {new.n_joints} joints"
                 if new.base_body is not None and new.tree is not None:
                     title += f" from the floating body `{new.tree.body_names[new.base_body]}`"
@@ -848,8 +1183,8 @@ class Viewer:
                 else:
                     start = c.adr + (3 if c.kind == "free" else 0)
                     quat = np.asarray(lie.quat_normalize(x[start : start + 4]), dtype=np.float64)
-                    rpy = rpy_from_rotation(np.asarray(lie.quat_to_rotation(quat)))
-                    value = rpy[("roll", "pitch", "yaw").index(key)]
+                    rpy = lie.rotation_to_rpy(lie.quat_to_rotation(quat))
+                    value = float(rpy[("roll", "pitch", "yaw").index(key)])
                     value = math.degrees(value) if deg else value
                 slider.value = value
             self._q_input.value = " ".join(f"{v + 0.0:.6g}" for v in x)
@@ -920,6 +1255,7 @@ class Viewer:
             self._texts["q"] = " ".join(f"{v + 0.0:.6g}" for v in snap.qpos)
             if self.comparison is not None:
                 self._refresh_ghost(snap)
+            self._refresh_ik(snap)
             self._send_poses()
         self.server.flush()
 
@@ -986,6 +1322,148 @@ class Viewer:
         self._set_text(
             "compare", self._compare_text, panel.compare_text(self.comparison, gh, self._aligned)
         )
+
+    def _refresh_ik(self, snap: Snapshot) -> None:
+        """The IK mode's nodes and texts; all hidden when it is off. A configuration set by
+        other means (a slider, a button, ``q``) puts the target at the end frame."""
+        on = bool(self._ik_input.value)
+        for name in ("/ik/target", "/ik/target/marker", "/ik/target/label"):
+            _set(self._nodes[name].handle, "visible", on)
+        if not on:
+            _set(self._nodes["/ik/miss"].handle, "visible", False)
+            self._show_solutions(snap, None)
+            self._texts.pop("ik", None)
+            return
+        shown = self._reach
+        if shown is None or not np.array_equal(shown.qpos, snap.qpos):
+            shown = self._reach = follow(
+                self.subject,
+                snap.qpos,
+                position_only=bool(self._ik_position_input.value),
+                ik_support=self._ik_support,
+            )
+            self._ik_solve_s = None
+            self._pose("/ik/target", shown.target)
+        color = TARGET_COLOR if shown.success else UNREACHABLE_COLOR
+        _set(self._nodes["/ik/target/marker"].handle, "color", color)
+        _set(
+            self._nodes["/ik/target/label"].handle,
+            "text",
+            "IK target"
+            if shown.success
+            else f"unreachable: {panel.residual_words(shown.pos_err, shown.ori_err)}",
+        )
+        miss = self._nodes["/ik/miss"].handle
+        _set(miss, "visible", not shown.success)
+        if miss.visible:
+            miss.points = np.array([[snap.T[:3, 3], shown.target[:3, 3]]], dtype=np.float32)
+        self._show_solutions(snap, shown)
+        self._set_text(
+            "ik",
+            self._ik_text,
+            panel.ik_text(
+                shown,
+                self._ik_support,
+                position_only=bool(self._ik_position_input.value),
+                solve_s=self._ik_solve_s,
+            ),
+        )
+        _set(self._target_input, "value", _pose_words(shown.target))
+
+    def _show_solutions(self, snap: Snapshot, shown: Reach | None) -> None:
+        """The ghosts of the other closed-form solutions (none for ``shown`` None), their
+        numbers, and the picker's choices."""
+        ghosts = [] if shown is None or not self._show_solutions_input.value else shown.ghosts
+        if ghosts and not self._solution_meshes and self._geometry is not None:
+            self._build_solution_meshes(self._geometry)
+        if ghosts:
+            assert shown is not None
+            bodies, anchors = ghost_poses(self.subject, shown.solutions[ghosts])
+            quats = _quat(bodies[..., :3, :3])  # (ghosts, bodies, 4): one batched conversion
+        for name in self.node_names("solution"):
+            node = self._nodes[name]
+            _set(node.handle, "visible", bool(ghosts))
+            if ghosts:
+                node.handle.batched_wxyzs = quats[:, node.index]
+                node.handle.batched_positions = bodies[:, node.index, :3, 3]
+        # a number by each ghost (and the arm's, if it is one of the solutions), at the joint
+        # whose place differs most between them (a UR's elbow); numbers that would overlap
+        # share one label
+        groups: list[tuple[FloatArray, list[str]]] = []
+        if ghosts:
+            assert shown is not None
+            arm = joint_anchors(self.subject, snap.bodies)
+            every = np.concatenate([arm[None], anchors])
+            spread = int(np.argmax(np.sum(np.var(every, axis=0), axis=-1)))
+            places = [(anchors[i, spread], str(k + 1)) for i, k in enumerate(ghosts)]
+            if shown.current >= 0:
+                places.insert(0, (arm[spread], f"{shown.current + 1} (the arm)"))
+            for at, number in places:
+                near = [g for g in groups if np.linalg.norm(g[0] - at) < 0.08 * self._extent]
+                if near:
+                    near[0][1].append(number)
+                else:
+                    groups.append((at, [number]))
+        for j, (at, numbers) in enumerate(groups):
+            label = self._solution_label(j)
+            _set(label, "text", ", ".join(numbers))
+            label.position = at
+            _set(label, "visible", True)
+        for name in self.node_names("solution_label"):
+            if self._nodes[name].index >= len(groups):
+                _set(self._nodes[name].handle, "visible", False)
+        choices = [_NO_SOLUTION]
+        if shown is not None:
+            kinds = self.subject.chain.joint_types
+            for k, x in enumerate(shown.solutions):
+                q = self.subject.chain_q(x)
+                choices.append(panel.solution_label(k, q, kinds, self._unit))
+        self._syncing = True
+        try:
+            if tuple(self._solution_input.options) != tuple(choices):
+                self._solution_input.options = choices
+            current = -1 if shown is None else shown.current
+            _set(self._solution_input, "value", choices[current + 1])
+        finally:
+            self._syncing = False
+
+
+def _set(handle: Any, name: str, value: Any) -> None:
+    """Set a node's or control's property only if it changes (each set is a message)."""
+    if not np.array_equal(getattr(handle, name), value):
+        setattr(handle, name, value)
+
+
+def _pose_words(T: FloatArray) -> str:
+    """``x y z qw qx qy qz`` of a pose, as the target box shows and reads it."""
+    numbers = [*T[:3, 3], *_quat(T[:3, :3])]
+    return " ".join(f"{v + 0.0:.6g}" for v in numbers)
+
+
+def _pose_from_text(text: str) -> FloatArray:
+    """A pose from ``x y z qw qx qy qz`` (commas and brackets allowed); the quaternion must
+    have a norm within 1e-3 of 1 (typed decimals) and is normalised.
+
+    Raises:
+        InputError: not seven numbers, or not a unit quaternion.
+    """
+    words = text.replace(",", " ").replace("[", " ").replace("]", " ").split()
+    try:
+        values = [float(w) for w in words]
+    except ValueError:
+        raise InputError(f"the target is 7 numbers, x y z qw qx qy qz; got {text!r:.60}") from None
+    if len(values) != 7 or not all(math.isfinite(v) for v in values):
+        raise InputError(
+            f"the target is 7 finite numbers, x y z qw qx qy qz; got {len(values)}: {text!r:.60}"
+        )
+    quat = np.array(values[3:])
+    norm = float(np.linalg.norm(quat))
+    if abs(norm - 1.0) > 1e-3:
+        raise InputError(f"qw qx qy qz must be a unit quaternion; its norm is {norm:.6g}")
+    T = np.eye(4)
+    T[:3, :3] = lie.quat_to_rotation(quat / norm)
+    T[:3, 3] = values[:3]
+    return T
 
 
 def _directions(screws: FloatArray) -> FloatArray:

@@ -21,10 +21,11 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 from numpy.typing import ArrayLike, NDArray
 
+from poekin._labels import Label, directions_away, place_labels, screen_direction
 from poekin.chain import Chain
 from poekin.dh import DHTable
 from poekin.errors import InputError
-from poekin.fileio import figure_format
+from poekin.fileio import check_writable, figure_format, save_figure
 from poekin.plotting import _MODEL_COLOR, _YOURS_COLOR, draw_triad
 from poekin.viewer.scene import (
     FORMS,
@@ -57,9 +58,10 @@ def _screws(
     length: float,
     *,
     width: float,
-) -> None:
+) -> list[Label]:
     """Each axis as a line through its point with an arrow (from ``-0.6 L`` to ``L``; a slide
-    from its point on), and its label at the tip."""
+    from its point on); its label goes beyond the arrow's tip, where that is free."""
+    out = []
     for S, p, label in zip(screws, points, labels, strict=True):
         kind = screw_kind(S)
         d = S[:3] if kind != "prismatic" else S[3:] / np.linalg.norm(S[3:])
@@ -73,11 +75,25 @@ def _screws(
             linestyle="--" if kind == "prismatic" else "-",
             zorder=5,
         )
-        tip = p + 1.1 * length * d
+        if not label:
+            continue
         text = label + (" (slide)" if kind == "prismatic" else "")
         if kind == "pitched":
             text += f" (pitch {float(S[:3] @ S[3:]):.3g} m/rad)"
-        ax.text(*tip, text, color=color, fontsize=9, fontweight="bold", zorder=6)
+        style = {"color": color, "fontsize": 9, "fontweight": "bold", "zorder": 6}
+        away = directions_away([-_on_screen(d)])
+        out.append(Label(ax, text, style, at=p + length * d, directions=away, offset_pt=3.0))
+    return out
+
+
+def _on_screen(v: FloatArray) -> FloatArray:
+    return screen_direction(v, _ELEV, _AZIM)
+
+
+def _frame_label(ax: Any, T: FloatArray, text: str, **style: Any) -> Label:
+    """A label by the origin of frame ``T``, away from its three axes."""
+    away = directions_away([_on_screen(T[:3, k]) for k in range(3)])
+    return Label(ax, text, {"fontsize": 9, "zorder": 6, **style}, at=T[:3, 3], directions=away)
 
 
 def figure(
@@ -91,7 +107,8 @@ def figure(
     tips: dict[int, list[Any]] | None = None,
     title: str | None = None,
 ) -> Figure:
-    """The drawing of ``subject`` at ``qpos`` (see the module docstring).
+    """The drawing of ``subject`` at ``qpos`` (see the module docstring). Its labels overlap
+    neither each other nor the axes' tick labels (:mod:`poekin._labels`).
 
     Raises:
         InputError: ``qpos`` is not ``nq`` finite numbers, or an unknown ``form``.
@@ -133,7 +150,7 @@ def figure(
         )
     symbol = "S" if form == "space" else "B"
     L = 0.22 * e
-    _screws(
+    labels = _screws(
         ax,
         snap.screws,
         snap.points,
@@ -144,19 +161,17 @@ def figure(
     )
     triad = 0.1 * e
     draw_triad(ax, np.eye(4), 1.3 * triad, width=1.8)
-    ax.text(0.0, 0.0, -0.04 * e, "world", fontsize=8, color="0.3", ha="center", va="top")
     draw_triad(ax, snap.T, 1.3 * triad, width=2.6)
-    ax.text(*(snap.T[:3, 3] + 0.03 * e), f"T(q): {subject.frame}", fontsize=9, zorder=6)
     draw_triad(ax, snap.home, triad, dashed=True, width=1.8)
-    ax.text(*(snap.home[:3, 3] - 0.05 * e), "M", fontsize=9, color="0.3", zorder=6)
-    if all_frames:
-        for name, T in zip(subject.frame_names, snap.frames, strict=True):
-            draw_triad(ax, T, 0.5 * triad, width=1.0)
-            ax.text(*T[:3, 3], name, fontsize=6, color="0.35", zorder=6)
+    frames = [
+        _frame_label(ax, snap.T, f"T(q): {subject.frame}"),
+        _frame_label(ax, snap.home, "M", color="0.3"),
+        _frame_label(ax, np.eye(4), "world", color="0.3", fontsize=8),
+    ]
     error = ""
     if comparison is not None:
         gh: Ghost = ghost(comparison, snap, aligned=aligned)
-        labels = comparison.diagnosis.joint_labels()
+        found = comparison.diagnosis.joint_labels()
         stops = np.vstack([gh.links[0][None, :3, 3], gh.points, gh.T[None, :3, 3]])
         ax.plot(
             *stops.T,
@@ -167,22 +182,21 @@ def figure(
             markersize=3.5,
             zorder=3.5,
         )
-        names = [f"J{i + 1} {labels[i]}" if i in labels else "" for i in range(gh.screws.shape[0])]
-        _screws(ax, gh.screws, gh.points, names, _YOURS_COLOR, 0.7 * L, width=1.4)
+        names = [f"J{i + 1} {found[i]}" if i in found else "" for i in range(gh.screws.shape[0])]
+        labels += _screws(ax, gh.screws, gh.points, names, _YOURS_COLOR, 0.7 * L, width=1.4)
         draw_triad(ax, gh.T, triad, dashed=True, width=1.8)
-        ax.text(
-            *(gh.T[:3, 3] + 0.03 * e),
-            f"yours: {comparison.name}",
-            fontsize=9,
-            color=_YOURS_COLOR,
-            zorder=6,
-        )
+        frames.insert(1, _frame_label(ax, gh.T, f"yours: {comparison.name}", color=_YOURS_COLOR))
         drawn += [stops]
-        placed = "after aligning your base" if aligned else "as given"
+        placed = comparison.diagnosis.placement(aligned)
         error = (
             f"\n{comparison.name} ({placed}): end frame off by {gh.pos_err:.3g} m, "
             f"{gh.ori_err:.3g} rad ({math.degrees(gh.ori_err):.3g} deg)"
         )
+    labels += frames
+    if all_frames:
+        for name, T in zip(subject.frame_names, snap.frames, strict=True):
+            draw_triad(ax, T, 0.5 * triad, width=1.0)
+            labels.append(_frame_label(ax, T, name, fontsize=6, color="0.35"))
     points = np.vstack(drawn)
     lo, hi = points.min(axis=0), points.max(axis=0)
     centre, half = (lo + hi) / 2, float(np.max(hi - lo)) / 2 + 0.15 * e
@@ -204,6 +218,7 @@ def figure(
     )
     fig.suptitle(f"{head} at q = [{q}]\nscrew axes {words}{error}", fontsize=10)
     fig.subplots_adjust(left=0.0, right=1.0, bottom=0.02, top=0.9)
+    place_labels(fig, labels, points=[(ax, points)])
     return fig
 
 
@@ -225,12 +240,20 @@ def draw(
     replaced.
 
     Raises:
-        InputError: an unknown suffix (before any work), ``qpos`` of the wrong length, ...
+        InputError: an unknown suffix or a path that cannot be written (both before any work:
+            :func:`poekin.fileio.check_writable`), ``aligned`` without ``params``, ``qpos`` of
+            the wrong length, ...
     """
     from poekin.viewer.geometry import _geom_tips
     from poekin.viewer.loading import load_params_comparison, load_shown
 
-    fmt = figure_format(path, "drawing") if path is not None else None
+    if aligned and params is None:
+        raise InputError(
+            "aligned=True draws your parameters after aligning their base: give params too"
+        )
+    if path is not None:
+        figure_format(path, "drawing")
+        check_writable(path, "the drawing")
     shown = load_shown(model, frame)
     subject = shown.subject
     comparison = load_params_comparison(subject, params)
@@ -245,5 +268,5 @@ def draw(
         tips=tips,
     )
     if path is not None:
-        fig.savefig(path, format=fmt, dpi=_DPI)
+        save_figure(fig, path, dpi=_DPI, what="drawing")
     return fig

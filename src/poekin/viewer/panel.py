@@ -15,6 +15,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from poekin.dh import DHTable
+from poekin.viewer.ik import IKSupport, Reach
 from poekin.viewer.scene import (
     Comparison,
     Form,
@@ -31,11 +32,14 @@ __all__ = [
     "POSE_DIGITS",
     "compare_text",
     "dh_text",
+    "ik_text",
     "jacobian_text",
     "poe_text",
     "pose_text",
     "q_text",
+    "residual_words",
     "screws_text",
+    "solution_label",
 ]
 
 FloatArray = NDArray[np.float64]
@@ -195,11 +199,7 @@ def compare_text(comparison: Comparison, ghost: Ghost, aligned: bool) -> str:
     """The live end-frame error, the verdict and :func:`~poekin.diagnose.diagnose`'s findings."""
     d = comparison.diagnosis
     verdict = "MATCH" if d.matches else "MISMATCH"
-    placed = (
-        "after aligning your base to the model's"
-        if aligned
-        else "as given, on the model's base frame"
-    )
+    placed = d.placement(aligned) + ("" if aligned else ", on the model's base frame")
     lines = [
         f"**{comparison.name}** vs **{d.model.robot or 'the model'}** / `{d.model.frame}`: "
         f"**{verdict}**",
@@ -216,3 +216,53 @@ def compare_text(comparison: Comparison, ghost: Ghost, aligned: bool) -> str:
         lines.append("**what the errors point to:**")
         lines += [f"- {s}" for s in d.symptoms]
     return "\n\n".join(lines)
+
+
+_HOW = {
+    "current": "solved from the configuration shown",
+    "restart": "solved after a restart: the configuration shown could not reach it",
+    "analytic": "the closed-form solution nearest the configuration shown",
+    "picked": "the closed-form solution picked",
+    "follow": "the target is at the end frame: drag it, or type a pose below",
+    "best fit": "out of reach: the arm shows its best fit from where it was",
+}
+
+
+def residual_words(pos_err: float, ori_err: float) -> str:
+    """A residual in millimetres and milliradians, e.g. ``123.4 mm, 56.78 mrad``."""
+    return f"{pos_err * 1e3:.4g} mm, {ori_err * 1e3:.4g} mrad"
+
+
+def ik_text(
+    reach: Reach, ik: IKSupport, *, position_only: bool, solve_s: float | None = None
+) -> str:
+    """The IK mode's status: reached or not, the residual, how the arm got there, and the
+    closed-form solutions (or why there are none)."""
+    head = "**target reached**" if reach.success else "**UNREACHABLE**: out of reach"
+    residual = f"residual: `{residual_words(reach.pos_err, reach.ori_err)}`"
+    if position_only:
+        residual += " (position only: the orientation is free)"
+    took = "" if solve_s is None else f" ({solve_s * 1e3:.2g} ms)"
+    lines = [head, residual, _HOW[reach.how] + took]
+    m = len(reach.solutions)
+    if ik.analytic is not None:
+        lines.append(f"all solutions: no closed form for this chain ({ik.analytic})")
+    elif position_only:
+        lines.append("all solutions: the closed form needs a whole pose (untick position only)")
+    elif m == 0:
+        lines.append("all solutions: none in closed form within the limits")
+    else:
+        others = "; the others are ghosts: pick one below, or click it" if m > 1 else ""
+        lines.append(f"all solutions: **{m}** in closed form within the limits{others}")
+    return "\n\n".join(lines)
+
+
+def solution_label(index: int, q: FloatArray, kinds: Sequence[str], unit: Unit = "rad") -> str:
+    """A closed-form solution in the picker: its number (as the ghost's label) and its joint
+    values, hinges in ``unit`` (2 decimals in rad, 1 in deg)."""
+    deg = unit == "deg"
+    values = [
+        f"{math.degrees(v):.1f}" if deg and k == "revolute" else f"{float(v) + 0.0:.2f}"
+        for v, k in zip(q, kinds, strict=True)
+    ]
+    return f"{index + 1}: " + " ".join(values)

@@ -61,12 +61,12 @@ __all__ = [
     "format_matrix",
     "ghost",
     "jacobian",
+    "joint_anchors",
     "link_frames",
     "make_subject",
     "manipulability",
     "nearest_point",
     "pose_summary",
-    "rpy_from_rotation",
     "screw_kind",
     "skeleton",
     "snapshot",
@@ -422,6 +422,24 @@ class Snapshot:
     partial: FloatArray
 
 
+def joint_anchors(subject: Subject, bodies: FloatArray) -> FloatArray:
+    """``(..., n, 3)`` each chain joint's anchor in the world, from the world poses ``(..., nb,
+    4, 4)`` of :attr:`Subject.body_names`: a tree joint's anchor in its body, a bare chain's
+    axis point at ``q = 0`` (:func:`~poekin.dh.joint_lines`) in its link."""
+    chain = subject.chain
+    if subject.tree is not None:
+        tree = subject.tree
+        joints = [tree.joint_names.index(j) for j in chain.joint_names]
+        which = np.asarray(tree.joint_bodies, dtype=np.intp)[joints]
+        local = np.asarray(tree.joint_anchors, dtype=np.float64)[joints]
+    else:
+        which = np.arange(chain.n_joints)  # joint i + 1 turns with link i
+        local = joint_lines(chain)[1]
+    T = bodies[..., which, :, :]
+    out: FloatArray = np.einsum("...ij,...j->...i", T[..., :3, :3], local) + T[..., :3, 3]
+    return out.reshape(*bodies.shape[:-3], chain.n_joints, 3)
+
+
 def snapshot(subject: Subject, qpos: ArrayLike) -> Snapshot:
     """What to draw at ``qpos`` (``(nq,)``, MuJoCo's layout; a bare chain: its joint values).
 
@@ -434,22 +452,14 @@ def snapshot(subject: Subject, qpos: ArrayLike) -> Snapshot:
     S = chain.jacobian_space(q).T
     B = chain.jacobian_body(q).T
     if subject.tree is not None:
-        tree = subject.tree
-        frames = tree.fk(x)
-        bodies = frames[: len(tree.body_names)]
+        frames = subject.tree.fk(x)
+        bodies = frames[: len(subject.tree.body_names)]
         base = bodies[subject.base_body] if subject.base_body is not None else np.eye(4)
-        joints = [tree.joint_names.index(j) for j in chain.joint_names]
-        anchors = np.array(
-            [bodies[tree.joint_bodies[k]] @ np.append(tree.joint_anchors[k], 1.0) for k in joints]
-        ).reshape(-1, 4)[:, :3]
     else:
         base = np.eye(4)
         bodies = links
         frames = np.concatenate([links, partial[-1:]])
-        _, points0 = joint_lines(chain)
-        anchors = np.array(
-            [links[i] @ np.append(points0[i], 1.0) for i in range(chain.n_joints)]
-        ).reshape(-1, 4)[:, :3]
+    anchors = joint_anchors(subject, bodies)
     screws = S @ np.asarray(lie.adjoint(base), dtype=np.float64).T
     return Snapshot(
         qpos=x,
@@ -652,19 +662,6 @@ def skeleton(
 # --- readouts -----------------------------------------------------------------------------------
 
 
-def rpy_from_rotation(R: FloatArray) -> tuple[float, float, float]:
-    """Roll, pitch, yaw (rad) with ``R = Rz(yaw) Ry(pitch) Rx(roll)`` (URDF's ``rpy``): pitch in
-    ``[-pi/2, pi/2]``; at pitch ``+-pi/2`` (gimbal lock) roll is 0 and yaw takes the rest."""
-    pitch = math.atan2(-float(R[2, 0]), math.hypot(float(R[0, 0]), float(R[1, 0])))
-    if math.hypot(float(R[0, 0]), float(R[1, 0])) < 1e-12:
-        return 0.0, pitch, math.atan2(-float(R[0, 1]), float(R[1, 1]))
-    return (
-        math.atan2(float(R[2, 1]), float(R[2, 2])),
-        pitch,
-        math.atan2(float(R[1, 0]), float(R[0, 0])),
-    )
-
-
 def pose_summary(T: FloatArray) -> dict[str, tuple[float, ...]]:
     """``{"position": (x, y, z), "quat_wxyz": (w, x, y, z), "rpy": (roll, pitch, yaw)}`` of a
     pose, quaternion with ``w >= 0``."""
@@ -672,7 +669,7 @@ def pose_summary(T: FloatArray) -> dict[str, tuple[float, ...]]:
     return {
         "position": tuple(float(x) for x in T[:3, 3]),
         "quat_wxyz": tuple(float(x) for x in quat),
-        "rpy": rpy_from_rotation(T[:3, :3]),
+        "rpy": tuple(float(x) for x in lie.rotation_to_rpy(T[:3, :3])),
     }
 
 

@@ -1,0 +1,456 @@
+"""Inverse kinematics of JAX arrays and PyTorch tensors: a fixed-iteration solve that traces
+(``jax.jit``, ``jax.vmap``, ``shard_map``, ``torch.compile``), and the solution's derivative by
+the implicit function theorem.
+
+**The solve** is :mod:`poekin.ik.numerical`'s algorithm, from its own per-iteration functions
+(:func:`~poekin.ik.numerical.evaluate`, :func:`~poekin.ik.numerical.residual`,
+:func:`~poekin.ik.numerical.jacobian_rows`, :func:`~poekin.ik.numerical.step`) and its random
+starts (:mod:`poekin.ik._rng`, the same counter-based numbers as NumPy's), with a fixed shape
+of work instead of the NumPy solve's bookkeeping:
+
+* ``max_attempts`` attempts run side by side, as a leading batch axis: attempt 0 starts at
+  ``q0`` if given, attempt ``a`` otherwise at the NumPy solve's ``a``-th random start;
+* every attempt runs exactly ``max_iterations`` iterations (``jax.lax.fori_loop``; a Python
+  loop for PyTorch). An attempt that ends (it converges, stalls, or reaches
+  ``max_iterations``: the NumPy solve's rules) is frozen by masks (``where``), never by a
+  branch on values;
+* the answer is the first attempt, in attempt order, that converged; if none did, the
+  configuration of least cost over all attempts. ``iterations`` and ``attempts`` count the
+  attempts up to the chosen one, as the NumPy solve would have run them.
+
+So where the NumPy solve succeeds within ``max_attempts`` attempts, this solve gives its answer
+(the same attempt, iterations and success; ``q`` to rounding: XLA contracts multiply-adds on
+the CPU and PyTorch's vectorised ``sqrt`` is not correctly rounded, so the bits may differ).
+Where it needs more, this solve fails (``success`` False, the best fit of its attempts): the
+budget is fixed. ``success`` means what it means for NumPy: the pose within the tolerances by
+the final errors and ``q`` within the limits.
+
+**The derivative** of ``q`` with respect to the targets and the model's parameters comes from
+the implicit function theorem at the answer ``q*``, never from the iterations (they run on
+values cut from the graph: ``jax.lax.stop_gradient``, ``detach``). The residual
+``r(q, T, params)`` (the solver's: ``[k e_o; e_p]``) is zero at a solution, so
+``dq = J^+ (dr/dT dT + dr/dparams dparams)`` with ``J = -dr/dq`` the solver's Jacobian
+(:func:`~poekin.ik.numerical.jacobian_rows`) and ``J^+ = (J^T J + lam I)^-1 J^T`` (in its dual
+form ``J^T (J J^T + lam I)^-1`` for a redundant arm: the minimum-norm ``dq``), ``lam`` the
+solver's damping floor ``1e-18 L^2``. A joint held at a limit (``q*`` equal to it) is out of
+``J``: its derivative is zero and the others move without it. JAX gets it as a ``custom_jvp``
+(forward and reverse mode, ``jit``, ``vmap``), PyTorch as an ``autograd.Function`` (backward).
+Where ``success`` is False it is the same formula at the best fit (Gauss-Newton's
+linearisation, not the derivative of a minimiser). ``q0`` has no derivative.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import functools
+import sys
+from collections.abc import Callable, Sequence
+from contextlib import AbstractContextManager, nullcontext
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from poekin import _pose, arrays
+from poekin.chain import ChainParams, _Model, check_shape, poe, pose_of
+from poekin.errors import InputError
+from poekin.ik import _rng
+from poekin.ik.numerical import (
+    STALL_FACTOR,
+    STALL_ITERATIONS,
+    ChainTerms,
+    Entries,
+    IKResult,
+    Settings,
+    chain_terms,
+    check_seed,
+    damped_step,
+    errors,
+    evaluate,
+    first_start_entries,
+    jacobian_rows,
+    residual,
+    settings,
+    start_entries,
+    step,
+)
+
+if TYPE_CHECKING:
+    from poekin.chain import Chain
+
+__all__ = ["DEFAULT_ATTEMPTS", "array_kind", "solve_arrays"]
+
+# Attempts side by side when the caller names none: 99.9% of random targets within the limits
+# of the shared arms (UR5e, Panda, FR3, Sawyer, Lite6) are solved by the NumPy solve within
+# 16 attempts (provisional, 5,000 targets each)
+DEFAULT_ATTEMPTS = 16
+
+
+def array_kind(T: Any, q0: Any, params: Any) -> arrays.Kind | None:
+    """``"jax"`` or ``"torch"`` if the targets, ``q0`` or ``params``' leaves hold a JAX array
+    or a PyTorch tensor (this module's solve), None for NumPy; :class:`InputError` if they
+    mix the two."""
+    leaves = tuple(params) if isinstance(params, ChainParams) else ()
+    _, kind = arrays.namespace_of([T, q0, *leaves], "targets, q0 and params")
+    return kind
+
+
+def solve_arrays(
+    chain: Chain,
+    T: Any,
+    q0: Any,
+    kind: arrays.Kind,
+    *,
+    seed: int,
+    params: ChainParams | None,
+    **options: Any,
+) -> IKResult:
+    """:meth:`poekin.Chain.ik` for JAX arrays and PyTorch tensors (``kind``): the
+    fixed-iteration solve, its result in the caller's library, float dtype and device, ``q``
+    differentiable with respect to ``T`` and ``params`` (see the module); ``options`` as
+    :func:`poekin.ik.numerical.settings` takes them.
+
+    Under torch.compile the solve runs eagerly (``torch.compiler.disable``: a graph break):
+    Inductor takes minutes over its unrolled iterations and compiles the random starts'
+    wrapping 64-bit products as C++'s undefined signed overflow."""
+    solve: Any = _solve_arrays
+    if kind == "torch":
+        import torch
+
+        disable: Any = torch.compiler.disable
+        solve = disable(_solve_arrays)
+    found: IKResult = solve(chain, T, q0, kind, seed, params, options)
+    return found
+
+
+def _solve_arrays(
+    chain: Chain,
+    T: Any,
+    q0: Any,
+    kind: arrays.Kind,
+    seed: int,
+    params: ChainParams | None,
+    options: dict[str, Any],
+) -> IKResult:
+    s = settings(**options)
+    seed = check_seed(seed)
+    if chain.n_joints == 0:
+        raise InputError("the chain has no joints: there is nothing to solve for")
+    if params is not None and not isinstance(params, ChainParams):
+        got = type(params).__name__
+        raise InputError(f"params must be a ChainParams (see chain.parameters()), got {got}")
+    leaves = () if params is None else tuple(params)
+    given = [x for x in (T, q0, *leaves) if x is not None]
+    xp = arrays.namespace(kind)
+    anchor = next(x for x in given if arrays.kind_of(x) is not None)
+    try:
+        dtype = arrays.float_dtype(xp, given)
+        T = arrays.convert(T, xp, dtype, anchor)
+        q0 = None if q0 is None else arrays.convert(q0, xp, dtype, anchor)
+    except (TypeError, ValueError) as e:
+        if isinstance(e, InputError):
+            raise
+        raise InputError(f"targets and q0 must be arrays of numbers: {e}") from e
+    if dtype not in (xp.float32, xp.float64):
+        raise InputError(f"IK computes in float32 or float64, got {dtype}; cast the inputs")
+    check_shape(T, (4, 4), "targets")
+    n = chain.n_joints
+    shapes = [tuple(T.shape[:-2])]
+    if q0 is not None:
+        check_shape(q0, (n,), "q0")
+        shapes.append(tuple(q0.shape[:-1]))
+    if params is not None:
+        shapes += [tuple(np.shape(params.screws)[:-2]), tuple(np.shape(params.home)[:-2])]
+    try:
+        batch = np.broadcast_shapes(*shapes)
+    except ValueError:
+        raise InputError(
+            f"the batch axes of targets {tuple(T.shape)}"
+            + (f", q0 {tuple(q0.shape)}" if q0 is not None else "")
+            + (" and params" if params is not None else "")
+            + " do not broadcast together"
+        ) from None
+    backend = _Backend(kind)
+    T = xp.broadcast_to(T, (*batch, 4, 4))
+    if q0 is not None:
+        q0 = xp.broadcast_to(q0, (*batch, n))
+    fixed = backend.stop(T), backend.stop(q0), backend.stop(params)
+    model = None if params is None else chain._model(xp, fixed[0], fixed[2], body=False)
+    problem = _Problem(chain, chain_terms(chain, dtype == xp.float32), s, xp, model)
+    out = _solve(problem, backend, fixed[0], fixed[1], seed)
+    q_star = out[0]
+    if backend.differentiable(T, leaves):
+        q_star = backend.implicit(problem, q_star, T, params)
+    if kind == "jax":
+        _register_result_pytree()
+    return IKResult(q_star, *out[1:])
+
+
+# --- what the solve needs ---------------------------------------------------------------------
+
+
+@dataclasses.dataclass(frozen=True)
+class _Problem:
+    """A chain's solve in one library and dtype: its constants, the options, the namespace and
+    the model (None: the chain's own constants)."""
+
+    chain: Chain
+    terms: ChainTerms
+    s: Settings
+    xp: Any
+    model: _Model | None
+
+    def evaluate(self, q: Entries, model: _Model | None = None) -> tuple[_pose.Pose, Any]:
+        """``T(q)`` and the world Jacobian's columns, with the library's own sine and cosine
+        (a twelfth of the operations of the kernel's, :mod:`poekin._sincos`, under XLA)."""
+        model = self.model if model is None else model
+        return evaluate(self.chain, q, self.xp, model, _pose.sincos)
+
+
+# --- the libraries' few differences -----------------------------------------------------------
+
+
+@dataclasses.dataclass(frozen=True)
+class _Backend:
+    """What JAX and PyTorch do differently: the loop, cutting values from the graph, 64-bit
+    integers for the random starts, and the implicit derivative's hook."""
+
+    kind: str
+
+    @property
+    def jax(self) -> Any:
+        return sys.modules["jax"]
+
+    def stop(self, x: Any) -> Any:
+        """``x`` (an array, a :class:`ChainParams` or None) cut from differentiation."""
+        if x is None:
+            return None
+        if isinstance(x, ChainParams):
+            return ChainParams(*(self.stop(a) for a in x))
+        if arrays.kind_of(x) is None:
+            return x
+        return self.jax.lax.stop_gradient(x) if self.kind == "jax" else x.detach()
+
+    def wide(self) -> AbstractContextManager[Any]:
+        """A context with 64-bit integers (JAX without ``jax_enable_x64``: switched on while
+        the random starts are drawn)."""
+        if self.kind != "jax":
+            return nullcontext()
+        switch = getattr(self.jax, "enable_x64", None)  # jax.experimental's before JAX 0.7
+        if switch is None:
+            switch = self.jax.experimental.enable_x64
+            return switch()  # type: ignore[no-any-return]
+        return switch(True)  # type: ignore[no-any-return]
+
+    def loop(self, count: int, body: Callable[[Any], Any], state: Any) -> Any:
+        """``body`` applied ``count`` times: ``jax.lax.fori_loop`` (traced once), or a Python
+        loop (PyTorch, eager or under ``torch.compile``)."""
+        if self.kind == "jax":
+            return self.jax.lax.fori_loop(0, count, lambda _, x: body(x), state)
+        for _ in range(count):
+            state = body(state)
+        return state
+
+    def differentiable(self, T: Any, leaves: Sequence[Any]) -> bool:
+        """Whether a derivative may be asked for: always under JAX (tracing decides), for
+        PyTorch if a tensor requires its gradient."""
+        if self.kind == "jax":
+            return True
+        return any(getattr(x, "requires_grad", False) for x in (T, *leaves))
+
+    def implicit(self, problem: _Problem, q_star: Any, T: Any, params: ChainParams | None) -> Any:
+        """``q_star``, with the implicit function theorem's derivative with respect to ``T``
+        and ``params``."""
+        if self.kind == "jax":
+            return _jax_implicit(problem, q_star, T, params)
+        return _torch_implicit()(q_star, problem, T, *(() if params is None else params))
+
+
+# --- the fixed-iteration solve ----------------------------------------------------------------
+
+
+def _solve(problem: _Problem, backend: _Backend, T: Any, q0: Any, seed: int) -> tuple[Any, ...]:
+    """``q, success, pos_err, ori_err, iterations, attempts`` of ``(..., 4, 4)`` targets from
+    ``(..., n)`` ``q0`` (or None), broadcast to one batch shape."""
+    xp, s, terms = problem.xp, problem.s, problem.terms
+    n, A = problem.chain.n_joints, s.max_attempts
+    batch = tuple(T.shape[:-2])
+    like = xp.zeros_like(T[..., 0, 0])  # the batch shape, dtype and device
+    lanes = xp.zeros_like(xp.broadcast_to(like, (A, *batch)))  # attempts x batch
+    integers = xp.__array_namespace_info__().default_dtypes()["integral"]
+    attempt = xp.reshape(xp.astype(xp.arange(A), integers), (A, *(1,) * len(batch)))
+    target = pose_of(T)
+    q = _starts(problem, backend, T, q0, seed, attempt, lanes)
+    zero = xp.astype(lanes, integers)
+    no = lanes != lanes  # False, of the lanes' shape
+    inf = lanes + np.inf
+    state = (tuple(q), tuple(q), inf, zero, inf, zero, no, no)
+
+    def body(state: Any) -> Any:
+        q, best_q, best_cost, stall, stall_ref, it, ended, conv = state
+        q = list(q)
+        pose, columns = problem.evaluate(q)
+        r, cost, ep2, eo2, quat = residual(pose, target, s, xp)
+        J = jacobian_rows(columns, quat, s)
+        m = len(r)
+        flat = _pose.settle([*r, cost, ep2, eo2, *(x for row in J for x in row)], xp)
+        r, (cost, ep2, eo2) = flat[:m], flat[m : m + 3]
+        J = [flat[m + 3 + i * n : m + 3 + (i + 1) * n] for i in range(m)]
+        conv_now = ep2 <= s.pos_tol2
+        if not s.position_only:
+            conv_now = conv_now & (eo2 <= s.ori_tol2)
+        active = ~ended
+        better = active & (cost < best_cost)
+        best_cost = xp.where(better, cost, best_cost)
+        best_q = tuple(xp.where(better, a, b) for a, b in zip(q, best_q, strict=True))
+        improved = cost < stall_ref * STALL_FACTOR
+        stall_ref = xp.where(active & improved, cost, stall_ref)
+        stall = xp.where(active, xp.where(improved, 0, stall + 1), stall)
+        it = xp.where(active, it + 1, it)
+        end = active & (conv_now | (stall >= STALL_ITERATIONS) | (it >= s.max_iterations))
+        conv = conv | (end & conv_now)
+        ended = ended | end
+        stepped = _pose.settle(step(q, J, r, cost, terms, s, xp), xp)
+        q = tuple(xp.where(ended, a, b) for a, b in zip(q, stepped, strict=True))
+        return q, best_q, best_cost, stall, stall_ref, it, ended, conv
+
+    q_end, best_q, best_cost, _, _, it, _, conv = backend.loop(s.max_iterations, body, state)
+    # the first attempt that converged, else the one of least cost (the first of equals)
+    first = xp.astype(like, integers) + A
+    for a in reversed(range(A)):
+        first = xp.where(conv[a], a, first)
+    least, low = xp.astype(like, integers), best_cost[0]
+    for a in range(1, A):
+        lower = best_cost[a] < low
+        least, low = xp.where(lower, a, least), xp.where(lower, best_cost[a], low)
+    converged = first < A
+    chosen = xp.where(converged, first, least)
+    last = xp.where(converged, first, A - 1)
+    q_out: Entries = [None] * n
+    iterations = xp.astype(like, integers)
+    for a in range(A):
+        answer = [xp.where(conv[a], q_end[j][a], best_q[j][a]) for j in range(n)]
+        q_out = (
+            answer
+            if a == 0
+            else [xp.where(chosen == a, x, y) for x, y in zip(answer, q_out, strict=True)]
+        )
+        iterations = iterations + xp.where(a <= last, it[a], 0)
+    model = problem.chain._constants if problem.model is None else problem.model
+    pose = poe(model.screws, q_out, xp, right=model.home)  # evaluate's pose, without columns
+    pos_err, ori_err = errors(pose, target, xp)
+    lo, hi = [b[0] for b in terms.bounds], [b[1] for b in terms.bounds]
+    success = converged & (pos_err <= s.pos_tol)
+    for j in range(n):
+        success = success & (q_out[j] >= lo[j]) & (q_out[j] <= hi[j])
+    if not s.position_only:
+        success = success & (ori_err <= s.ori_tol)
+    q_array = _pose.stack(q_out, (n,), xp, like)
+    return q_array, success, pos_err, ori_err, iterations, last + 1
+
+
+def _starts(
+    problem: _Problem, backend: _Backend, T: Any, q0: Any, seed: int, attempt: Any, lanes: Any
+) -> Entries:
+    """Each attempt's start, ``(A, ...)`` per joint: ``q0`` brought into the limits for
+    attempt 0 if given, else the NumPy solve's random start of that attempt number."""
+    xp, terms = problem.xp, problem.terms
+    with backend.wide():
+        keys = _rng.target_keys(seed, T, q0, xp)
+        drawn = start_entries(terms, keys, attempt, xp)
+        q = [xp.astype(x, lanes.dtype) + lanes for x in drawn]
+    if q0 is None:
+        return q
+    first = first_start_entries([q0[..., j] for j in range(q0.shape[-1])], terms, xp)
+    return [xp.where(attempt == 0, f, x) for f, x in zip(first, q, strict=True)]
+
+
+# --- the implicit derivative ------------------------------------------------------------------
+
+
+def _projector(problem: _Problem, q_star: Any, T: Any) -> list[Entries]:
+    """The solver's Jacobian ``J`` (rows) at ``q_star`` for targets ``T`` (values only), its
+    columns of joints held at a limit zeroed."""
+    xp, terms = problem.xp, problem.terms
+    q = [q_star[..., j] for j in range(problem.chain.n_joints)]
+    pose, columns = problem.evaluate(q)
+    _, _, _, _, quat = residual(pose, pose_of(T), problem.s, xp)
+    lo, hi = [b[0] for b in terms.bounds], [b[1] for b in terms.bounds]
+    held = [(x <= lo[j]) | (x >= hi[j]) for j, x in enumerate(q)]
+    rows = jacobian_rows(columns, quat, problem.s)
+    return [[xp.where(h, 0.0, x) for h, x in zip(held, row, strict=True)] for row in rows]
+
+
+def _linearised(
+    problem: _Problem, J: list[Entries], q_star: Any, T: Any, params: ChainParams | None
+) -> Any:
+    """``J^+ r(q_star, T, params)``: linear in the residual, whose derivative with respect to
+    ``T`` and ``params`` (``q_star`` and ``J`` held) is the solution's, ``(..., n)``."""
+    xp, chain = problem.xp, problem.chain
+    model = None if params is None else chain._model(xp, T, params, body=False)
+    q = [q_star[..., j] for j in range(chain.n_joints)]
+    pose, _ = problem.evaluate(q, model)
+    r = residual(pose, pose_of(T), problem.s, xp)[0]
+    lam = problem.terms.floor(problem.s)
+    dq = damped_step(J, r, lam, lam, xp)
+    return _pose.stack(dq, (chain.n_joints,), xp, xp.zeros_like(q_star[..., 0]))
+
+
+def _jax_implicit(problem: _Problem, q_star: Any, T: Any, params: ChainParams | None) -> Any:
+    jax = sys.modules["jax"]
+
+    def identity(q_star: Any, T: Any, params: Any) -> Any:
+        return q_star
+
+    def tangent(primals: Any, tangents: Any) -> Any:
+        q_star, T, params = primals
+        J = _projector(problem, q_star, T)
+        _, dq = jax.jvp(
+            lambda T, p: _linearised(problem, J, q_star, T, p), (T, params), tangents[1:]
+        )
+        return q_star, dq
+
+    implicit = jax.custom_jvp(identity)
+    implicit.defjvp(tangent)
+    return implicit(q_star, T, params)
+
+
+@functools.cache
+def _torch_implicit() -> Any:
+    """An ``autograd.Function``: ``q_star`` forward; backward, the vector-Jacobian product of
+    :func:`_linearised` with respect to the targets and the parameters."""
+    import torch
+
+    class Implicit(torch.autograd.Function):
+        @staticmethod
+        def forward(q_star: Any, problem: _Problem, T: Any, *leaves: Any) -> Any:
+            return q_star.clone()
+
+        @staticmethod
+        def setup_context(ctx: Any, inputs: Any, output: Any) -> None:
+            q_star, problem, T, *leaves = inputs
+            ctx.problem = problem
+            ctx.save_for_backward(q_star, T, *leaves)
+
+        @staticmethod
+        def backward(ctx: Any, q_bar: Any) -> Any:
+            q_star, T, *leaves = ctx.saved_tensors
+            problem: _Problem = ctx.problem
+            J = _projector(problem, q_star, T.detach())
+
+            def linearised(T: Any, *leaves: Any) -> Any:
+                params = ChainParams(*leaves) if leaves else None
+                return _linearised(problem, J, q_star, T, params)
+
+            vjp = torch.func.vjp(linearised, T, *leaves)[1]
+            return (None, None, *vjp(q_bar))
+
+    return Implicit.apply
+
+
+@functools.cache
+def _register_result_pytree() -> None:
+    """:class:`IKResult` as a JAX pytree of six arrays, so that it leaves ``jit`` and ``vmap``
+    (registered at the first JAX solve: JAX is never imported by poekin itself)."""
+    jax = sys.modules["jax"]
+    fields = [f.name for f in dataclasses.fields(IKResult)]
+    jax.tree_util.register_dataclass(IKResult, data_fields=fields, meta_fields=[])

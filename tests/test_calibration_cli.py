@@ -1,0 +1,316 @@
+"""``poekin calibrate`` (issue #22, items 3-4): outputs, files, and one-line errors (exit 2,
+nothing written) in the style of ``tests/test_cli.py``'s ``BAD_INPUTS``."""
+
+from __future__ import annotations
+
+import functools
+import json
+import pathlib
+import re
+
+import numpy as np
+import pytest
+from test_cli import assert_one_error_line, run
+
+import poekin
+from poekin.calibration.files import read_measurements, write_measurements
+from poekin.calibration.simulate import simulate_robot
+from poekin.fileio import read_array
+from poekin.verify import pose_errors
+
+ROBOT = "universal_robots_ur5e"
+
+
+@functools.cache
+def _data() -> tuple[poekin.Chain, np.ndarray, np.ndarray, np.ndarray]:
+    """The UR5e, 30 configurations, their measured poses (0.1 mm, 0.1 mrad noise) and the true
+    poses of a simulated robot (MuJoCo on a perturbed model)."""
+    chain = poekin.load(ROBOT)
+    sim = simulate_robot(ROBOT, seed=2)
+    q = poekin.sample_joint_values(chain, 30, seed=3)
+    return chain, q, sim.measure(q, seed=4), sim.poses(q)
+
+
+def _tracker(folder: pathlib.Path, name: str = "tracker.csv", **edits: str) -> str:
+    """The measurements as a CSV, with ``edits``: ``header`` replaces the first line, ``row``
+    the second (the first pose), ``rows`` keeps only that many poses."""
+    chain, q, measured, _ = _data()
+    path = folder / name
+    write_measurements(path, chain, q, measured)
+    lines = path.read_text().splitlines()
+    if "header" in edits:
+        lines[0] = edits["header"]
+    if "row" in edits:
+        lines[1] = edits["row"]
+    if "rows" in edits:
+        lines = lines[: 1 + int(edits["rows"])]
+    path.write_text("\n".join(lines) + "\n")
+    return str(path)
+
+
+def test_calibrate_writes_a_parameter_file_that_reads_back(
+    tmp_path: pathlib.Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    out, plot = tmp_path / "my_robot.json", tmp_path / "calibration.png"
+    code, text, err = run(
+        capsys,
+        "calibrate",
+        ROBOT,
+        "--measurements",
+        _tracker(tmp_path),
+        "--output",
+        str(out),
+        "--plot",
+        str(plot),
+    )
+    assert code == 0, err
+    assert "identifiable: 30 of 30 parameters" in text
+    assert "joint 2 (shoulder_lift_joint): axis tilted by" in text
+    assert f"calibrated parameters written to {out}" in text
+    assert plot.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    chain = poekin.load_params(out)  # what --params reads
+    assert isinstance(chain, poekin.Chain)
+    _, q, _, truth = _data()
+    pos, ori = pose_errors(truth, chain.fk(q))  # its FK is the measured frame, measured
+    assert np.sqrt(np.mean(pos**2)) < 0.1e-3 and np.sqrt(np.mean(ori**2)) < 0.1e-3
+    doc = json.loads(out.read_text())
+    assert doc["calibration"]["identifiable"] == 30
+    # nothing the user owns is replaced without --force
+    before = out.read_bytes()
+    code, _, err = run(
+        capsys, "calibrate", ROBOT, "--measurements", _tracker(tmp_path), "--output", str(out)
+    )
+    assert code == 2 and "already exists" in err and out.read_bytes() == before
+    code, _, _ = run(
+        capsys,
+        "calibrate",
+        ROBOT,
+        "--measurements",
+        _tracker(tmp_path),
+        "--output",
+        str(out),
+        "--force",
+    )
+    assert code == 0
+
+
+def test_calibrate_json(tmp_path: pathlib.Path, capsys: pytest.CaptureFixture[str]) -> None:
+    code, text, _ = run(capsys, "calibrate", ROBOT, "--measurements", _tracker(tmp_path), "--json")
+    assert code == 0
+    result = json.loads(text)
+    for key in (
+        "parameters",
+        "identifiable",
+        "expected_identifiable",
+        "condition_number",
+        "residual_rms_m",
+        "residual_rms_rad",
+        "heldout_rms_m",
+        "heldout_rms_rad",
+        "unidentifiable",
+        "std",
+        "changes",
+    ):
+        assert key in result, key
+    assert result["identifiable"] == result["expected_identifiable"] == 30
+    assert result["heldout_rms_m"] > result["residual_rms_m"] > 0
+    assert {c["part"] for c in result["changes"]} >= {"joint 1 (shoulder_pan_joint)", "tool"}
+    assert all(
+        set(c) >= {"tilt_mrad", "offset_mm", "encoder", "message"} for c in result["changes"]
+    )
+    for unit in ("m", "rad"):  # the error predicted from the standard errors, below the noise
+        predicted, residual = result[f"predicted_rms_{unit}"], result[f"residual_rms_{unit}"]
+        assert 0 < predicted["measured"] < residual and 0 < predicted["workspace"] < residual
+
+
+def test_calibrate_reads_degrees_and_npz(
+    tmp_path: pathlib.Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    chain, q, measured, _ = _data()
+    write_measurements(tmp_path / "deg.csv", chain, np.degrees(q), measured)
+    q_deg, T_deg = read_measurements(tmp_path / "deg.csv", chain, deg=True)
+    assert np.allclose(q_deg, q, atol=1e-14) and np.allclose(T_deg, measured, atol=1e-15)
+    np.savez(tmp_path / "m.npz", q=q, p=measured[:, :3, 3])
+    q_npz, p_npz = read_measurements(tmp_path / "m.npz", chain)
+    assert np.array_equal(q_npz, q) and np.array_equal(p_npz, measured[:, :3, 3])
+    code, text, err = run(
+        capsys, "calibrate", ROBOT, "--measurements", str(tmp_path / "deg.csv"), "--deg"
+    )
+    assert code == 0 and "identifiable: 30 of 30" in text, err
+    code, text, err = run(
+        capsys, "calibrate", ROBOT, "--measurements", str(tmp_path / "deg.csv"), "--folds", "0"
+    )
+    assert code == 0 and "pass --deg" in err  # degrees read as radians get a note
+    code, text, _ = run(capsys, "calibrate", ROBOT, "--measurements", str(tmp_path / "m.npz"))
+    assert code == 0 and "30 positions; identifiable" in text
+
+
+def test_plan(tmp_path: pathlib.Path, capsys: pytest.CaptureFixture[str]) -> None:
+    code, text, _ = run(capsys, "calibrate", ROBOT, "--plan", "12", "--candidates", "400")
+    assert code == 0
+    lines = text.splitlines()
+    assert lines[0].startswith("# 12 poses (position and orientation) for universal_robots_ur5e")
+    assert lines[1] == ",".join(poekin.load(ROBOT).joint_names)
+    (tmp_path / "plan.csv").write_text(text)
+    q = read_array(tmp_path / "plan.csv")  # a comment, a header, 12 rows
+    assert q.shape == (12, 6)
+    code, text, _ = run(capsys, "calibrate", ROBOT, "--plan", "12", "--candidates", "400", "--json")
+    assert np.allclose(json.loads(text)["q"], q, atol=1e-6)
+    out = tmp_path / "poses.npy"
+    code, text, _ = run(
+        capsys, "calibrate", ROBOT, "--plan", "12", "--positions", "--output", str(out)
+    )
+    assert code == 0 and f"planned poses written to {out}" in text and "12 positions" in text
+    assert np.load(out).shape == (12, 6)
+
+
+HEADER_LINE = (
+    "shoulder_pan_joint,shoulder_lift_joint,elbow_joint,wrist_1_joint,wrist_2_joint,wrist_3_joint,"
+    "x,y,z,qw,qx,qy,qz"
+)
+
+
+@pytest.mark.parametrize(
+    ("name", "content", "message"),
+    [
+        ("dup.csv", HEADER_LINE.replace(",x,", ",x,x,") + "\n", "column 'x' appears twice"),
+        ("short.csv", HEADER_LINE + "\n1,2,3\n", "row 1 has 3 values, the header 13"),
+        ("empty.csv", "# nothing\n", "is empty"),
+        ("header.csv", HEADER_LINE + "\n", "has a header but no rows"),
+        ("latin.csv", b"\xff\xfe\x00", "not a text file"),
+        ("text.npz", "not an archive", "not a readable .npz"),
+        ("strings.npz", {"q": np.array([["a"] * 6] * 8), "p": np.zeros((8, 3))}, "not real"),
+        ("shape.npz", {"q": np.zeros((8, 5)), "p": np.zeros((8, 3))}, "'q' must be (N, 6)"),
+        ("nan.npz", {"q": np.zeros((8, 6)), "T": np.full((8, 4, 4), np.nan)}, "'T' of row 1"),
+        (
+            "both.npz",
+            {"q": np.zeros((8, 6)), "T": np.zeros((8, 4, 4)), "p": np.zeros((8, 3))},
+            "either",
+        ),
+    ],
+)
+def test_bad_measurement_files(
+    name: str, content: object, message: str, tmp_path: pathlib.Path
+) -> None:
+    path = tmp_path / name
+    if isinstance(content, dict):
+        np.savez(path, **content)
+    elif isinstance(content, bytes):
+        path.write_bytes(content)
+    else:
+        path.write_text(str(content))
+    with pytest.raises(poekin.InputError, match=re.escape(message)):
+        read_measurements(path, poekin.load(ROBOT))
+
+
+def test_bad_measured_arrays() -> None:
+    from poekin.calibration import check_measurements
+
+    with pytest.raises(poekin.InputError, match="must be numbers"):
+        check_measurements([["a", "b", "c"]], 1)
+    T = np.tile(np.eye(4), (3, 1, 1))
+    T[1, 3, 0] = 1.0
+    with pytest.raises(poekin.InputError, match="measured pose 1: the last row"):
+        check_measurements(T, 3)
+
+
+def _npz_without_poses(folder: pathlib.Path) -> str:
+    np.savez(folder / "bad.npz", q=np.zeros((10, 6)))
+    return str(folder / "bad.npz")
+
+
+HEADER = (
+    "shoulder_pan_joint,shoulder_lift_joint,elbow_joint,wrist_1_joint,wrist_2_joint,wrist_3_joint"
+)
+
+# what a bad data file must not leave behind
+WRITES = ["--output", "{tmp}/calibrated.json", "--plot", "{tmp}/calibration.png"]
+
+# (argv, message); {tracker} is a good measurement file, {bad:...} one with an edit
+BAD_INPUTS_CALIBRATE = [
+    (["calibrate", ROBOT], "give --measurements FILE"),
+    (["calibrate", "universal_robots_ur5", "--plan", "10"], "did you mean 'universal_robots_ur5e'"),
+    (["calibrate", ROBOT, "--measurements", "{nan}", *WRITES], "is NaN or inf"),
+    (["calibrate", ROBOT, "--measurements", "{typo}"], "did you mean 'wrist_3_joint'"),
+    (
+        ["calibrate", ROBOT, "--measurements", "{missing_joint}", *WRITES],
+        "no column 'wrist_3_joint'",
+    ),
+    (["calibrate", ROBOT, "--measurements", "{few}", *WRITES], "measure at least 6"),
+    (
+        ["calibrate", ROBOT, "--measurements", "{not_unit}", *WRITES],
+        "not 1; give a unit quaternion",
+    ),
+    (["calibrate", ROBOT, "--measurements", "{text}"], "'abc' is not a number"),
+    (["calibrate", ROBOT, "--measurements", "{half_quaternion}"], "missing qy, qz"),
+    (["calibrate", ROBOT, "--measurements", "{no_header}"], "must be a header"),
+    (["calibrate", ROBOT, "--measurements", "{tmp}/none.csv"], "no such file"),
+    (["calibrate", ROBOT, "--measurements", "{tmp}/m.txt"], "a .csv or .npz file"),
+    (["calibrate", ROBOT, "--measurements", "{npz}"], "it needs 'q'"),
+    (["calibrate", ROBOT, "--measurements", "{tracker}", "--output", "{tmp}/p.yaml"], ".json"),
+    (
+        ["calibrate", ROBOT, "--measurements", "{tracker}", "--output", "{existing}"],
+        "already exists",
+    ),
+    (["calibrate", ROBOT, "--measurements", "{tracker}", "--plot", "{tmp}/c.xyz"], "'.xyz'"),
+    (
+        ["calibrate", ROBOT, "--measurements", "{tracker}", "--output", "{tmp}/no/p.json"],
+        "does not",
+    ),
+    (["calibrate", ROBOT, "--measurements", "{tracker}", "--sigma-pos", "-1"], "--sigma-pos must"),
+    (["calibrate", ROBOT, "--measurements", "{tracker}", "--prior-rad", "0"], "--prior-rad must"),
+    (["calibrate", ROBOT, "--measurements", "{tracker}", "--folds", "1"], "--folds must be"),
+    (["calibrate", ROBOT, "--plan", "3"], "plan at least 6"),
+    (["calibrate", ROBOT, "--plan", "0"], "--plan must be a whole number"),
+    (["calibrate", ROBOT, "--plan", "10", "--measurements", "{tracker}"], "drop --measurements"),
+    (["calibrate", ROBOT, "--plan", "10", "--candidates", "5"], "--candidates must be at least"),
+    (["calibrate", ROBOT, "--plan", "10", "--output", "{tmp}/p.xyz"], "'.xyz'"),
+]
+
+
+@pytest.mark.parametrize(("argv", "message"), BAD_INPUTS_CALIBRATE)
+def test_bad_input_gives_one_line_and_exit_2(
+    argv: list[str], message: str, tmp_path: pathlib.Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    (tmp_path / "m.txt").write_text("1 2 3\n")
+    existing = tmp_path / "existing.json"
+    existing.write_text("{}")
+    fills = {
+        "tmp": str(tmp_path),
+        "tracker": _tracker(tmp_path),
+        "existing": str(existing),
+        "nan": _tracker(tmp_path, "nan.csv", row="0,0,0,0,0,nan,1,2,3,1,0,0,0"),
+        "typo": _tracker(
+            tmp_path,
+            "typo.csv",
+            header=HEADER.replace("wrist_3_joint", "wrist3_joint") + ",x,y,z,qw,qx,qy,qz",
+        ),
+        "missing_joint": _tracker(
+            tmp_path,
+            "missing.csv",
+            header=HEADER.replace(",wrist_3_joint", "") + ",x,y,z,qw,qx,qy,qz",
+        ),
+        "few": _tracker(tmp_path, "few.csv", rows="4"),
+        "not_unit": _tracker(tmp_path, "unit.csv", row="0,0,0,0,0,0,1,2,3,0.9,0,0,0"),
+        "text": _tracker(tmp_path, "text.csv", row="0,0,abc,0,0,0,1,2,3,1,0,0,0"),
+        "half_quaternion": _tracker(tmp_path, "half.csv", header=HEADER + ",x,y,z,qw,qx"),
+        "no_header": _tracker(tmp_path, "noheader.csv", header="0,0,0,0,0,0,1,2,3,1,0,0,0"),
+        "npz": _npz_without_poses(tmp_path),
+    }
+    files = {p: p.read_bytes() for p in tmp_path.iterdir()}
+    code, _, err = run(capsys, *[a.format(**fills) for a in argv])
+    assert code == 2
+    assert_one_error_line(err, message)
+    assert {p: p.read_bytes() for p in tmp_path.iterdir()} == files  # nothing written
+
+
+def test_every_loss_is_a_choice() -> None:
+    """--loss offers what poekin.calibrate takes (the parser does not import the fit)."""
+    from poekin.calibration import LOSSES
+    from poekin.cli import _build_parser
+
+    parser = _build_parser()
+    sub = next(a for a in parser._actions if a.dest == "command")
+    calibrate = sub.choices["calibrate"]  # type: ignore[index]
+    (loss,) = [a for a in calibrate._actions if a.dest == "loss"]
+    assert tuple(loss.choices) == LOSSES
