@@ -22,7 +22,8 @@ go2 and aloha qpos from ``poekin.sample_qpos``):
 Medians and interquartile ranges over repeats; ratios as ``x`` (time / poekin's). Accuracy: the
 largest position and orientation difference from MuJoCo's ``mj_kinematics`` on a subset. The
 machine is shared and noisy: read medians and ratios from one run, never one sample. No timing
-is asserted anywhere.
+is asserted anywhere. At the end, the trees' figures in one table (CPU named) and issue #20's
+four goals for trees, each met or missed (also under ``goals`` in ``--json``).
 
 examples:
   python benchmarks/bench_arrays.py --quick                  # seconds; what CI runs
@@ -377,6 +378,109 @@ def ratios(rows: list[Row]) -> dict[str, float]:
     return out
 
 
+@dataclasses.dataclass(frozen=True)
+class TreeFigures:
+    """One tree's figures for issue #20's goals (section 4), per configuration."""
+
+    robot: str
+    jax_forward_ns: float | None
+    jax_both_ns: float | None  # forward plus backward
+    numpy_ns: float | None  # poekin's NumPy kernel
+    jax_first_call_s: float | None
+    torch_compile_s: float | None  # first call of torch.compile(tree.fk): the compile
+
+
+def tree_figures(rows: list[Row]) -> list[TreeFigures]:
+    def get(group: str, name: str) -> Row | None:
+        return next((r for r in rows if r.group == group and r.name == name), None)
+
+    out = []
+    for robot in dict.fromkeys(r.group for r in rows if r.group in TREES):
+        fwd, both = get(robot, "jax jit(vmap(fk))"), get(robot, "jax forward + backward")
+        kernel = get(robot, "poekin numpy kernel (for scale)")
+        compiled = get(robot, "torch.compile(tree.fk) inductor")
+        out.append(
+            TreeFigures(
+                robot,
+                fwd.timing.median_ns if fwd and fwd.timing else None,
+                both.timing.median_ns if both and both.timing else None,
+                kernel.timing.median_ns if kernel and kernel.timing else None,
+                fwd.first_call_s if fwd else None,
+                compiled.first_call_s if compiled else None,
+            )
+        )
+    return out
+
+
+def goals(rows: list[Row]) -> dict[str, dict[str, Any]]:
+    """Issue #20's goals for trees (section 4), each with its figure and whether it is met,
+    from one run: (a) JAX's forward never slower than forward plus backward (go2, aloha);
+    (b) the go2's JAX forward <= 5x the NumPy kernel; (c) the first JAX call of every shared
+    Menagerie model <= 3 s; (d) torch.compile of a tree <= 60 s."""
+    out: dict[str, dict[str, Any]] = {}
+    for t in tree_figures(rows):
+        if t.jax_forward_ns is not None and t.jax_both_ns is not None:
+            ratio = t.jax_forward_ns / t.jax_both_ns
+            out[f"(a) {t.robot}: jax forward / forward+backward <= 1"] = {
+                "value": ratio,
+                "met": ratio <= 1.0,
+            }
+        if t.robot == "unitree_go2" and t.jax_forward_ns and t.numpy_ns:
+            ratio = t.jax_forward_ns / t.numpy_ns
+            out[f"(b) {t.robot}: jax forward / numpy kernel <= 5"] = {
+                "value": ratio,
+                "met": ratio <= 5.0,
+            }
+        if t.torch_compile_s is not None:
+            out[f"(d) {t.robot}: torch.compile s <= 60"] = {
+                "value": t.torch_compile_s,
+                "met": t.torch_compile_s <= 60.0,
+            }
+    firsts = [r for r in rows if r.group == "first calls" and r.first_call_s is not None]
+    if firsts:
+        slowest = max(firsts, key=lambda r: r.first_call_s or 0.0)
+        seconds = slowest.first_call_s or 0.0
+        out[f"(c) every model: first jax call s <= 3 (slowest: {slowest.name})"] = {
+            "value": seconds,
+            "met": seconds <= 3.0 and len(firsts) == len(MENAGERIE),
+        }
+    return out
+
+
+def print_goals(rows: list[Row], cpu: str, sizes: Sizes) -> None:
+    """The trees' figures in one table, and issue #20's goals met or missed."""
+    figures = tree_figures(rows)
+    if not figures:
+        return
+
+    def ns(v: float | None) -> str:
+        return fmt_ns(v) if v is not None else "-"
+
+    def ratio(a: float | None, b: float | None) -> str:
+        return f"{a / b:.2f}x" if a is not None and b else "-"
+
+    def sec(v: float | None) -> str:
+        return f"{v:.2f} s" if v is not None else "-"
+
+    print(f"\ntrees, per configuration, float64, batch {fmt_count(sizes.batch)}, {cpu}:")
+    head = ("model", "jax fwd", "fwd+bwd", "fwd/both", "numpy", "jax/numpy", "1st jax", "compile")
+    print(f"  {head[0]:12}" + "".join(f" {h:>10}" for h in head[1:]))
+    for t in figures:
+        cells = (
+            ns(t.jax_forward_ns),
+            ns(t.jax_both_ns),
+            ratio(t.jax_forward_ns, t.jax_both_ns),
+            ns(t.numpy_ns),
+            ratio(t.jax_forward_ns, t.numpy_ns),
+            sec(t.jax_first_call_s),
+            sec(t.torch_compile_s),
+        )
+        print(f"  {t.robot:12}" + "".join(f" {c:>10}" for c in cells))
+    print("issue #20 goals (one run, provisional on a shared machine):")
+    for key, goal in goals(rows).items():
+        print(f"  {'met   ' if goal['met'] else 'MISSED'} {key}: {goal['value']:.3g}")
+
+
 def print_rows(rows: list[Row]) -> None:
     group = None
     for r in rows:
@@ -517,6 +621,7 @@ def main(argv: list[str] | None = None) -> int:
     print()
     for key, value in summary.items():
         print(f"  {key}: {value:.3g}x")
+    print_goals(rows, f"{machine['cpu']}, {machine['vector_width']}", sizes)
     elapsed = time.perf_counter() - t0
     print(f"\nbenchmark wall time {elapsed:.1f} s")
     if args.json:
@@ -528,6 +633,7 @@ def main(argv: list[str] | None = None) -> int:
             "wall_s": elapsed,
             "rows": rows,
             "ratios": summary,
+            "goals": goals(rows),
         }
         args.json.write_text(json.dumps(to_json(result), indent=2) + "\n")
         print(f"wrote {args.json}")
