@@ -121,6 +121,20 @@ def time_per_config(call: Callable[[], Any], size: int, repeats: int) -> Timing:
     return Timing.of(samples, size)
 
 
+def time_interleaved(calls: list[Callable[[], Any]], size: int, repeats: int) -> list[Timing]:
+    """:func:`time_per_config` of several calls, one repeat of each in turn, so that a noisy
+    spell of the shared machine falls on all of them alike and their ratios hold."""
+    for call in calls:
+        _block(call())
+    samples: list[list[float]] = [[] for _ in calls]
+    for _ in range(repeats):
+        for call, out in zip(calls, samples, strict=True):
+            t0 = time.perf_counter_ns()
+            _block(call())
+            out.append((time.perf_counter_ns() - t0) / size)
+    return [Timing.of(out, size) for out in samples]
+
+
 def first_call(call: Callable[[], Any]) -> float:
     t0 = time.perf_counter()
     _block(call())
@@ -150,18 +164,23 @@ def mujoco_site_poses(loaded: poekin.LoadedModel, chain: poekin.Chain, q: np.nda
 def jax_rows(
     group: str, fk: Callable[..., Any], q: np.ndarray, sizes: Sizes, ref: Any
 ) -> list[Row]:
-    """jit(vmap(fk)): first call, forward, forward plus backward, float32."""
+    """poekin's NumPy kernel (for scale, timed first and alone: a small batch's kernel call
+    after a JAX call runs up to 2x slower); jit(vmap(fk)): first call, forward and forward plus
+    backward (timed interleaved, whose ratio is a goal), float32."""
     import jax
     import jax.numpy as jnp
 
+    rows = [Row(group, "poekin numpy kernel (for scale)")]
+    rows[0].timing = time_per_config(lambda: fk(q), len(q), sizes.repeats)
     x = jnp.asarray(q)
     forward = jax.jit(jax.vmap(fk))
-    rows = [Row(group, "jax jit(vmap(fk))", first_call_s=first_call(lambda: forward(x)))]
-    rows[0].timing = time_per_config(lambda: forward(x), len(q), sizes.repeats)
-    agreement(rows[0], forward(x[: len(ref)]), ref)
+    rows.append(Row(group, "jax jit(vmap(fk))", first_call_s=first_call(lambda: forward(x))))
+    agreement(rows[1], forward(x[: len(ref)]), ref)
     both = jax.jit(jax.grad(lambda y: jnp.sum(jax.vmap(fk)(y))))
     rows.append(Row(group, "jax forward + backward", first_call_s=first_call(lambda: both(x))))
-    rows[-1].timing = time_per_config(lambda: both(x), len(q), sizes.repeats)
+    rows[1].timing, rows[2].timing = time_interleaved(
+        [lambda: forward(x), lambda: both(x)], len(q), sizes.repeats
+    )
     x32 = x.astype(jnp.float32)
     rows.append(Row(group, "jax jit(vmap(fk)) float32"))
     rows[-1].timing = time_per_config(lambda: forward(x32), len(q), sizes.repeats)
@@ -303,10 +322,8 @@ def run_ur5e(sizes: Sizes, seed: int, skip: list[str]) -> list[Row]:
     chain = poekin.load(loaded, SITE)
     q = np.random.default_rng(seed).uniform(-2 * np.pi, 2 * np.pi, (sizes.batch, 6))
     ref = mujoco_site_poses(loaded, chain, q[: sizes.check])
-    rows = [Row("ur5e", "poekin numpy kernel (for scale)")]
-    rows[0].timing = time_per_config(lambda: chain.fk(q), len(q), sizes.repeats)
+    rows = jax_rows("ur5e", chain.fk, q, sizes, ref)
     agreement(rows[0], chain.fk(q[: sizes.check]), ref)
-    rows += jax_rows("ur5e", chain.fk, q, sizes, ref)
     rows += torch_rows("ur5e", chain.fk, q, sizes, ref)
     anchors: dict[str, Callable[[], Row]] = {
         "torch_compile": lambda: torch_compile_row(chain, q, sizes, ref),
@@ -328,9 +345,7 @@ def run_tree(robot: str, sizes: Sizes, seed: int, skip: list[str]) -> list[Row]:
     tree = poekin.load_tree(loaded)
     qpos = poekin.sample_qpos(tree, sizes.batch, seed=seed)
     ref = tree.fk(qpos[: sizes.check])  # equal to mj_kinematics to 1e-15 (tests/test_tree.py)
-    rows = [Row(robot, "poekin numpy kernel (for scale)")]
-    rows[0].timing = time_per_config(lambda: tree.fk(qpos), len(qpos), sizes.repeats)
-    rows += jax_rows(robot, tree.fk, qpos, sizes, ref)
+    rows = jax_rows(robot, tree.fk, qpos, sizes, ref)
     rows += torch_rows(robot, tree.fk, qpos, sizes, ref)
     if "torch_compile" not in skip:
         try:
