@@ -795,7 +795,7 @@ class Chain:
         the joint limits, batched (:mod:`poekin.ik.numerical` describes the algorithm).
 
         NumPy input runs in the compiled kernel. JAX arrays and PyTorch tensors (targets,
-        ``q0`` or ``params``) run a fixed-iteration solve that traces under ``jax.jit`` and
+        ``q0`` or ``params``) run a solve that traces under ``jax.jit`` and
         ``jax.vmap``, and come back as the caller's arrays, with ``q`` differentiable with
         respect to ``T`` and ``params`` by the implicit function theorem
         (:mod:`poekin.ik.fixed`).

@@ -1,29 +1,32 @@
-"""Inverse kinematics of JAX arrays and PyTorch tensors: a fixed-iteration solve that traces
-(``jax.jit``, ``jax.vmap``, ``shard_map``, ``torch.compile``), and the solution's derivative by
-the implicit function theorem.
+"""Inverse kinematics of JAX arrays and PyTorch tensors: a solve that traces (``jax.jit``,
+``jax.vmap``, ``shard_map``; ``torch.compile`` runs it eagerly), and the solution's derivative
+by the implicit function theorem.
 
-**The solve** is :mod:`poekin.ik.numerical`'s algorithm, from its own per-iteration functions
-(:func:`~poekin.ik.numerical.evaluate`, :func:`~poekin.ik.numerical.residual`,
-:func:`~poekin.ik.numerical.jacobian_rows`, :func:`~poekin.ik.numerical.step`) and its random
-starts (:mod:`poekin.ik._rng`, the same counter-based numbers as NumPy's), with a fixed shape
-of work instead of the NumPy solve's bookkeeping:
+**The solve** is :mod:`poekin.ik.numerical`'s algorithm and loop: its lanes
+(:func:`~poekin.ik.numerical.advance`, one iteration of every lane's attempt, from the
+per-iteration functions :func:`~poekin.ik.numerical.evaluate`,
+:func:`~poekin.ik.numerical.residual`, :func:`~poekin.ik.numerical.jacobian_rows` and
+:func:`~poekin.ik.numerical.step`) and its random starts (:mod:`poekin.ik._rng`, the same
+counter-based numbers as NumPy's). A lane runs one target's attempts one after another, attempt
+0 from ``q0`` if given, attempt ``a`` otherwise from the NumPy solve's ``a``-th random start,
+by the NumPy solve's rules (an attempt ends when it converges, stalls or reaches
+``max_iterations``), and the target is finished when an attempt converged, ``max_attempts``
+are spent, or its attempts together have run ``max_total_iterations`` (the budget). Its answer
+is the converged iterate, else the least-cost iterate of all its attempts.
 
-* ``max_attempts`` attempts run side by side, as a leading batch axis: attempt 0 starts at
-  ``q0`` if given, attempt ``a`` otherwise at the NumPy solve's ``a``-th random start;
-* every attempt runs exactly ``max_iterations`` iterations (``jax.lax.fori_loop``; a Python
-  loop for PyTorch). An attempt that ends (it converges, stalls, or reaches
-  ``max_iterations``: the NumPy solve's rules) is frozen by masks (``where``), never by a
-  branch on values;
-* the answer is the first attempt, in attempt order, that converged; if none did, the
-  configuration of least cost over all attempts. ``iterations`` and ``attempts`` count the
-  attempts up to the chosen one, as the NumPy solve would have run them.
+* PyTorch runs :func:`~poekin.ik.numerical.run_lanes`, the NumPy solve's own loop: finished
+  targets leave the lanes;
+* JAX runs :func:`_refill`: a fixed number of lanes (:func:`slots`) in one
+  ``jax.lax.while_loop``, a lane whose target is finished writing its answer and taking the
+  next target (masks, never a branch on values). Under ``jax.vmap`` the whole batch is one call
+  (``jax.custom_batching.custom_vmap``), so its targets share the lanes.
 
-So where the NumPy solve succeeds within ``max_attempts`` attempts, this solve gives its answer
-(the same attempt, iterations and success; ``q`` to rounding: XLA contracts multiply-adds on
-the CPU and PyTorch's vectorised ``sqrt`` is not correctly rounded, so the bits may differ).
-Where it needs more, this solve fails (``success`` False, the best fit of its attempts): the
-budget is fixed. ``success`` means what it means for NumPy: the pose within the tolerances by
-the final errors and ``q`` within the limits.
+So where the NumPy solve needs no more than the budget, this solve gives its answer (the same
+attempts, iterations and success; ``q`` to rounding: XLA contracts multiply-adds on the CPU and
+PyTorch's vectorised ``sqrt`` is not correctly rounded, so the bits may differ, and under XLA
+they may differ with the batch size). Where it needs more, this solve fails at the budget
+(``success`` False, the best fit so far). ``success`` means what it means for NumPy: the pose
+within the tolerances by the final errors and ``q`` within the limits.
 
 **The derivative** of ``q`` with respect to the targets and the model's parameters comes from
 the implicit function theorem at the answer ``q*``, never from the iterations (they run on
@@ -106,7 +109,7 @@ def solve_arrays(
     **options: Any,
 ) -> IKResult:
     """:meth:`poekin.Chain.ik` for JAX arrays and PyTorch tensors (``kind``): the
-    fixed-iteration solve, its result in the caller's library, float dtype and device, ``q``
+    fixed-shape solve, its result in the caller's library, float dtype and device, ``q``
     differentiable with respect to ``T`` and ``params`` (see the module); ``options`` as
     :func:`poekin.ik.numerical.settings` takes them.
 
@@ -212,8 +215,8 @@ class _Problem:
 
 @dataclasses.dataclass(frozen=True)
 class _Backend:
-    """What JAX and PyTorch do differently: the loop, cutting values from the graph, 64-bit
-    integers for the random starts, and the implicit derivative's hook."""
+    """What JAX and PyTorch do differently: cutting values from the graph, 64-bit integers for
+    the random starts, and the implicit derivative's hook (the loops: :func:`_core`)."""
 
     kind: str
 
@@ -241,15 +244,6 @@ class _Backend:
             switch = self.jax.experimental.enable_x64
             return switch()  # type: ignore[no-any-return]
         return switch(True)  # type: ignore[no-any-return]
-
-    def loop(self, count: int, body: Callable[[Any], Any], state: Any) -> Any:
-        """``body`` applied ``count`` times: ``jax.lax.fori_loop`` (traced once), or a Python
-        loop (PyTorch, eager or under ``torch.compile``)."""
-        if self.kind == "jax":
-            return self.jax.lax.fori_loop(0, count, lambda _, x: body(x), state)
-        for _ in range(count):
-            state = body(state)
-        return state
 
     def differentiable(self, T: Any, leaves: Sequence[Any]) -> bool:
         """Whether a derivative may be asked for: always under JAX (tracing decides), for
