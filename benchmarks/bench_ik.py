@@ -32,12 +32,14 @@ Rows (each a prefix of the same targets):
   from the Menagerie file: one batch;
 * Pinocchio's CLIK loop (its documentation's example: damped least squares, ``DT = 0.1``,
   1,000 iterations, 10 restarts; limits by clamping), its model from the Menagerie file: a loop;
-* poekin on JAX arrays, ``jax.jit(jax.vmap(chain.ik))`` in float64 (16 attempts side by side,
-  50 iterations each: the fixed-iteration solve of ``poekin.ik.fixed``): the first call (trace
-  and compile) and the median of later calls, with XLA's default options and with its quick
-  compile (``compiler_options``: no fusion emitters, backend optimisation level 0); poekin on
-  PyTorch tensors, ``chain.ik(tensor)`` eagerly (float64; torch.compile runs the solve eagerly
-  too): one batch. On the UR5e and the Panda unless ``--arrays-arms`` says otherwise.
+* poekin on JAX arrays, ``jax.jit(jax.vmap(chain.ik))`` in float64 (the fixed-shape solve of
+  ``poekin.ik.fixed``: lanes that restart attempts within 256 iterations per target), batches
+  of 1,000 and 10,000 targets: the first call (trace, compile, run; the first of the process
+  also starts JAX's CPU backend) and the median of later calls, with XLA's default options and
+  with its quick compile (``compiler_options``: no fusion emitters, backend optimisation level
+  0); poekin on PyTorch tensors, ``chain.ik(tensor)`` eagerly (float64; torch.compile runs the
+  solve eagerly too): one batch of 1,000. On the UR5e and the Panda unless ``--arrays-arms``
+  says otherwise.
 
 The numerical anchors run on the UR5e and the Panda (the issue's table) unless
 ``--anchor-arms`` says otherwise; solvers that are not installed are skipped
@@ -115,7 +117,7 @@ class Sizes:
     analytic_single: int = 2_000  # poekin ik_all's loop of single calls
     analytic_numpy: int = 1_000  # ik_all's NumPy reference path
     ik_geo: int = 2_000  # ik-geo's loop
-    arrays: int = 1_000  # poekin's JAX and PyTorch batches
+    arrays: tuple[int, ...] = (1_000, 10_000)  # poekin's JAX batches (PyTorch: the first)
 
 
 QUICK = Sizes(
@@ -129,7 +131,7 @@ QUICK = Sizes(
     analytic_single=50,
     analytic_numpy=50,
     ik_geo=50,
-    arrays=16,
+    arrays=(16,),
 )
 EXACT = 1e-12  # m and rad: ik_all's goal for the MuJoCo residual of every valid solution
 SAME_Q = 1e-6  # rad: the configuration a target came from is among its solutions
@@ -350,46 +352,48 @@ def unreachable_row(case: Case, sizes: Sizes) -> Row:
 
 
 def arrays_rows(case: Case, sizes: Sizes) -> list[Row]:
-    """poekin's fixed-iteration solve on JAX arrays (``jit(vmap(chain.ik))``) and PyTorch
-    tensors (eager), float64, on the first ``sizes.arrays`` targets. In ``--quick`` runs (CI)
-    JAX compiles with :data:`QUICK_COMPILE` only."""
-    n = min(sizes.arrays, len(case.T))
-    T, chain = case.T[:n], case.chain
+    """poekin's fixed-shape solve on JAX arrays (``jit(vmap(chain.ik))``, each batch size of
+    ``sizes.arrays``) and PyTorch tensors (eager, the first size), float64, on the first
+    targets. In ``--quick`` runs (CI) JAX compiles with :data:`QUICK_COMPILE` only."""
+    chain = case.chain
     rows = []
     if package_version("jax") is not None:
         import jax
 
         jax.config.update("jax_enable_x64", True)
         quick = sizes.arrays == QUICK.arrays
-        for options, label in [({}, "XLA defaults"), (QUICK_COMPILE, "XLA quick compile")]:
-            if quick and not options:
-                continue
-            solve = jax.jit(jax.vmap(chain.ik), compiler_options=options)
-            targets = jax.device_put(T)
-            t0 = time.perf_counter()
-            found = jax.block_until_ready(solve(targets))
-            first = time.perf_counter() - t0
-            samples = []
-            for _ in range(sizes.repeats):
+        for size in sizes.arrays:
+            n = min(size, len(case.T))
+            for options, label in [({}, "XLA defaults"), (QUICK_COMPILE, "XLA quick compile")]:
+                if quick and not options:
+                    continue
+                solve = jax.jit(jax.vmap(chain.ik), compiler_options=options)
+                targets = jax.device_put(case.T[:n])
                 t0 = time.perf_counter()
-                jax.block_until_ready(solve(targets))
-                samples.append(time.perf_counter() - t0)
-            rows.append(
-                Row(
-                    "poekin jit(vmap(chain.ik)), JAX",
-                    case.arm,
-                    "batch",
-                    n,
-                    float(np.median(samples)) / n * 1e6,
-                    success=success_rates(case, np.asarray(found.q), n),
-                    note=f"{label}; first call (trace, compile, run) {first:.2f} s; "
-                    f"jax {jax.__version__} on {jax.devices()[0].platform}, float64",
+                found = jax.block_until_ready(solve(targets))
+                first = time.perf_counter() - t0
+                samples = []
+                for _ in range(sizes.repeats):
+                    t0 = time.perf_counter()
+                    jax.block_until_ready(solve(targets))
+                    samples.append(time.perf_counter() - t0)
+                rows.append(
+                    Row(
+                        "poekin jit(vmap(chain.ik)), JAX",
+                        case.arm,
+                        "batch",
+                        n,
+                        float(np.median(samples)) / n * 1e6,
+                        success=success_rates(case, np.asarray(found.q), n),
+                        note=f"{label}; first call (trace, compile, run) {first:.2f} s; "
+                        f"jax {jax.__version__} on {jax.devices()[0].platform}, float64",
+                    )
                 )
-            )
     if package_version("torch") is not None:
         import torch
 
-        tensor = torch.from_numpy(T)
+        n = min(sizes.arrays[0], len(case.T))
+        tensor = torch.from_numpy(case.T[:n])
         chain.ik(tensor[:2])  # the first call's imports
         samples = []
         for _ in range(max(1, sizes.repeats // 2)):

@@ -25,6 +25,22 @@ from scipy.spatial.transform import Rotation
 FloatArray = NDArray[np.float64]
 
 
+# the keys issue #22 asks of `poekin calibrate --json` and `Calibration.summary()`
+JSON_KEYS = (
+    "parameters",
+    "identifiable",
+    "expected_identifiable",
+    "condition_number",
+    "residual_rms_m",
+    "residual_rms_rad",
+    "heldout_rms_m",
+    "heldout_rms_rad",
+    "unidentifiable",
+    "std",
+    "changes",
+)
+
+
 def _exp(xi: FloatArray) -> FloatArray:
     """A rigid transform from a rotation vector and a translation (not SE(3)'s exp: any smooth
     chart will do)."""

@@ -10,6 +10,7 @@ import re
 
 import numpy as np
 import pytest
+from calibration_helpers import JSON_KEYS
 from test_cli import assert_one_error_line, run
 
 import poekin
@@ -98,19 +99,7 @@ def test_calibrate_json(tmp_path: pathlib.Path, capsys: pytest.CaptureFixture[st
     code, text, _ = run(capsys, "calibrate", ROBOT, "--measurements", _tracker(tmp_path), "--json")
     assert code == 0
     result = json.loads(text)
-    for key in (
-        "parameters",
-        "identifiable",
-        "expected_identifiable",
-        "condition_number",
-        "residual_rms_m",
-        "residual_rms_rad",
-        "heldout_rms_m",
-        "heldout_rms_rad",
-        "unidentifiable",
-        "std",
-        "changes",
-    ):
+    for key in JSON_KEYS:
         assert key in result, key
     assert result["identifiable"] == result["expected_identifiable"] == 30
     assert result["heldout_rms_m"] > result["residual_rms_m"] > 0

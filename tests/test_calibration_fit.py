@@ -12,7 +12,7 @@ from typing import Any
 
 import numpy as np
 import pytest
-from calibration_helpers import plain_fit
+from calibration_helpers import JSON_KEYS, plain_fit
 
 import poekin
 from poekin import lie
@@ -297,19 +297,7 @@ def test_heldout_residual_and_report(ur5e: Setup) -> None:
     assert result.residual_rms_m < result.heldout_rms_m < 1.6 * result.residual_rms_m  # type: ignore[operator]
     assert result.residual_rms_rad < result.heldout_rms_rad < 1.6 * result.residual_rms_rad  # type: ignore[operator]
     summary = json.loads(json.dumps(result.summary()))
-    for key in (
-        "parameters",
-        "identifiable",
-        "expected_identifiable",
-        "condition_number",
-        "residual_rms_m",
-        "residual_rms_rad",
-        "heldout_rms_m",
-        "heldout_rms_rad",
-        "unidentifiable",
-        "std",
-        "changes",
-    ):
+    for key in JSON_KEYS:
         assert key in summary, key
     assert len(summary["changes"]) == 7  # six joints and the tool
     assert summary["changes"][1]["part"] == "joint 2 (shoulder_lift_joint)"

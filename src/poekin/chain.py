@@ -787,14 +787,15 @@ class Chain:
         position_only: bool = False,
         orientation_weight: float = 0.3,
         max_iterations: int = 50,
-        max_attempts: int | None = None,
+        max_attempts: int = 100,
+        max_total_iterations: int | None = None,
         params: ChainParams | None = None,
     ) -> IKResult:
         """Joint values that put the end frame at ``T``: numerical inverse kinematics, inside
         the joint limits, batched (:mod:`poekin.ik.numerical` describes the algorithm).
 
         NumPy input runs in the compiled kernel. JAX arrays and PyTorch tensors (targets,
-        ``q0`` or ``params``) run a fixed-iteration solve that traces under ``jax.jit`` and
+        ``q0`` or ``params``) run a solve that traces under ``jax.jit`` and
         ``jax.vmap``, and come back as the caller's arrays, with ``q`` differentiable with
         respect to ``T`` and ``params`` by the implicit function theorem
         (:mod:`poekin.ik.fixed`).
@@ -821,8 +822,11 @@ class Chain:
                 (it shapes the path to a solution and the best fit of an unreachable
                 target, not the tolerances).
             max_iterations: iterations per attempt (each one FK and Jacobian).
-            max_attempts: attempts per target; the solve stops at the first success. Default
-                100; for JAX and PyTorch, the number of attempts run side by side, default 16.
+            max_attempts: attempts per target; the solve stops at the first success.
+            max_total_iterations: JAX and PyTorch only: the iterations of a target's
+                attempts together, at most (default 256). A target that needs more fails, with
+                the best fit found so far; one that needs no more gets the NumPy solve's answer.
+                The NumPy solve has no such budget (an :class:`InputError` if given).
             params: the screws and home pose to solve with instead of the chain's own
                 (:meth:`parameters`): JAX arrays or tensors to differentiate the answer with
                 respect to, or NumPy arrays (the NumPy solve of :meth:`with_parameters`).
@@ -846,24 +850,30 @@ class Chain:
             >>> bool(found.success), found.q.shape
             (True, (6,))
         """
-        from poekin.ik.numerical import DEFAULT_MAX_ATTEMPTS, settings, solve
+        from poekin.ik.numerical import settings, solve
 
         numpy = params is None and arrays.kind_of(T) is None
-        if numpy and (q0 is None or arrays.kind_of(q0) is None):  # the kernel's path, quickly
+        budget = max_total_iterations
+        kernel = numpy and budget is None and (q0 is None or arrays.kind_of(q0) is None)
+        if kernel:  # the kernel's path, quickly
             options = settings(
                 pos_tol=pos_tol,
                 ori_tol=ori_tol,
                 position_only=position_only,
                 orientation_weight=orientation_weight,
                 max_iterations=max_iterations,
-                max_attempts=DEFAULT_MAX_ATTEMPTS if max_attempts is None else max_attempts,
+                max_attempts=max_attempts,
             )
             return solve(self, T, q0, seed=seed, options=options)
         from poekin.ik import fixed
 
         kind = fixed.array_kind(T, q0, params)
-        if max_attempts is None:
-            max_attempts = DEFAULT_MAX_ATTEMPTS if kind is None else fixed.DEFAULT_ATTEMPTS
+        if kind is None and budget is not None:
+            raise InputError(
+                "max_total_iterations bounds the solve of JAX arrays and PyTorch tensors; the "
+                "NumPy solve runs up to max_attempts attempts: leave it out, or lower "
+                "max_attempts"
+            )
         given: dict[str, Any] = {
             "pos_tol": pos_tol,
             "ori_tol": ori_tol,
@@ -873,7 +883,10 @@ class Chain:
             "max_attempts": max_attempts,
         }
         if kind is not None:
-            return fixed.solve_arrays(self, T, q0, kind, seed=seed, params=params, **given)
+            budget = fixed.DEFAULT_BUDGET if budget is None else budget
+            return fixed.solve_arrays(
+                self, T, q0, kind, seed=seed, params=params, max_total_iterations=budget, **given
+            )
         chain = self if params is None else self.with_parameters(params)
         return solve(chain, T, q0, seed=seed, options=settings(**given))
 

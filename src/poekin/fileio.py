@@ -53,6 +53,7 @@ __all__ = [
     "check_new_file",
     "check_writable",
     "figure_format",
+    "is_number",
     "read_array",
     "save_figure",
     "write_array",
@@ -239,7 +240,8 @@ def _read_npz(p: pathlib.Path, where: str, name: str | None) -> NDArray[Any]:
     return arr
 
 
-def _is_number(text: str) -> bool:
+def is_number(text: str) -> bool:
+    """Whether ``text`` reads as a number (``float`` takes it)."""
     try:
         float(text)
     except ValueError:
@@ -253,7 +255,7 @@ def _read_text(p: pathlib.Path, where: str, delimiter: str | None) -> NDArray[An
     except UnicodeDecodeError:
         raise InputError(f"{where} is not a text file (it is not UTF-8)") from None
     lines = [ln for ln in text.splitlines() if ln.split("#", 1)[0].strip()]
-    if lines and not any(map(_is_number, lines[0].split("#", 1)[0].replace(",", " ").split())):
+    if lines and not any(map(is_number, lines[0].split("#", 1)[0].replace(",", " ").split())):
         lines = lines[1:]  # a first line of column names only
     if not lines:
         raise InputError(f"{where} holds no numbers")

@@ -26,6 +26,7 @@ from numpy.typing import NDArray
 
 from poekin import lie
 from poekin.errors import InputError, did_you_mean
+from poekin.fileio import is_number
 
 if TYPE_CHECKING:
     from poekin.calibration.report import Calibration
@@ -123,7 +124,7 @@ def _read_csv(p: pathlib.Path, where: str, joints: Sequence[str]) -> tuple[Float
     known = [*joints, *POSITION, *QUATERNION]
     for h in header:
         if h not in known:
-            if _is_number(h):
+            if is_number(h):
                 raise InputError(
                     f"{where}: the first line must be a header naming the columns: "
                     f"{', '.join(joints)}, x, y, z (and qw, qx, qy, qz)"
@@ -183,14 +184,6 @@ def _read_csv(p: pathlib.Path, where: str, joints: Sequence[str]) -> tuple[Float
     T[:, :3, 3] = pos
     T[:, 3, 3] = 1.0
     return q, T
-
-
-def _is_number(text: str) -> bool:
-    try:
-        float(text)
-    except ValueError:
-        return False
-    return True
 
 
 def write_measurements(

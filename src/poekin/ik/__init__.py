@@ -3,7 +3,7 @@
 * :meth:`poekin.Chain.ik` and :meth:`poekin.Tree.ik`: numerical IK for every chain and every
   arm or leg of a tree, batched, inside the joint limits, the same bits everywhere
   (:mod:`poekin.ik.numerical`: the algorithm, its NumPy reference and the compiled kernel's
-  dispatch; :mod:`poekin.ik.fixed`: the fixed-iteration solve of JAX arrays and PyTorch
+  dispatch; :mod:`poekin.ik.fixed`: the traceable solve of JAX arrays and PyTorch
   tensors and its implicit derivative; :mod:`poekin.ik.trees`); the answer is an
   :class:`IKResult`.
 * :mod:`poekin.ik._rng`: the counter-based random starts; :mod:`poekin.ik._angles`: revolute

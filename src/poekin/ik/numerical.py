@@ -54,7 +54,7 @@ import dataclasses
 import functools
 import math
 from collections.abc import Sequence
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, NamedTuple
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -140,6 +140,7 @@ class Settings:
     orientation_weight: float
     max_iterations: int
     max_attempts: int
+    max_total_iterations: int | None = None  # JAX and PyTorch's budget (None: NumPy's, none)
 
     @property
     def pos_tol2(self) -> float:
@@ -180,10 +181,19 @@ def settings(
     orientation_weight: float = DEFAULT_ORIENTATION_WEIGHT,
     max_iterations: int = DEFAULT_MAX_ITERATIONS,
     max_attempts: int = DEFAULT_MAX_ATTEMPTS,
+    max_total_iterations: int | None = None,
 ) -> Settings:
     """Validated :class:`Settings`; :class:`InputError` names a bad one. Arguments seen before
     (of the same types) are not validated again: a controller's calls stay cheap."""
-    args = (pos_tol, ori_tol, position_only, orientation_weight, max_iterations, max_attempts)
+    args = (
+        pos_tol,
+        ori_tol,
+        position_only,
+        orientation_weight,
+        max_iterations,
+        max_attempts,
+        max_total_iterations,
+    )
     try:
         return _settings_seen(*args)
     except TypeError:  # an unhashable argument: validation says what is wrong with it
@@ -202,9 +212,11 @@ def _settings(
     orientation_weight: float,
     max_iterations: int,
     max_attempts: int,
+    max_total_iterations: int | None,
 ) -> Settings:
     if not isinstance(position_only, bool | np.bool_):
         raise InputError(f"position_only must be True or False, got {position_only!r:.40}")
+    budget = max_total_iterations
     return Settings(
         _positive(pos_tol, "pos_tol", "m"),
         _positive(ori_tol, "ori_tol", "rad"),
@@ -212,6 +224,7 @@ def _settings(
         _positive(orientation_weight, "orientation_weight", "m/rad"),
         _count(max_iterations, "max_iterations", 1_000_000),
         _count(max_attempts, "max_attempts", 1_000_000),
+        None if budget is None else _count(budget, "max_total_iterations", 1_000_000_000),
     )
 
 
@@ -529,6 +542,173 @@ def first_start(q0: FloatArray, terms: ChainTerms) -> FloatArray:
     return np.stack(first_start_entries(list(np.moveaxis(q0, -1, 0)), terms, np), axis=-1)
 
 
+# --- attempts in flight: one iteration, and the loop that drops finished targets -----------
+
+
+class Lanes(NamedTuple):
+    """Attempts in flight, one per lane (arrays of ``xp``): ``q`` and ``best_q`` ``(L, n)``,
+    the rest ``(L,)``. ``best_q`` is the least-cost iterate of the lane's target over all its
+    attempts so far (cost ``best_cost``); ``stall`` counts the iterations since the cost last
+    fell below ``STALL_FACTOR`` times ``stall_ref``; ``it`` counts the attempt's iterations,
+    ``total`` the target's, ``attempt`` is the attempt's number (0 first)."""
+
+    q: Any
+    best_q: Any
+    best_cost: Any
+    stall: Any
+    stall_ref: Any
+    it: Any
+    total: Any
+    attempt: Any
+
+    @classmethod
+    def start(cls, q: Any, xp: Any) -> Lanes:
+        """Each lane's first attempt from ``(L, n)`` starts ``q``."""
+        cost = xp.zeros_like(q[:, 0]) + math.inf
+        count = xp.zeros_like(q[:, 0], dtype=_integers(xp))
+        return cls(q, q, cost, count, cost, count, count, count)
+
+    def take(self, rows: Any, xp: Any) -> Lanes:
+        """The lanes of integer indices ``rows`` (NumPy and PyTorch)."""
+        return Lanes(*(take_rows(x, rows, xp) for x in self))
+
+
+def take_rows(x: Any, rows: Any, xp: Any) -> Any:
+    """``x[rows]`` for integer indices ``rows`` (PyTorch: ``index_select``; its advanced
+    indexing of a 2-d tensor takes milliseconds with two threads)."""
+    return x[rows] if xp is np else x.index_select(0, rows)
+
+
+def _put_rows(out: Any, rows: Any, values: Any, xp: Any) -> None:
+    """``out[rows] = values``, in place (PyTorch: ``index_copy_``)."""
+    if xp is np:
+        out[rows] = values
+    else:
+        out.index_copy_(0, rows, values)
+
+
+def _where_true(mask: Any, xp: Any) -> Any:
+    """The indices of the True entries of ``(L,)`` ``mask``."""
+    return np.flatnonzero(mask) if xp is np else xp.nonzero(mask)[0]
+
+
+def _integers(xp: Any) -> Any:
+    integers = xp.__array_namespace_info__().default_dtypes()["integral"]
+    return integers
+
+
+def advance(
+    lanes: Lanes,
+    goal: _pose.Pose,
+    evaluate: Any,
+    draw: Any,
+    terms: ChainTerms,
+    s: Settings,
+    xp: Any,
+    budget: int | None = None,
+) -> tuple[Lanes, Any, Any, Any]:
+    """One iteration of every lane's attempt (the module's steps 1 to 5 and the attempts'
+    rules), for targets ``goal`` (entries ``(L,)``).
+
+    ``evaluate(q)``: the pose and the world Jacobian's columns of ``q`` (entries);
+    ``draw(attempt)``: ``(L, n)`` random starts of the lanes' targets at attempt numbers
+    ``(L,)``. A lane's attempt ends when it converges, stalls or reaches ``max_iterations``;
+    its target is finished when the attempt converged, was the last of ``max_attempts``, or
+    (``budget``) the target has run that many iterations; an attempt that ends otherwise
+    restarts the lane at the target's next random start.
+
+    Returns:
+        The next lanes, and ``(L,)``: finished, converged (the evaluated iterate met the
+        tolerances), and ``(L, n)`` the answer (that iterate if converged, else
+        ``best_q``), meaningful where finished.
+    """
+    q = lanes.q
+    q_entries = [q[:, j] for j in range(q.shape[-1])]
+    pose, columns = evaluate(q_entries)
+    r, cost, ep2, eo2, quat = residual(pose, goal, s, xp)
+    conv = ep2 <= s.pos_tol2
+    if not s.position_only:
+        conv = conv & (eo2 <= s.ori_tol2)
+    better = cost < lanes.best_cost
+    best_cost = xp.where(better, cost, lanes.best_cost)
+    best_q = xp.where(better[:, None], q, lanes.best_q)
+    improved = cost < lanes.stall_ref * STALL_FACTOR
+    stall_ref = xp.where(improved, cost, lanes.stall_ref)
+    stall = xp.where(improved, 0, lanes.stall + 1)
+    it, total = lanes.it + 1, lanes.total + 1
+    end = conv | (stall >= STALL_ITERATIONS) | (it >= s.max_iterations)
+    finished = end & (conv | (lanes.attempt + 1 >= s.max_attempts))
+    if budget is not None:
+        finished = finished | (total >= budget)
+    restart = end & ~finished
+    J = jacobian_rows(columns, quat, s)
+    m, n = len(J), len(q_entries)
+    # under JAX each computed once, not again in every consumer (_pose.settle)
+    flat = _pose.settle([*r, cost, *(x for row in J for x in row)], xp)
+    r, cost, J = flat[:m], flat[m], [flat[m + 1 + i * n : m + 1 + (i + 1) * n] for i in range(m)]
+    q_next = xp.stack(_pose.settle(step(q_entries, J, r, cost, terms, s, xp), xp), axis=-1)
+    q_next = xp.where(restart[:, None], draw(lanes.attempt + 1), q_next)
+    answer = xp.where(conv[:, None], q, best_q)
+    lanes = Lanes(
+        q_next,
+        best_q,
+        best_cost,
+        xp.where(restart, 0, stall),
+        xp.where(restart, math.inf, stall_ref),
+        xp.where(restart, 0, it),
+        total,
+        lanes.attempt + xp.astype(restart, lanes.attempt.dtype),
+    )
+    return lanes, finished, conv, answer
+
+
+def run_lanes(
+    first: Any,
+    inputs: Sequence[Any],
+    prepare: Any,
+    terms: ChainTerms,
+    s: Settings,
+    xp: Any,
+    budget: int | None = None,
+) -> tuple[Any, Any, Any, Any]:
+    """Every target's attempts, one lane per target, in lock-step: a target leaves the lanes
+    when it is finished (NumPy and PyTorch: boolean indexing).
+
+    Args:
+        first: ``(N, n)`` each target's first start.
+        inputs: arrays of ``N`` rows, the targets' data.
+        prepare: ``prepare(rows)``, ``rows`` those of ``inputs`` of the lanes: the goals
+            (pose entries), ``evaluate`` and ``draw`` for :func:`advance`.
+        budget: iterations per target at most (None: no bound but the attempts').
+
+    Returns:
+        ``(N, n)`` the answers, ``(N,)`` converged, iterations and attempts.
+    """
+    N = first.shape[0]
+    lanes = Lanes.start(first, xp)
+    lane = xp.arange(N, **({} if xp is np else {"device": first.device}))
+    out_q = xp.zeros_like(first)
+    out_conv = xp.zeros_like(lanes.it, dtype=xp.bool)
+    out_total = xp.zeros_like(lanes.it)
+    out_attempts = xp.zeros_like(lanes.it)
+    rows = list(inputs)
+    while lane.shape[0]:
+        goal, evaluate, draw = prepare(rows)
+        lanes, finished, conv, answer = advance(lanes, goal, evaluate, draw, terms, s, xp, budget)
+        # bookkeeping: the finished targets' results, then only the others go on
+        done = _where_true(finished, xp)
+        if done.shape[0]:
+            to = take_rows(lane, done, xp)
+            _put_rows(out_q, to, take_rows(answer, done, xp), xp)
+            _put_rows(out_conv, to, take_rows(conv, done, xp), xp)
+            _put_rows(out_total, to, take_rows(lanes.total, done, xp), xp)
+            _put_rows(out_attempts, to, take_rows(lanes.attempt, done, xp) + 1, xp)
+            keep = _where_true(~finished, xp)
+            lane, lanes = take_rows(lane, keep, xp), lanes.take(keep, xp)
+            rows = [take_rows(x, keep, xp) for x in rows]
+    return out_q, out_conv, out_total, out_attempts
+
+
 # --- the NumPy reference --------------------------------------------------------------------
 
 
@@ -538,60 +718,24 @@ def solve_reference(
     """The reference solve of ``(N, 4, 4)`` targets (validated), from ``(N, n)`` ``q0`` or
     random starts: ``q, success, pos_err, ori_err, iterations, attempts``, each ``(N, ...)``.
 
-    Every target runs in lock-step with the others; a target leaves the batch when it is done.
+    Every target runs in lock-step with the others (:func:`run_lanes`); a target leaves the
+    batch when it is done.
     """
-    N, n = T.shape[0], chain.n_joints
     terms = chain_terms(chain)
     keys = _rng.target_keys(seed, T, q0)
-    attempt = np.zeros(N, dtype=np.int64)
-    q = first_start(q0, terms) if q0 is not None else starts(terms, keys, attempt)
-    lane = np.arange(N)  # the target of each lane still running
-    it = np.zeros(N, dtype=np.int64)
-    stall = np.zeros(N, dtype=np.int64)
-    stall_ref = np.full(N, np.inf)
-    best_cost = np.full(N, np.inf)
-    best_q = q.copy()
-    total = np.zeros(N, dtype=np.int64)
-    out_q = np.empty((N, n))
-    out_conv = np.zeros(N, dtype=bool)
-    out_total = np.zeros(N, dtype=np.int64)
-    out_attempts = np.zeros(N, dtype=np.int64)
+    attempt = np.zeros(len(T), dtype=np.int64)
+    first = first_start(q0, terms) if q0 is not None else starts(terms, keys, attempt)
+
+    def prepare(rows: list[Any]) -> tuple[_pose.Pose, Any, Any]:
+        T_rows, keys_rows = rows
+        return (
+            chain_pose_entries(T_rows),
+            lambda q: evaluate(chain, q, np),
+            lambda attempt: starts(terms, keys_rows, attempt),
+        )
+
+    out_q, out_conv, out_total, out_attempts = run_lanes(first, [T, keys], prepare, terms, s, np)
     target = chain_pose_entries(T)
-    while lane.size:
-        q_entries = list(q.T)
-        goal = _take(target, lane)
-        pose, columns = evaluate(chain, q_entries, np)
-        r, cost, ep2, eo2, quat = residual(pose, goal, s, np)
-        conv = ep2 <= s.pos_tol2
-        if not s.position_only:
-            conv = conv & (eo2 <= s.ori_tol2)
-        better = cost < best_cost
-        best_cost = np.where(better, cost, best_cost)
-        best_q = np.where(better[:, None], q, best_q)
-        improved = cost < stall_ref * STALL_FACTOR
-        stall_ref = np.where(improved, cost, stall_ref)
-        stall = np.where(improved, 0, stall + 1)
-        it, total = it + 1, total + 1
-        end = conv | (stall >= STALL_ITERATIONS) | (it >= s.max_iterations)
-        finished = end & (conv | (attempt + 1 >= s.max_attempts))
-        restart = end & ~finished
-        J = jacobian_rows(columns, quat, s)
-        q_next = np.stack(step(q_entries, J, r, cost, terms, s, np), axis=-1)
-        q_next = np.where(restart[:, None], starts(terms, keys[lane], attempt + 1), q_next)
-        # bookkeeping: the finished targets' results, then only the others go on
-        done = lane[finished]
-        out_q[done] = np.where(conv[finished, None], q[finished], best_q[finished])
-        out_conv[done] = conv[finished]
-        out_total[done] = total[finished]
-        out_attempts[done] = attempt[finished] + 1
-        attempt = attempt + restart
-        it = np.where(restart, 0, it)
-        stall = np.where(restart, 0, stall)
-        stall_ref = np.where(restart, np.inf, stall_ref)
-        keep = ~finished
-        lane, q, attempt, it, stall = lane[keep], q_next[keep], attempt[keep], it[keep], stall[keep]
-        stall_ref, best_cost, best_q = stall_ref[keep], best_cost[keep], best_q[keep]
-        total = total[keep]
     pose, _ = evaluate(chain, list(out_q.T), np)
     pos_err, ori_err = errors(pose, target, np)
     pos_err = np.asarray(pos_err, dtype=np.float64)
@@ -602,18 +746,10 @@ def solve_reference(
     return out_q, success, pos_err, ori_err, out_total, out_attempts
 
 
-def chain_pose_entries(T: FloatArray) -> _pose.Pose:
+def chain_pose_entries(T: Any) -> _pose.Pose:
     """The pose entries of ``(N, 4, 4)`` targets."""
     R = tuple(tuple(T[:, i, j] for j in range(3)) for i in range(3))
     return R, (T[:, 0, 3], T[:, 1, 3], T[:, 2, 3])  # type: ignore[return-value]
-
-
-def _take(pose: _pose.Pose, index: Any) -> _pose.Pose:
-    R, p = pose
-    return (
-        tuple(tuple(e[index] for e in row) for row in R),  # type: ignore[return-value]
-        tuple(e[index] for e in p),  # type: ignore[return-value]
-    )
 
 
 # --- the entry point ------------------------------------------------------------------------
