@@ -57,6 +57,7 @@ __all__ = [
     "rodrigues_stacked",
     "rotation_quat",
     "settle",
+    "settle_pose",
     "sincos",
     "stack",
     "stack_mat",
@@ -76,6 +77,13 @@ ORIGIN: Vec = (0.0, 0.0, 0.0)
 
 # MuJoCo's mjMINVAL: a quaternion shorter than this normalises to the identity.
 QUAT_MIN_NORM = 1e-15
+
+
+def settle_pose(pose: Pose, xp: Any) -> Pose:
+    """``pose``, each entry computed once (:func:`settle`)."""
+    (r0, r1, r2), p = pose
+    e = settle([*r0, *r1, *r2, *p], xp)
+    return ((e[0], e[1], e[2]), (e[3], e[4], e[5]), (e[6], e[7], e[8])), (e[9], e[10], e[11])
 
 
 def settle(values: Sequence[Entry], xp: Any) -> list[Entry]:

@@ -342,6 +342,9 @@ def evaluate(
     the chain's constants or of ``model`` (:meth:`poekin.Chain._model`, from parameters)."""
     model = chain._constants if model is None else model
     columns, pose = space_jacobian(model.screws, model.rows, q, xp, model.home, trig)
+    # under JAX each entry of the end pose computed once, not again in each of the residual's
+    # and the Jacobian's entries (_pose.settle: a fifth less compile time, measured)
+    pose = _pose.settle_pose(pose, xp)
     return pose, world_columns(columns, pose[1])
 
 
@@ -352,7 +355,8 @@ def residual(
     quaternion ``(w, x, y, z)`` of ``R_t R^T`` that ``e_o`` comes from."""
     (R, p), (R_t, p_t) = pose, target
     e_p = [p_t[0] - p[0], p_t[1] - p[1], p_t[2] - p[2]]
-    quat = list(_pose.rotation_quat(_pose.mat_mat(R_t, _pose.transpose(R)), xp))
+    # (settled: every entry of the Jacobian's angular rows reads it)
+    quat = _pose.settle(list(_pose.rotation_quat(_pose.mat_mat(R_t, _pose.transpose(R)), xp)), xp)
     e_o = [2.0 * quat[1], 2.0 * quat[2], 2.0 * quat[3]]
     k = s.orientation_weight
     r = e_p if s.position_only else [k * e_o[0], k * e_o[1], k * e_o[2], *e_p]
