@@ -35,11 +35,12 @@ Rows (each a prefix of the same targets):
 * poekin on JAX arrays, ``jax.jit(jax.vmap(chain.ik))`` in float64 (the fixed-shape solve of
   ``poekin.ik.fixed``: lanes that restart attempts within 256 iterations per target), batches
   of 1,000 and 10,000 targets: the first call (trace, compile, run; the first of the process
-  also starts JAX's CPU backend) and the median of later calls, with XLA's default options and
-  with its quick compile (``compiler_options``: no fusion emitters, backend optimisation level
-  0); poekin on PyTorch tensors, ``chain.ik(tensor)`` eagerly (float64; torch.compile runs the
-  solve eagerly too): one batch of 1,000. On the UR5e and the Panda unless ``--arrays-arms``
-  says otherwise.
+  also starts JAX's CPU backend) and the median of later calls, with XLA's default options,
+  without its fusion emitters (``compiler_options``: less compile time, programs as fast) and
+  with its quick compile (no fusion emitters, backend optimisation level 0: less compile time
+  still, slower programs); poekin on PyTorch tensors, ``chain.ik(tensor)`` eagerly (float64;
+  torch.compile runs the solve eagerly too): one batch of 1,000. On the UR5e and the Panda
+  unless ``--arrays-arms`` says otherwise.
 
 The numerical anchors run on the UR5e and the Panda (the issue's table) unless
 ``--anchor-arms`` says otherwise; solvers that are not installed are skipped
@@ -97,8 +98,10 @@ ARMS = {
 }
 ANCHOR_ARMS = ("ur5e", "panda")
 ARRAYS_ARMS = ("ur5e", "panda")  # JAX and PyTorch rows
-# XLA's quick compile on the CPU (docs/ik.md): less compile time, slower programs
-QUICK_COMPILE = {"xla_cpu_use_fusion_emitters": False, "xla_backend_optimization_level": 0}
+# XLA's compile options on the CPU (docs/ik.md): without the fusion emitters, less compile time
+# and programs as fast; the quick compile, less compile time still and slower programs
+NO_FUSION_EMITTERS = {"xla_cpu_use_fusion_emitters": False}
+QUICK_COMPILE = {**NO_FUSION_EMITTERS, "xla_backend_optimization_level": 0}
 TOLERANCES = {"1e-9": (1e-9, 1e-9), "1e-5": (1e-5, 1e-5), "5mm/0.05rad": (5e-3, 0.05)}
 UNREACHABLE_M = 2.5  # every arm here reaches less than 1.5 m
 
@@ -364,8 +367,13 @@ def arrays_rows(case: Case, sizes: Sizes) -> list[Row]:
         quick = sizes.arrays == QUICK.arrays
         for size in sizes.arrays:
             n = min(size, len(case.T))
-            for options, label in [({}, "XLA defaults"), (QUICK_COMPILE, "XLA quick compile")]:
-                if quick and not options:
+            settings = [
+                ({}, "XLA defaults"),
+                (NO_FUSION_EMITTERS, "XLA without fusion emitters"),
+                (QUICK_COMPILE, "XLA quick compile"),
+            ]
+            for options, label in settings:
+                if quick and options is not QUICK_COMPILE:
                     continue
                 solve = jax.jit(jax.vmap(chain.ik), compiler_options=options)
                 targets = jax.device_put(case.T[:n])
