@@ -321,6 +321,10 @@ def stack(entries: Sequence[Entry], shape: tuple[int, ...], xp: Any, like: Any) 
     if not entries:  # e.g. the (6, 0) Jacobian of a chain without joints
         one = xp.reshape(xp.zeros_like(like), (*like.shape, *(1,) * len(shape)))
         return xp.zeros_like(xp.broadcast_to(one, (*like.shape, *shape)))
+    if xp is np and not like.shape and all(isinstance(e, float) or not e.shape for e in entries):
+        # one NumPy configuration, whose entries are NumPy's scalars (floats) and 0-d arrays:
+        # one conversion, not an array per entry
+        return np.asarray(entries, dtype=like.dtype).reshape(shape)
     full = [xp.full_like(like, e) if isinstance(e, float) else e for e in entries]
     if any(tuple(e.shape) != tuple(like.shape) for e in full):
         full = list(xp.broadcast_arrays(like, *full)[1:])
