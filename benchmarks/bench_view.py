@@ -24,6 +24,7 @@ interactive rate while dragging.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import os
 import pathlib
 import platform
@@ -32,6 +33,7 @@ import subprocess
 import sys
 import time
 import warnings
+from collections.abc import Iterator
 from typing import Any
 
 import numpy as np
@@ -61,21 +63,38 @@ def _ms(values: list[float]) -> str:
     return f"median {q[1]:6.2f} ms  (10%-90%: {q[0]:.2f}-{q[2]:.2f})"
 
 
-def updates(robot: str, n: int, pw: Any) -> None:
+@contextlib.contextmanager
+def _viewer(robot: str, pw: Any) -> Iterator[tuple[Any, bool]]:
+    """``poekin view``'s viewer of ``robot`` with its geometry sent, and whether a Chromium
+    page (Playwright ``pw``, if given) is connected to it and showing the scene."""
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         viewer = view(robot, port=0, open_browser=False)
     viewer.wait_geometry()
+    browser = None
+    try:
+        if pw is not None:
+            browser = pw.chromium.launch(executable_path=CHROMIUM, args=ARGS)
+            page = browser.new_page()
+            page.goto(viewer.url)
+            page.wait_for_selector("canvas", timeout=120_000)
+            page.get_by_text("geometry: ").first.wait_for(timeout=120_000)
+        yield viewer, browser is not None
+    finally:
+        if browser is not None:
+            browser.close()
+        viewer.close()
+
+
+def updates(robot: str, n: int, pw: Any) -> None:
+    with _viewer(robot, pw) as (viewer, connected):
+        _updates(viewer, robot, n, connected)
+
+
+def _updates(viewer: Any, robot: str, n: int, connected: bool) -> None:
     tree = viewer.subject.tree
     assert tree is not None
     qs = poekin.sample_qpos(tree, n + 10, seed=0, within_limits=True)
-    browser = page = None
-    if pw is not None:
-        browser = pw.chromium.launch(executable_path=CHROMIUM, args=ARGS)
-        page = browser.new_page()
-        page.goto(viewer.url)
-        page.wait_for_selector("canvas", timeout=120_000)
-        page.get_by_text("geometry: ").first.wait_for(timeout=120_000)
     times = []
     for k, q in enumerate(qs):
         t = time.perf_counter()
@@ -83,11 +102,8 @@ def updates(robot: str, n: int, pw: Any) -> None:
         if k >= 10:  # the first few warm caches
             times.append(time.perf_counter() - t)
     nodes = len(viewer.node_names()) - len(viewer.node_names("part"))
-    client = "a Chromium page connected" if page is not None else "no page connected"
+    client = "a Chromium page connected" if connected else "no page connected"
     print(f"  {robot:22} {_ms(times)}  ({n} updates, {nodes} nodes, {client})")
-    if browser is not None:
-        browser.close()
-    viewer.close()
 
 
 def _us(values: list[float]) -> str:
@@ -96,10 +112,11 @@ def _us(values: list[float]) -> str:
 
 
 def ik_updates(robot: str, n: int, pw: Any) -> None:
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        viewer = view(robot, port=0, open_browser=False)
-    viewer.wait_geometry()
+    with _viewer(robot, pw) as (viewer, connected):
+        _ik_updates(viewer, robot, n, connected)
+
+
+def _ik_updates(viewer: Any, robot: str, n: int, connected: bool) -> None:
     subject = viewer.subject
     tree = subject.tree
     assert tree is not None
@@ -111,13 +128,6 @@ def ik_updates(robot: str, n: int, pw: Any) -> None:
     steps = np.linspace(0.0, 1.0, n + 11)[:, None]
     path[:, slots] = lo + (hi - lo) * (0.35 + 0.3 * steps)
     targets = [tree.pose(x, subject.frame) for x in path]
-    page = browser = None
-    if pw is not None:
-        browser = pw.chromium.launch(executable_path=CHROMIUM, args=ARGS)
-        page = browser.new_page()
-        page.goto(viewer.url)
-        page.wait_for_selector("canvas", timeout=120_000)
-        page.get_by_text("geometry: ").first.wait_for(timeout=120_000)
     viewer.q = path[0]
     viewer.set_option("IK target", True)
     updates, solves, alone = [], [], []
@@ -145,13 +155,10 @@ def ik_updates(robot: str, n: int, pw: Any) -> None:
         t = time.perf_counter()
         viewer.set_target(out)
         far.append(time.perf_counter() - t)
-    client = "a Chromium page connected" if page is not None else "no page connected"
+    client = "a Chromium page connected" if connected else "no page connected"
     print(f"  {robot:22} update {_ms(updates)}  ({n} drag steps, {ghosts} ghosts, {client})")
     print(f"  {'':22} the solve {_us(solves)}; Tree.ik alone (first attempt) {_us(alone)}")
     print(f"  {'':22} out of reach: update {_ms(far)}")
-    if browser is not None:
-        browser.close()
-    viewer.close()
 
 
 def _free_port() -> int:
