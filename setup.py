@@ -1,4 +1,4 @@
-"""Build the compiled FK kernel ``poekin._kernel``; everything else is in pyproject.toml.
+"""Build the compiled FK kernel ``poekin.kernel._kernel``; everything else is in pyproject.toml.
 
 The extension is optional: without a C compiler poekin installs anyway and runs its pure-NumPy
 path (``poekin.compiled_kernel()`` is then False).
@@ -25,10 +25,10 @@ class _BuildExt(build_ext):
 setup(
     ext_modules=[
         Extension(
-            "poekin._kernel",
-            ["src/poekin/_kernel.c"],
+            "poekin.kernel._kernel",
+            ["src/poekin/kernel/_kernel.c"],
             depends=[
-                f"src/poekin/{name}.h"
+                f"src/poekin/kernel/{name}.h"
                 for name in ("_kernel_core", "_ik_all", "_ik_common", "_ik_core", "_ik_type")
             ],
             include_dirs=[np.get_include()],

@@ -51,7 +51,7 @@ import poekin  # noqa: E402
 from poekin import lie  # noqa: E402
 from poekin.calibration import calibrate  # noqa: E402
 from poekin.calibration.simulate import simulate_robot  # noqa: E402
-from poekin.verify import pose_errors  # noqa: E402
+from poekin.verification.verify import pose_errors  # noqa: E402
 
 ROBOT = "universal_robots_ur5e"
 SIGMA = 1e-4

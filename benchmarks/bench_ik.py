@@ -808,7 +808,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     info = machine_info()
     print(
         f"{info['cpu']}, {info['vector_width']}, {info['usable_cores']} usable cores; "
-        f"{poekin._fast.kernel_description()}",
+        f"{poekin.kernel._fast.kernel_description()}",
         flush=True,
     )
     rows: list[Row] = []

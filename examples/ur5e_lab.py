@@ -19,8 +19,8 @@ import sys
 import numpy as np
 
 import poekin
-from poekin.metrics import append_metrics, metric_rows, new_run_id, sha256_files
-from poekin.plotting import plot_errors
+from poekin.verification.metrics import append_metrics, metric_rows, new_run_id, sha256_files
+from poekin.verification.plotting import plot_errors
 
 
 def main() -> None:

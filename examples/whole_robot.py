@@ -16,8 +16,8 @@ import warnings
 import numpy as np
 
 import poekin
-from poekin.import_mujoco import find_frame
-from poekin.verify import mujoco_frame_poses, pose_errors
+from poekin.io.import_mujoco import find_frame
+from poekin.verification.verify import mujoco_frame_poses, pose_errors
 
 
 def check(robot: str, samples: int) -> float:

@@ -14,7 +14,7 @@ import pytest
 from numpy.typing import ArrayLike
 
 import poekin
-from poekin.sources import LoadedModel
+from poekin.io.sources import LoadedModel
 
 # PoE vs mj_forward. Both codes round to ~3e-15 m on the UR5e at |q| <= 2 pi (measured against
 # a 40-digit mpmath product), and error grows with the number of joints and the robot's size;

@@ -24,9 +24,9 @@ import poekin
 from poekin import InputError, lie
 from poekin._extras import install_command
 from poekin.chain import Chain, ChainParams
-from poekin.import_mujoco import tree_from_model
+from poekin.io.import_mujoco import tree_from_model
 from poekin.tree import Tree, TreeParams
-from poekin.verify import sample_qpos
+from poekin.verification.verify import sample_qpos
 
 # Float64 JAX and PyTorch vs the NumPy path (the compiled kernel): the same formulas in the
 # same order, differing only in sin and cos (each library's own, < 1 ulp) and, under XLA, in

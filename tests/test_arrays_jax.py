@@ -17,7 +17,7 @@ from helpers import assert_close
 
 from poekin.chain import Chain, ChainParams
 from poekin.tree import Tree
-from poekin.verify import sample_qpos
+from poekin.verification.verify import sample_qpos
 
 LIB_TOL = 1e-15  # as in test_arrays.py
 REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))

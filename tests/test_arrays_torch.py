@@ -15,7 +15,7 @@ from helpers import assert_close
 
 from poekin.chain import Chain, ChainParams
 from poekin.tree import Tree
-from poekin.verify import sample_qpos
+from poekin.verification.verify import sample_qpos
 
 LIB_TOL = 1e-15  # as in test_arrays.py
 
@@ -107,7 +107,7 @@ def test_compile_fullgraph_as_the_first_torch_call() -> None:
         import sys, warnings
         import numpy as np
         import poekin
-        from poekin.verify import sample_qpos
+        from poekin.verification.verify import sample_qpos
         warnings.simplefilter("ignore", poekin.AssetsStrippedWarning)
         chain = poekin.load("universal_robots_ur5e")
         tree = poekin.load_tree("unitree_go2")

@@ -1,4 +1,5 @@
-"""poekin._blas: calibration's linear algebra runs on one BLAS thread, and the count comes back."""
+"""poekin.calibration._blas: calibration's linear algebra runs on one BLAS thread, and the count
+comes back."""
 
 from __future__ import annotations
 
@@ -10,7 +11,7 @@ import pytest
 import threadpoolctl
 
 import poekin
-from poekin import _blas
+from poekin.calibration import _blas
 
 
 def _blas_threads() -> list[int]:

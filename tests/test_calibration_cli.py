@@ -16,8 +16,8 @@ from test_cli import assert_one_error_line, run
 import poekin
 from poekin.calibration.files import read_measurements, write_measurements
 from poekin.calibration.simulate import simulate_robot
-from poekin.fileio import read_array
-from poekin.verify import pose_errors
+from poekin.io.fileio import read_array
+from poekin.verification.verify import pose_errors
 
 ROBOT = "universal_robots_ur5e"
 

@@ -20,7 +20,7 @@ from poekin.calibration import calibrate
 from poekin.calibration.fit import fit
 from poekin.calibration.simulate import SimulatedRobot, simulate_robot
 from poekin.errors import CalibrationWarning, InputError
-from poekin.verify import pose_errors, random_generator
+from poekin.verification.verify import pose_errors, random_generator
 
 pytestmark = pytest.mark.filterwarnings("ignore::poekin.AssetsStrippedWarning")
 

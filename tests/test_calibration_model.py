@@ -17,7 +17,7 @@ import poekin
 from poekin import lie
 from poekin.calibration.model import CalibrationModel, State, expected_identifiable, rotations
 from poekin.calibration.simulate import simulate_robot
-from poekin.verify import pose_errors
+from poekin.verification.verify import pose_errors
 
 pytestmark = pytest.mark.filterwarnings("ignore::poekin.AssetsStrippedWarning")
 

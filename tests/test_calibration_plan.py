@@ -14,7 +14,7 @@ from poekin.calibration import calibrate, model_of, plan_poses
 from poekin.calibration.plan import quality, sampling_chain
 from poekin.calibration.simulate import simulate_robot
 from poekin.errors import InputError
-from poekin.verify import pose_errors, sample_joint_values
+from poekin.verification.verify import pose_errors, sample_joint_values
 
 pytestmark = pytest.mark.filterwarnings("ignore::poekin.AssetsStrippedWarning")
 

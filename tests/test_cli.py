@@ -18,7 +18,7 @@ from helpers import MJ_TOL, SUMMARY_KEYS, assert_close, load_quiet
 import poekin
 from poekin import load
 from poekin.cli import main
-from poekin.metrics import METRICS_HEADER
+from poekin.verification.metrics import METRICS_HEADER
 
 UR5E_XML = pathlib.Path(os.environ["MENAGERIE_ROOT"]) / "universal_robots_ur5e" / "ur5e.xml"
 
@@ -604,8 +604,8 @@ NOT_FOR_VERIFY = [
     "tqdm",  # only for a progress bar on a terminal
     "numpy.ma",
     "glfw",  # MuJoCo's GL backend, which the command line never uses
-    "poekin.metrics",
-    "poekin.plotting",
+    "poekin.verification.metrics",
+    "poekin.verification.plotting",
 ]
 
 
@@ -1276,7 +1276,7 @@ def test_a_write_the_os_refuses_midway_is_one_line_and_leaves_nothing(
     read-only meanwhile): what the OS refuses while writing is one line too, naming the path."""
     import errno
 
-    from poekin import fileio
+    from poekin.io import fileio
 
     np.save(tmp_path / "q.npy", np.zeros((2, 6)))
     listing = sorted(tmp_path.iterdir())

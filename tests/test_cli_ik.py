@@ -20,8 +20,8 @@ from test_ik_trees import mj_pose
 import poekin
 from poekin.cli import _ik
 from poekin.cli._args import JointSpace
-from poekin.fileio import read_array
 from poekin.ik._angles import within_limits
+from poekin.io.fileio import read_array
 
 TOL = 1e-10  # the command's default tolerances
 Q_TRUE = np.array([0.3, -1.2, 1.4, -0.5, 1.1, 0.2])  # a UR5e configuration within its limits

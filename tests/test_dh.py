@@ -15,7 +15,7 @@ from hypothesis import strategies as st
 import poekin
 from poekin import Chain, InputError, exp_se3
 from poekin.dh import CONVENTIONS, DHTable, dh_from_chain
-from poekin.verify import mujoco_poses, pose_errors
+from poekin.verification.verify import mujoco_poses, pose_errors
 
 # Frame axes and origins that dh builds from unit vectors and O(1) m points (base z, base
 # origin, R^T R of the base): a few float64 operations, each ~1e-16, so 1e-14.

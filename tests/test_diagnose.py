@@ -11,7 +11,7 @@ from helpers import assert_close
 import poekin
 from poekin import lie
 from poekin.dh import DHTable, dh_from_chain, joint_lines
-from poekin.diagnose import align_base, diagnose
+from poekin.verification.diagnose import align_base, diagnose
 
 # Planted errors are recovered from float64 geometry built from the model's own screws, so the
 # sizes come back to rounding (~1e-15 m), far inside this bound.
@@ -125,7 +125,7 @@ def test_a_wrong_home_pose_is_named_and_blamed_at_q0(ur5e):
 
 
 def test_lynch_park_ur5_against_the_menagerie_ur5e(ur5e):
-    d = diagnose(poekin.params.named_params("lynch-park-ur5"), ur5e)
+    d = diagnose(poekin.io.params.named_params("lynch-park-ur5"), ur5e)
     assert not d.matches
     rotation = [f for f in d.findings if f.kind == "base_rotation"]
     assert len(rotation) == 1 and abs(rotation[0].value - np.pi) < SIZE_TOL
@@ -138,7 +138,7 @@ def test_lynch_park_ur5_against_the_menagerie_ur5e(ur5e):
 
 
 def test_official_ur5e_dh_table_names_the_millimetre_differences(ur5e):
-    d = diagnose(poekin.params.named_params("ur5e-dh"), ur5e)
+    d = diagnose(poekin.io.params.named_params("ur5e-dh"), ur5e)
     assert not d.matches and d.max_pos_err_m < 0.01
     text = "\n".join(f.message for f in d.findings)
     assert "d4: 0.1333 m in yours vs 0.134 m in the model" in text

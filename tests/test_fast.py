@@ -20,11 +20,12 @@ from test_chain import random_chain
 from test_tree import FEATURES_XML, MENAGERIE, _two_link
 
 import poekin
-from poekin import InputError, _fast, lie
+from poekin import InputError, lie
 from poekin.chain import Chain
-from poekin.import_mujoco import tree_from_model
+from poekin.io.import_mujoco import tree_from_model
+from poekin.kernel import _fast
 from poekin.tree import Mimic, Tree
-from poekin.verify import sample_qpos
+from poekin.verification.verify import sample_qpos
 
 # Kernel vs reference. Both do the same arithmetic in the same order; they differ only in sin
 # and cos (the kernel's own, below 1 ulp, against the C library's), which moves a pose by a
@@ -405,7 +406,7 @@ FAST_METHODS = [
 def test_fast_methods_keep_the_signature_name_and_docs(cls: type, name: str) -> None:
     method = getattr(cls, name)
     python = method.__wrapped__
-    assert isinstance(method, poekin._kernel.FastMethod) and callable(python)
+    assert isinstance(method, poekin.kernel._kernel.FastMethod) and callable(python)
     assert inspect.signature(method) == inspect.signature(python)
     assert (method.__name__, method.__qualname__) == (name, f"{cls.__name__}.{name}")
     assert method.__doc__ and method.__doc__ == python.__doc__
@@ -469,7 +470,7 @@ def test_without_the_kernel_fast_method_is_the_function(monkeypatch: pytest.Monk
     def fk(self: object, q: object, out: object = None, form: str = "4x4") -> object:
         return q
 
-    assert isinstance(_fast.fast_method("_kernel")(fk), poekin._kernel.FastMethod)
+    assert isinstance(_fast.fast_method("_kernel")(fk), poekin.kernel._kernel.FastMethod)
     monkeypatch.setattr(_fast, "_kernel", None)
     assert _fast.fast_method("_kernel")(fk) is fk
 
@@ -557,4 +558,4 @@ def test_python_sees_a_get_and_call_of_the_python_method(ur5e: Chain) -> None:
         assert type(method).__get__(method, None, Chain) is method
         assert np.array_equal(python(q), getattr(ur5e, name)(q))
         assert np.array_equal(type(method).__call__(method, ur5e, q), python(q))
-        assert isinstance(getattr(ur5e, name).__func__, poekin._kernel.FastMethod)
+        assert isinstance(getattr(ur5e, name).__func__, poekin.kernel._kernel.FastMethod)

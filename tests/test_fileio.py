@@ -12,9 +12,9 @@ from typing import Any
 import numpy as np
 import pytest
 
-from poekin import fileio
 from poekin.errors import InputError
-from poekin.fileio import (
+from poekin.io import fileio
+from poekin.io.fileio import (
     check_new_file,
     check_writable,
     figure_format,

@@ -33,8 +33,8 @@ from hypothesis import strategies as st
 from test_tree import mj_frames
 
 from poekin import ModelError
-from poekin.import_mujoco import tree_from_model
-from poekin.verify import sample_qpos
+from poekin.io.import_mujoco import tree_from_model
+from poekin.verification.verify import sample_qpos
 
 # Issue #6's bar. Frames sit at most ~50 bodies and ~50 m from the world here, and both codes
 # round at ~1e-16 relative per operation, so real agreement is ~1e-14; a wrong axis, anchor,

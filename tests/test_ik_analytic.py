@@ -430,7 +430,7 @@ def test_without_the_kernel(folder: pathlib.Path, monkeypatch: pytest.MonkeyPatc
 
 @needs_kernel
 def test_kernel_widths_threads_and_batches_give_the_same_bits(folder: pathlib.Path) -> None:
-    from poekin import _fast
+    from poekin.kernel import _fast
 
     arm = arm_named("puma560", folder)
     T = arm.chain.fk(arm.sample(3000, seed=11))

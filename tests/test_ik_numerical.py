@@ -14,10 +14,10 @@ import pytest
 from helpers import MJ_TOL, load_quiet, mj_frame_pose
 
 import poekin
-from poekin import _fast
 from poekin.chain import Chain
 from poekin.ik import numerical
 from poekin.ik._angles import within_limits, wrap_into_limits
+from poekin.kernel import _fast
 
 # every arm of the shared Menagerie, with its end frame
 ARMS = {

@@ -14,7 +14,7 @@ from helpers import MJ_TOL, load_quiet, mj_frame_pose
 from test_tree import FEATURES_XML, _two_link
 
 import poekin
-from poekin.import_mujoco import tree_from_model
+from poekin.io.import_mujoco import tree_from_model
 from poekin.tree import Mimic, Tree
 
 TOL = 1e-10

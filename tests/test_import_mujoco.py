@@ -8,7 +8,7 @@ import pytest
 from helpers import MJ_TOL, assert_close, load_quiet, mj_frame_pose
 
 from poekin import ModelError, UnknownFrameError, chain_from_model, load, sample_joint_values
-from poekin.import_mujoco import find_frame, site_and_body_names, tree_from_model
+from poekin.io.import_mujoco import find_frame, site_and_body_names, tree_from_model
 
 N_SAMPLES = 1000
 

@@ -19,13 +19,13 @@ from helpers import MJ_TOL, assert_close
 from poekin import ModelError, URDFError
 from poekin._extras import install_command
 from poekin.errors import MissingExtraError
-from poekin.import_urdf import FLOATING_BASE, URDFLimitsWarning, tree_from_urdf
-from poekin.sources import _mujoco_warnings
+from poekin.io.import_urdf import FLOATING_BASE, URDFLimitsWarning, tree_from_urdf
+from poekin.io.sources import _mujoco_warnings
 from poekin.tree import Mimic, Tree
-from poekin.verify import sample_qpos
+from poekin.verification.verify import sample_qpos
 
 # limits.urdf's note is checked once, in test_unusable_limits_are_unlimited_as_in_mujoco
-pytestmark = pytest.mark.filterwarnings("ignore::poekin.import_urdf.URDFLimitsWarning")
+pytestmark = pytest.mark.filterwarnings("ignore::poekin.io.import_urdf.URDFLimitsWarning")
 DATA = pathlib.Path(__file__).parent / "data" / "urdf"
 N_SAMPLES = 1000
 HAND_TOL = 1e-14  # closed form vs tree.fk: a few roundings of numbers of order 1

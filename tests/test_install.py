@@ -125,4 +125,4 @@ def test_the_installed_kernel_is_compiled() -> None:
         "POEKIN_REQUIRE_COMPILED"
     ):
         pytest.skip("a checkout may be built without a compiler")
-    assert poekin.compiled_kernel(), "poekin._kernel was not built into this installation"
+    assert poekin.compiled_kernel(), "poekin.kernel._kernel was not built into this installation"

@@ -16,9 +16,9 @@ from test_tree import FEATURES_XML, MENAGERIE
 
 import poekin
 from poekin import InputError, UnknownFrameError, adjoint, inverse
-from poekin.import_mujoco import tree_from_model
+from poekin.io.import_mujoco import tree_from_model
 from poekin.tree import Tree
-from poekin.verify import sample_qpos
+from poekin.verification.verify import sample_qpos
 
 # Jacobian vs mj_jac*: both are a few products of the same float64 poses (~1e-16 relative per
 # step) on metre-sized robots: agreement is ~2e-15; issue #7 asks for 1e-12.

@@ -20,7 +20,7 @@ from test_tree import _random_chain_tree
 import poekin
 from poekin import _pose, lie
 from poekin.tree import Mimic, Tree, TreeParams
-from poekin.verify import sample_qpos
+from poekin.verification.verify import sample_qpos
 
 BATCH_SHAPES = [(), (1,), (3, 1, 2)]
 # The NumPy reference path vs the compiled kernel, as tests/test_fast.py; JAX and PyTorch vs

@@ -11,9 +11,9 @@ import re
 import numpy as np
 import pytest
 
-from poekin import metrics
 from poekin.errors import InputError, MetricsFileError
-from poekin.metrics import (
+from poekin.verification import metrics
+from poekin.verification.metrics import (
     METRICS_HEADER,
     MetricRow,
     append_metrics,

@@ -17,8 +17,8 @@ from poekin import Chain, InputError, exp_se3
 from poekin._extras import install_command
 from poekin.dh import DHTable
 from poekin.errors import MissingExtraError, UnitWarning, UnknownParamsError
-from poekin.paramfile import load_params, params_from_dict
-from poekin.params import PARAM_SETS, UR5E_DH, lynch_park_ur5_chain, ur5e_chain
+from poekin.io.paramfile import load_params, params_from_dict
+from poekin.io.params import PARAM_SETS, UR5E_DH, lynch_park_ur5_chain, ur5e_chain
 
 # JSON writes floats with repr(), which reads back bit for bit: round trips are exact.
 EXACT = 0.0

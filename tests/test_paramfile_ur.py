@@ -24,10 +24,10 @@ from hypothesis import strategies as st
 import poekin
 from poekin import DHTable, InputError, dh_from_chain
 from poekin.cli import main
-from poekin.paramfile import load_params, params_from_dict
-from poekin.params import UR5E_JOINT_NAMES
-from poekin.sources import kinematics_spec
-from poekin.ur_kinematics import UR_ORIGIN_KEYS, ur_chain
+from poekin.io.paramfile import load_params, params_from_dict
+from poekin.io.params import UR5E_JOINT_NAMES
+from poekin.io.sources import kinematics_spec
+from poekin.io.ur_kinematics import UR_ORIGIN_KEYS, ur_chain
 
 REPO = pathlib.Path(__file__).resolve().parents[1]
 CALIBRATION = REPO / "tests" / "data" / "ur" / "ur5e_calibration.yaml"  # synthetic (see its header)

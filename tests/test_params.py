@@ -13,7 +13,7 @@ from scipy.linalg import expm
 from poekin import UR5E_HOME, UR5E_SCREWS, Chain, PoekinError, fk_ur5e_poe, load, ur5e_chain
 from poekin.dh import DHTable
 from poekin.errors import UnknownParamsError
-from poekin.params import (
+from poekin.io.params import (
     LYNCH_PARK_UR5_HOME,
     LYNCH_PARK_UR5_SCREWS,
     PARAM_SETS,
@@ -50,7 +50,7 @@ def test_fk_ur5e_poe_matches_mj_forward() -> None:
 
 
 # --- Modern Robotics (Lynch & Park 2017), Example 4.5 -----------------------------------------
-# The book's dimensions (Fig. 4.5), typed here from the book, not from poekin.params.
+# The book's dimensions (Fig. 4.5), typed here from the book, not from poekin.io.params.
 W1, W2, L1, L2, H1, H2 = 0.109, 0.082, 0.425, 0.392, 0.089, 0.095
 # Building the book's numbers (e.g. L1 + L2) rounds by an ulp or two of ~1 m: 1e-15 is tight.
 BOOK_TOL = 1e-15

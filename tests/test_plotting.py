@@ -19,10 +19,11 @@ from helpers import assert_labels_apart
 from matplotlib.figure import Figure
 
 import poekin
-from poekin import lie, plotting
-from poekin.diagnose import Diagnosis, Finding, diagnose
+from poekin import lie
 from poekin.errors import InputError
-from poekin.plotting import plot_diagnosis, plot_errors
+from poekin.verification import plotting
+from poekin.verification.diagnose import Diagnosis, Finding, diagnose
+from poekin.verification.plotting import plot_diagnosis, plot_errors
 
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
 
@@ -260,7 +261,7 @@ def test_fresh_process_keeps_its_backend_and_has_no_pyplot(tmp_path: pathlib.Pat
         """
         import sys, matplotlib
         import numpy as np
-        from poekin.plotting import plot_errors
+        from poekin.verification.plotting import plot_errors
         before = matplotlib.get_backend()
         e = {"m": np.array([0.0, 1e-16, 2e-16])}
         plot_errors(e, e, title="t", path=sys.argv[1], pos_tol=1e-9, ori_tol=1e-9)
@@ -269,7 +270,7 @@ def test_fresh_process_keeps_its_backend_and_has_no_pyplot(tmp_path: pathlib.Pat
         """
     )
     env = {**os.environ, "MPLBACKEND": "svg"}
-    src = str(pathlib.Path(plotting.__file__).resolve().parents[1])
+    src = str(pathlib.Path(plotting.__file__).resolve().parents[2])
     env["PYTHONPATH"] = os.pathsep.join([src, env.get("PYTHONPATH", "")])
     out = tmp_path / "fresh.png"
     proc = subprocess.run(
@@ -510,8 +511,8 @@ def test_diagnosis_fresh_process_has_no_pyplot(tmp_path: pathlib.Path) -> None:
         """
         import sys, matplotlib
         import poekin
-        from poekin.diagnose import diagnose
-        from poekin.plotting import plot_diagnosis
+        from poekin.verification.diagnose import diagnose
+        from poekin.verification.plotting import plot_diagnosis
         before = matplotlib.get_backend()
         m = poekin.Chain(("j",), ("revolute",), [[0, 0, 1, 0, 0, 0]], [[1, 0, 0, 0.3],
             [0, 1, 0, 0], [0, 0, 1, 0.2], [0, 0, 0, 1]])
@@ -521,7 +522,7 @@ def test_diagnosis_fresh_process_has_no_pyplot(tmp_path: pathlib.Path) -> None:
         """
     )
     env = {**os.environ, "MPLBACKEND": "svg"}
-    src = str(pathlib.Path(plotting.__file__).resolve().parents[1])
+    src = str(pathlib.Path(plotting.__file__).resolve().parents[2])
     env["PYTHONPATH"] = os.pathsep.join([src, env.get("PYTHONPATH", "")])
     out = tmp_path / "fresh_diag.png"
     proc = subprocess.run(

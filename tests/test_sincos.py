@@ -1,4 +1,4 @@
-"""poekin._sincos: the compiled kernel's sine and cosine as array arithmetic, bit for bit the
+"""poekin.kernel._sincos: the compiled kernel's sine and cosine as array arithmetic, bit for bit the
 kernel's (read back through a one-joint chain's FK) and within an ulp of the C library's."""
 
 from __future__ import annotations
@@ -9,8 +9,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import poekin
-from poekin import _sincos
 from poekin.chain import Chain
+from poekin.kernel import _sincos
 
 # a rotation about z: the pose's R[0, 0] is cos q and R[1, 0] is sin q, as the kernel made them
 TURN = Chain(("j",), ("revolute",), np.array([[0.0, 0.0, 1.0, 0.0, 0.0, 0.0]]), np.eye(4))

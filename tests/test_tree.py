@@ -15,9 +15,9 @@ from hypothesis import strategies as st
 
 import poekin
 from poekin import InputError, ModelError, UnknownFrameError, lie
-from poekin.import_mujoco import tree_from_model
+from poekin.io.import_mujoco import tree_from_model
 from poekin.tree import Mimic, Tree
-from poekin.verify import sample_qpos
+from poekin.verification.verify import sample_qpos
 
 MENAGERIE = [
     "universal_robots_ur5e",

@@ -174,7 +174,7 @@ def test_samples_that_cannot_fit_are_refused_before_anything_is_allocated(
 
     import poekin
 
-    verify_module = importlib.import_module("poekin.verify")
+    verify_module = importlib.import_module("poekin.verification.verify")
 
     def no_sampling(*_: object, **__: object) -> None:
         raise AssertionError("sampled before checking the memory")

@@ -18,7 +18,7 @@ from mpl_toolkits.mplot3d.art3d import Line3DCollection
 
 import poekin
 from poekin.errors import InputError
-from poekin.plotting import _MODEL_COLOR, _YOURS_COLOR
+from poekin.verification.plotting import _MODEL_COLOR, _YOURS_COLOR
 from poekin.viewer import draw as drawing
 from poekin.viewer.scene import make_subject
 

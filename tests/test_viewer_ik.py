@@ -20,7 +20,7 @@ from poekin import lie
 from poekin.errors import InputError
 from poekin.ik import IKResult
 from poekin.ik._angles import within_limits
-from poekin.import_mujoco import tree_from_model
+from poekin.io.import_mujoco import tree_from_model
 from poekin.tree import Mimic
 from poekin.viewer import ik, panel
 from poekin.viewer.scene import Subject, make_subject

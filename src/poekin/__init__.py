@@ -15,10 +15,8 @@ scene as a matplotlib figure), and ``poekin.calibrate`` and ``poekin.plan_poses`
 
 from typing import TYPE_CHECKING, Any
 
-from poekin._fast import Form, SlowPathWarning, compiled_kernel, get_threads, set_threads
 from poekin.chain import Chain, ChainParams, JointType
 from poekin.dh import DHTable, dh_from_chain
-from poekin.diagnose import Diagnosis, diagnose
 from poekin.errors import (
     AnalyticIKError,
     InputError,
@@ -33,8 +31,23 @@ from poekin.errors import (
     UnknownRobotError,
     URDFError,
 )
-from poekin.import_mujoco import chain_from_model, tree_from_model
-from poekin.import_urdf import URDFLimitsWarning, tree_from_urdf
+from poekin.io.import_mujoco import chain_from_model, tree_from_model
+from poekin.io.import_urdf import URDFLimitsWarning, tree_from_urdf
+from poekin.io.loading import load, load_tree
+from poekin.io.paramfile import load_params
+from poekin.io.params import (
+    PARAM_SETS,
+    UR5_DH,
+    UR5E_DH,
+    UR5E_HOME,
+    UR5E_SCREWS,
+    fk_ur5e_poe,
+    lynch_park_ur5_chain,
+    named_params,
+    ur5e_chain,
+)
+from poekin.io.sources import AssetsStrippedWarning, LoadedModel, MuJoCoWarning, load_model
+from poekin.kernel._fast import Form, SlowPathWarning, compiled_kernel, get_threads, set_threads
 from poekin.lie import (
     adjoint,
     exp_se3,
@@ -57,22 +70,15 @@ from poekin.lie import (
     vee_se3,
     vee_so3,
 )
-from poekin.loading import load, load_tree
-from poekin.paramfile import load_params
-from poekin.params import (
-    PARAM_SETS,
-    UR5_DH,
-    UR5E_DH,
-    UR5E_HOME,
-    UR5E_SCREWS,
-    fk_ur5e_poe,
-    lynch_park_ur5_chain,
-    named_params,
-    ur5e_chain,
-)
-from poekin.sources import AssetsStrippedWarning, LoadedModel, MuJoCoWarning, load_model
 from poekin.tree import Mimic, Tree, TreeJointType, TreeParams
-from poekin.verify import VerifyReport, pose_errors, sample_joint_values, sample_qpos, verify
+from poekin.verification.diagnose import Diagnosis, diagnose
+from poekin.verification.verify import (
+    VerifyReport,
+    pose_errors,
+    sample_joint_values,
+    sample_qpos,
+    verify,
+)
 
 if TYPE_CHECKING:
     from poekin.calibration import calibrate as calibrate

@@ -22,9 +22,10 @@ from typing import TYPE_CHECKING, Any, Literal, NamedTuple
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from poekin import _fast, _pose, arrays, lie
-from poekin._fast import Form
+from poekin import _pose, arrays, lie
 from poekin.errors import InputError, did_you_mean
+from poekin.kernel import _fast
+from poekin.kernel._fast import Form
 
 if TYPE_CHECKING:
     from poekin.ik.analytic import IKSolutions
@@ -225,7 +226,7 @@ def _turns(
     screws: Sequence[_Screw], q: Sequence[Any], xp: Any, trig: Trig = _pose.sincos
 ) -> list[tuple[_Screw, Any, Any, Any]]:
     """Each screw with its angle, sine and cosine (computed once by ``trig``:
-    :func:`_pose.sincos`, or the compiled kernel's own, :func:`poekin._sincos.sincos`)."""
+    :func:`_pose.sincos`, or the compiled kernel's own, :func:`poekin.kernel._sincos.sincos`)."""
     turning = [i for i, screw in enumerate(screws) if not screw.prismatic]
     sines, cosines = trig([q[i] for i in turning], xp)
     s: list[Any] = [None] * len(screws)

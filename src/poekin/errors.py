@@ -59,7 +59,7 @@ class UnknownFrameError(ModelError, LookupError):
 
 
 class UnknownParamsError(PoekinError, LookupError):
-    """A parameter-set name that :data:`poekin.params.PARAM_SETS` does not know."""
+    """A parameter-set name that :data:`poekin.io.params.PARAM_SETS` does not know."""
 
 
 class MenagerieUnavailableError(ModelError):

@@ -30,8 +30,7 @@ from typing import TYPE_CHECKING, Any, Literal, NamedTuple
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from poekin import _fast, _levels, _pose, arrays, lie
-from poekin._fast import Form
+from poekin import _levels, _pose, arrays, lie
 from poekin.chain import (
     Chain,
     Column,
@@ -48,6 +47,8 @@ from poekin.chain import (
     zeros_like_batch,
 )
 from poekin.errors import InputError, ModelError, UnknownFrameError, did_you_mean
+from poekin.kernel import _fast
+from poekin.kernel._fast import Form
 
 if TYPE_CHECKING:
     from poekin.ik.numerical import IKResult

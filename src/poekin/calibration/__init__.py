@@ -25,7 +25,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from poekin._blas import one_thread
+from poekin.calibration._blas import one_thread
 from poekin.calibration.fit import (
     _MAD,
     LOSSES,
@@ -48,10 +48,10 @@ from poekin.calibration.plan import plan_poses
 from poekin.calibration.report import Calibration, Change
 from poekin.chain import Chain, as_joint_values
 from poekin.errors import CalibrationWarning, InputError
-from poekin.verify import pose_errors
+from poekin.verification.verify import pose_errors
 
 if TYPE_CHECKING:
-    from poekin.sources import LoadedModel
+    from poekin.io.sources import LoadedModel
 
 __all__ = [
     "LOSSES",
@@ -73,7 +73,7 @@ def as_chain(model: Chain | str | os.PathLike[str] | LoadedModel, frame: str | N
     """``model`` if it is a chain, else :func:`poekin.load` of it (with ``frame``)."""
     if isinstance(model, Chain):
         return model
-    from poekin.loading import load
+    from poekin.io.loading import load
 
     return load(model, frame)
 
@@ -191,7 +191,7 @@ def calibrate(
             data the model cannot fit (joint order, units, frame), or a fit that did not
             converge.
     """
-    with one_thread():  # small matrices: see poekin._blas
+    with one_thread():  # small matrices: see poekin.calibration._blas
         result = _calibrate(
             model,
             q,
@@ -319,7 +319,7 @@ def workspace(chain: Chain) -> FloatArray:
     the same for every calibration of ``chain``: where :class:`~.identify.Prediction` judges
     the calibrated chain."""
     from poekin.calibration.plan import sampling_chain
-    from poekin.verify import sample_joint_values
+    from poekin.verification.verify import sample_joint_values
 
     q = np.array(
         sample_joint_values(sampling_chain(chain), _WORKSPACE, seed=_SEED, within_limits=True),
@@ -355,7 +355,7 @@ def _heldout(
 ) -> tuple[FloatArray, FloatArray] | None:
     """Each pose's errors predicted by a fit on the other folds (:func:`~.fit.leave_out`), or
     None if a fold's fit would have too few poses."""
-    from poekin.verify import random_generator
+    from poekin.verification.verify import random_generator
 
     k = min(folds, n)
     fold = np.empty(n, dtype=int)

@@ -26,7 +26,7 @@ from numpy.typing import NDArray
 
 from poekin import lie
 from poekin.errors import InputError, did_you_mean
-from poekin.fileio import is_number
+from poekin.io.fileio import is_number
 
 if TYPE_CHECKING:
     from poekin.calibration.report import Calibration
@@ -192,7 +192,7 @@ def write_measurements(
     """Write joint readings ``(N, n)`` and measured poses ``(N, 4, 4)`` or positions ``(N, 3)``
     as the ``.csv`` :func:`read_measurements` reads (17 significant digits: the same float64
     numbers read back), replacing any file there."""
-    from poekin.fileio import write_text
+    from poekin.io.fileio import write_text
 
     measured = np.asarray(measured, dtype=np.float64)
     pose = measured.ndim == 3
@@ -240,7 +240,7 @@ def params_document(result: Calibration) -> dict[str, Any]:
 
 def write_json(path: pathlib.Path, doc: dict[str, Any]) -> None:
     """Write ``doc`` to ``path`` as JSON through a temporary file that replaces it in one step
-    (:func:`poekin.fileio.write_text`)."""
-    from poekin.fileio import write_text
+    (:func:`poekin.io.fileio.write_text`)."""
+    from poekin.io.fileio import write_text
 
     write_text(path, json.dumps(doc, indent=1) + "\n")

@@ -543,7 +543,7 @@ class CalibrationModel:
     # --- structure --------------------------------------------------------------------------
 
     def _structure(self) -> tuple[tuple[int, ...], tuple[Redundancy, ...]]:
-        from poekin.verify import sample_joint_values
+        from poekin.verification.verify import sample_joint_values
 
         chain = self.chain
         assert chain.limits is not None  # a chain always has limits (+-inf if none)

@@ -17,15 +17,15 @@ from typing import TYPE_CHECKING
 import numpy as np
 from numpy.typing import NDArray
 
-from poekin._blas import one_thread
+from poekin.calibration._blas import one_thread
 from poekin.calibration.identify import observability, scaled_jacobian
 from poekin.calibration.model import CalibrationModel, Measure, State, generic_point
 from poekin.chain import Chain
 from poekin.errors import InputError
-from poekin.verify import sample_joint_values, whole_number
+from poekin.verification.verify import sample_joint_values, whole_number
 
 if TYPE_CHECKING:
-    from poekin.sources import LoadedModel
+    from poekin.io.sources import LoadedModel
 
 __all__ = ["design_state", "plan_poses", "quality"]
 
@@ -87,7 +87,7 @@ def plan_poses(
     from poekin.calibration import as_chain, model_of
     from poekin.calibration.identify import minimum_poses
 
-    with one_thread():  # small matrices: see poekin._blas
+    with one_thread():  # small matrices: see poekin.calibration._blas
         chain = as_chain(model, frame)
         if measure not in ("pose", "position"):
             raise InputError(f"measure must be 'pose' or 'position', got {measure!r}")

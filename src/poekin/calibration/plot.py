@@ -1,7 +1,7 @@
 """The calibration figure: residuals per pose before and after, and what changed per joint.
 
 Drawn on a bare :class:`matplotlib.figure.Figure` with the Agg canvas (as
-:mod:`poekin.plotting`): no pyplot, no window, the user's backend untouched.
+:mod:`poekin.verification.plotting`): no pyplot, no window, the user's backend untouched.
 """
 
 from __future__ import annotations
@@ -16,7 +16,7 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 from matplotlib.patches import Patch
 
-from poekin.fileio import figure_format
+from poekin.io.fileio import figure_format
 
 if TYPE_CHECKING:
     from poekin.calibration.report import Calibration

@@ -250,9 +250,10 @@ class Calibration:
         In the robot's own base frame as fitted: joint 1's axis is the model's (its place and
         encoder zero cannot be told from the measuring frame's), and so are the other parts the
         fit keeps at the model's values (:meth:`redundant`). The axis tilt and the axis line
-        offset are those ``poekin diagnose`` reports (:func:`poekin.diagnose.joint_differences`).
+        offset are those ``poekin diagnose`` reports
+        (:func:`poekin.verification.diagnose.joint_differences`).
         """
-        from poekin.diagnose import joint_differences
+        from poekin.verification.diagnose import joint_differences
 
         robot, nominal = self.robot, self.nominal
         tilt, offset = joint_differences(robot, nominal)

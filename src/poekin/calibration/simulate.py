@@ -19,7 +19,7 @@ from numpy.typing import ArrayLike, NDArray
 from poekin import lie
 from poekin.chain import Chain, as_joint_values
 from poekin.errors import InputError, ModelError
-from poekin.verify import random_generator
+from poekin.verification.verify import random_generator
 
 if TYPE_CHECKING:
     import mujoco
@@ -185,9 +185,9 @@ def simulate_robot(
         The simulated robot; its ``measure(q)`` gives what a tracker would measure.
     """
 
-    from poekin.import_mujoco import find_frame
-    from poekin.loading import default_frame, load_tree
-    from poekin.sources import kinematics_spec, load_model
+    from poekin.io.import_mujoco import find_frame
+    from poekin.io.loading import default_frame, load_tree
+    from poekin.io.sources import kinematics_spec, load_model
 
     loaded = load_model(source)
     tree = load_tree(loaded)

@@ -33,7 +33,7 @@ def version() -> str:
     import numpy as np
 
     from poekin import __version__
-    from poekin._fast import kernel_description
+    from poekin.kernel._fast import kernel_description
 
     try:
         mujoco = metadata.version("mujoco")

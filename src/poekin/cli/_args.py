@@ -193,7 +193,7 @@ def model_source(args: argparse.Namespace, default: str | None = DEFAULT_ROBOT) 
 
 
 def params(spec: str) -> Chain | DHTable:
-    from poekin.paramfile import load_params
+    from poekin.io.paramfile import load_params
 
     return load_params(spec)
 
@@ -244,7 +244,7 @@ def read_joint_values(args: argparse.Namespace, space: JointSpace) -> NDArray[np
     A wrong last axis is left for the model to refuse, with its own message. Notes go to stderr
     for values that look like degrees and for values outside the joint limits.
     """
-    from poekin.fileio import read_array
+    from poekin.io.fileio import read_array
 
     path = getattr(args, "input", None)  # commands without --input (draw) read --q only
     q = read_array(path, name="q") if path is not None else np.asarray(args.q, dtype=np.float64)

@@ -21,7 +21,7 @@ __all__ = ["register"]
 
 def _check_options(args: argparse.Namespace) -> None:
     """Every option, and the files to write, before any model is loaded or anything written."""
-    from poekin.fileio import check_new_file, figure_format
+    from poekin.io.fileio import check_new_file, figure_format
 
     if args.plan is not None:
         for flag in ("measurements", "plot"):
@@ -32,7 +32,7 @@ def _check_options(args: argparse.Namespace) -> None:
         if args.candidates is not None and args.candidates < args.plan:
             raise InputError(f"--candidates must be at least --plan ({args.plan})")
         if args.output:
-            from poekin.fileio import array_format
+            from poekin.io.fileio import array_format
 
             array_format(args.output, "--output")
             check_new_file(args.output, "planned poses", force=args.force)
@@ -66,7 +66,7 @@ def _check_options(args: argparse.Namespace) -> None:
 def _plan(args: argparse.Namespace, chain: Any, out: TextIO) -> int:
     from poekin.calibration import model_of, plan_poses
     from poekin.calibration.plan import quality, sampling_chain
-    from poekin.verify import sample_joint_values
+    from poekin.verification.verify import sample_joint_values
 
     measure: Measure = "position" if args.positions else "pose"
     q = plan_poses(chain, args.plan, measure=measure, candidates=args.candidates, seed=args.seed)
@@ -105,7 +105,7 @@ def _plan(args: argparse.Namespace, chain: Any, out: TextIO) -> int:
         for row in q:
             print(",".join(f"{v:.6f}" for v in row), file=out)
     if args.output:
-        from poekin.fileio import write_array
+        from poekin.io.fileio import write_array
 
         write_array(args.output, q, name="q", columns=chain.joint_names)
         if not args.json:
@@ -117,7 +117,7 @@ def _plan(args: argparse.Namespace, chain: Any, out: TextIO) -> int:
 def _cmd_calibrate(args: argparse.Namespace, out: TextIO) -> int:
     from poekin.calibration import calibrate
     from poekin.calibration.files import params_document, read_measurements, write_json
-    from poekin.loading import load
+    from poekin.io.loading import load
 
     _check_options(args)
     source = model_source(args, None)

@@ -38,7 +38,7 @@ def finite_json(obj: Any) -> Any:
 
 def params_or_chain(args: argparse.Namespace) -> Chain | DHTable:
     """``--params`` if given, else the chain of the positional model SOURCE (not both)."""
-    from poekin.loading import load
+    from poekin.io.loading import load
 
     if args.params and args.source:
         raise InputError("give a model SOURCE or --params FILE|NAME, not both")
@@ -51,7 +51,7 @@ def params_or_chain(args: argparse.Namespace) -> Chain | DHTable:
 
 
 def _cmd_screws(args: argparse.Namespace, out: TextIO) -> int:
-    from poekin.loading import load
+    from poekin.io.loading import load
 
     chain = load(model_source(args, None), args.frame)
     if args.json:

@@ -67,7 +67,7 @@ def _tree_mode(args: argparse.Namespace) -> bool:
 
 
 def _load_tree(args: argparse.Namespace) -> Tree:
-    from poekin.loading import load_tree
+    from poekin.io.loading import load_tree
 
     if args.params:
         raise InputError(
@@ -83,7 +83,7 @@ def end_chain(args: argparse.Namespace) -> Any:
         raise InputError("--floating-base gives a whole model's qpos: pass --tree too")
     if args.params:
         return params_or_chain(args)
-    from poekin.loading import default_frame, load_tree
+    from poekin.io.loading import default_frame, load_tree
 
     tree = load_tree(model_source(args, None))
     frame = args.frame if args.frame is not None else default_frame(tree)
@@ -103,7 +103,7 @@ def _fk_target(args: argparse.Namespace) -> _Target:
         chain = end_chain(args)
         return _Target(chain.fk, JointSpace.of(chain), (chain.frame,))
     from poekin import lie
-    from poekin.loading import default_frame
+    from poekin.io.loading import default_frame
 
     tree = _load_tree(args)
     if args.all_frames and args.frame:
@@ -133,7 +133,7 @@ def _jacobian_target(args: argparse.Namespace) -> _Target:
             chain = chain.to_chain()
         method = getattr(chain, f"jacobian_{convention}")
         return _Target(method, JointSpace.of(chain), (chain.frame,), columns=chain.joint_names)
-    from poekin.loading import default_frame
+    from poekin.io.loading import default_frame
 
     tree = _load_tree(args)
     if args.all_frames and args.frame:
@@ -159,7 +159,7 @@ def _jacobian_target(args: argparse.Namespace) -> _Target:
 def _check_q_args(args: argparse.Namespace, result: str) -> None:
     """``--q`` or ``--input`` (one of them); ``--input`` with ``--output``, a new file of a
     known format; ``--json`` only with ``--q``. Checked before any model is loaded."""
-    from poekin.fileio import array_format, check_new_file
+    from poekin.io.fileio import array_format, check_new_file
 
     if args.q is not None and args.input is not None:
         raise InputError(
@@ -194,7 +194,7 @@ def _save(
     extras: dict[str, Any],
     out: TextIO,
 ) -> None:
-    from poekin.fileio import write_array
+    from poekin.io.fileio import write_array
 
     write_array(args.output, result, name=name, columns=columns, extras=extras, what=what)
     print(f"{what} {name} of shape {result.shape} written to {args.output}", file=out)

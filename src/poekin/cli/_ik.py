@@ -66,7 +66,7 @@ _ALL_FIELDS = ("q", "valid", "pos_err", "ori_err")
 
 def _check_args(args: argparse.Namespace) -> None:
     """Which target, which files, which options go together; the numbers' ranges."""
-    from poekin.fileio import array_format, check_new_file
+    from poekin.io.fileio import array_format, check_new_file
 
     if args.pose is not None and args.input is not None:
         raise InputError(
@@ -189,7 +189,7 @@ def _targets(args: argparse.Namespace) -> tuple[FloatArray, str]:
             return T, f"target xyz {xyz} m (position only)"
         quat = " ".join(f"{x:g}" for x in pose[3:])
         return T, f"target xyz {xyz} m, quat wxyz {quat}"
-    from poekin.fileio import read_array
+    from poekin.io.fileio import read_array
 
     arr = read_array(args.input, name="T")
     shape = arr.shape
@@ -288,7 +288,7 @@ def _chain_problem(args: argparse.Namespace) -> _Problem:
 
 def _tree_problem(args: argparse.Namespace) -> _Problem:
     from poekin.ik.trees import plan
-    from poekin.loading import default_frame, load_tree
+    from poekin.io.loading import default_frame, load_tree
 
     if args.params:
         raise InputError("--tree takes the whole model from SOURCE, not --params")
@@ -479,7 +479,7 @@ def _write_batch(
     args: argparse.Namespace, problem: _Problem, got: Fields, target: str, out: TextIO
 ) -> int:
     """A batch's answers to ``--output``, and a summary."""
-    from poekin.fileio import write_array
+    from poekin.io.fileio import write_array
 
     space, deg = problem.space, args.deg
     names = list(space.names)

@@ -28,7 +28,7 @@ def _check_run_options(args: argparse.Namespace) -> None:
     model is loaded."""
     import math
 
-    from poekin.fileio import check_new_file, figure_format
+    from poekin.io.fileio import check_new_file, figure_format
 
     if args.samples < 1:
         raise InputError(f"--samples must be at least 1, got {args.samples}")
@@ -50,13 +50,13 @@ def _verdict(passed: bool, pos_tol: float, ori_tol: float) -> str:
 
 
 def _cmd_verify(args: argparse.Namespace, out: TextIO) -> int:
-    from poekin.loading import is_urdf, load_tree
-    from poekin.sources import load_model
-    from poekin.verify import verify
+    from poekin.io.loading import is_urdf, load_tree
+    from poekin.io.sources import load_model
+    from poekin.verification.verify import verify
 
     _check_run_options(args)
     if args.metrics:
-        from poekin.metrics import check_metrics_file
+        from poekin.verification.metrics import check_metrics_file
 
         check_metrics_file(args.metrics)
     if args.against and not args.params:
@@ -93,7 +93,7 @@ def _cmd_verify(args: argparse.Namespace, out: TextIO) -> int:
     else:
         _print_report(report, args, out)
     if args.plot:
-        from poekin.plotting import plot_errors
+        from poekin.verification.plotting import plot_errors
 
         plot_errors(
             report.pos_err,
@@ -108,7 +108,7 @@ def _cmd_verify(args: argparse.Namespace, out: TextIO) -> int:
         if not args.json:
             print(f"plot written to {args.plot}", file=out)
     if args.metrics:
-        from poekin.metrics import append_metrics, metric_rows, sha256_files
+        from poekin.verification.metrics import append_metrics, metric_rows, sha256_files
 
         notes = f"frame={report.frame}; range={'limits' if args.within_limits else '[-2pi,2pi]'}"
         if args.params:
@@ -154,7 +154,7 @@ def _print_report(report: Any, args: argparse.Namespace, out: TextIO) -> None:
 
 
 def _cmd_diagnose(args: argparse.Namespace, out: TextIO) -> int:
-    from poekin.diagnose import diagnose
+    from poekin.verification.diagnose import diagnose
 
     _check_run_options(args)
     d = diagnose(
@@ -168,7 +168,7 @@ def _cmd_diagnose(args: argparse.Namespace, out: TextIO) -> int:
     )
     model = d.model
     if args.plot:
-        from poekin.plotting import plot_diagnosis
+        from poekin.verification.plotting import plot_diagnosis
 
         verdict = "match" if d.matches else "mismatch"
         plot_diagnosis(

@@ -60,8 +60,8 @@ def _cmd_view(args: argparse.Namespace, out: TextIO) -> int:
 
 
 def _cmd_draw(args: argparse.Namespace, out: TextIO) -> int:
-    from poekin.fileio import check_new_file, figure_format
-    from poekin.loading import load_tree
+    from poekin.io.fileio import check_new_file, figure_format
+    from poekin.io.loading import load_tree
     from poekin.viewer.draw import draw
 
     if args.aligned and not args.params:

@@ -58,7 +58,7 @@ from poekin.ik._angles import within_limits, wrap_into_limits
 from poekin.ik.subproblems import CosSin, add, dot, lift, rotate, sub
 
 try:
-    from poekin import _kernel  # type: ignore[attr-defined]
+    from poekin.kernel import _kernel  # type: ignore[attr-defined]
 except ImportError:  # built without a C compiler: the NumPy reference serves
     _kernel = None
 

@@ -206,7 +206,7 @@ class _Problem:
 
     def evaluate(self, q: Entries, model: _Model | None = None) -> tuple[_pose.Pose, Any]:
         """``T(q)`` and the world Jacobian's columns, with the library's own sine and cosine
-        (a twelfth of the operations of the kernel's, :mod:`poekin._sincos`, under XLA)."""
+        (a twelfth of the operations of the kernel's, :mod:`poekin.kernel._sincos`, under XLA)."""
         model = self.model if model is None else model
         return evaluate(self.chain, q, self.xp, model, _pose.sincos)
 

@@ -8,7 +8,7 @@ like :func:`poekin.chain.poe`), and repeated operation for operation by the comp
 
 1. ``T(q) = (R, p)`` and the world Jacobian ``J`` (rows ``[w; v_frame]``: the end frame's
    angular velocity and its origin's velocity, both in the world frame, the frame the target
-   is given in), with the kernel's own sine and cosine (:mod:`poekin._sincos`);
+   is given in), with the kernel's own sine and cosine (:mod:`poekin.kernel._sincos`);
 2. the residual ``r = [k e_o; e_p]``: ``e_p = p_t - p`` (m) and ``e_o = 2 (x, y, z)``, the
    vector part of the quaternion ``(w >= 0)`` of ``R_t R^T`` by Shepperd's method (square
    roots only, so NumPy and C agree to the bit): ``2 sin(theta/2)`` times the axis, the
@@ -59,11 +59,12 @@ from typing import TYPE_CHECKING, Any, NamedTuple
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from poekin import _fast, _pose, _sincos, arrays, lie
+from poekin import _pose, arrays, lie
 from poekin.chain import Column, Trig, _Model, as_joint_values, space_jacobian, world_columns
 from poekin.errors import InputError
 from poekin.ik import _rng
 from poekin.ik._angles import TWO_PI, within_limits, wrap_into_limits
+from poekin.kernel import _fast, _sincos
 
 if TYPE_CHECKING:
     from poekin.chain import Chain

@@ -7,7 +7,7 @@ the end frame ``T(q)`` and the home pose ``M`` (dashed); with a parameter set, y
 with the end-frame error in the title; with ``all_frames``, every body and site as a small triad.
 
 Drawn on a bare :class:`~matplotlib.figure.Figure` (no pyplot, no change of backend), like
-:mod:`poekin.plotting`.
+:mod:`poekin.verification.plotting`.
 """
 
 from __future__ import annotations
@@ -21,12 +21,12 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 from numpy.typing import ArrayLike, NDArray
 
-from poekin._labels import Label, directions_away, place_labels, screen_direction
 from poekin.chain import Chain
 from poekin.dh import DHTable
 from poekin.errors import InputError
-from poekin.fileio import check_writable, figure_format, save_figure
-from poekin.plotting import _MODEL_COLOR, _YOURS_COLOR, draw_triad
+from poekin.io.fileio import check_writable, figure_format, save_figure
+from poekin.verification._labels import Label, directions_away, place_labels, screen_direction
+from poekin.verification.plotting import _MODEL_COLOR, _YOURS_COLOR, draw_triad
 from poekin.viewer.scene import (
     FORMS,
     Comparison,
@@ -108,7 +108,7 @@ def figure(
     title: str | None = None,
 ) -> Figure:
     """The drawing of ``subject`` at ``qpos`` (see the module docstring). Its labels overlap
-    neither each other nor the axes' tick labels (:mod:`poekin._labels`).
+    neither each other nor the axes' tick labels (:mod:`poekin.verification._labels`).
 
     Raises:
         InputError: ``qpos`` is not ``nq`` finite numbers, or an unknown ``form``.
@@ -234,14 +234,14 @@ def draw(
     form: Form = "space",
 ) -> Figure:
     """Draw a robot at ``qpos`` (default: its ``qpos0``) with its screw axes; save it to
-    ``path`` if given (the suffix decides: :data:`poekin.fileio.FIGURE_FORMATS`).
+    ``path`` if given (the suffix decides: :data:`poekin.io.fileio.FIGURE_FORMATS`).
 
     ``model`` and ``params`` are what :func:`poekin.view` takes. An existing file at ``path`` is
     replaced.
 
     Raises:
         InputError: an unknown suffix or a path that cannot be written (both before any work:
-            :func:`poekin.fileio.check_writable`), ``aligned`` without ``params``, ``qpos`` of
+            :func:`poekin.io.fileio.check_writable`), ``aligned`` without ``params``, ``qpos`` of
             the wrong length, ...
     """
     from poekin.viewer.geometry import _geom_tips

@@ -3,7 +3,7 @@
 * MJCF and Menagerie models: the geoms MuJoCo compiled, meshes (``mesh_vert``, ``mesh_face``) and
   primitives (``geom_size``), placed by ``geom_pos`` and ``geom_quat`` and coloured by their
   material or ``rgba``; the groups MuJoCo's own viewer shows (0, 1 and 2). The mesh files are
-  read by MuJoCo (:func:`poekin.sources.load_model` with ``read_assets=True``): poekin has no
+  read by MuJoCo (:func:`poekin.io.sources.load_model` with ``read_assets=True``): poekin has no
   mesh parser of its own.
 * URDF: each link's ``<visual>`` elements, mesh files loaded by trimesh.
 * Where a mesh file is missing (the XML-only Menagerie models) or there is nothing to draw, and
@@ -32,7 +32,7 @@ from poekin.viewer.scene import Subject, skeleton
 if TYPE_CHECKING:
     import mujoco
 
-    from poekin.sources import LoadedModel
+    from poekin.io.sources import LoadedModel
 
 __all__ = ["Geometry", "Part", "mjcf_geometry", "stand_in", "urdf_geometry"]
 
@@ -191,13 +191,13 @@ def _color(model: mujoco.MjModel, g: int) -> tuple[tuple[int, int, int], float]:
 def mjcf_geometry(loaded: LoadedModel, subject: Subject) -> Geometry:
     """The parts of a model MuJoCo compiles (see the module docstring).
 
-    ``loaded`` is the kinematics-only compile (:func:`poekin.sources.load_model`); when it had to
+    ``loaded`` is the kinematics-only compile (:func:`poekin.io.sources.load_model`); when it had to
     strip missing mesh files, the result is the stand-in. Otherwise the model is compiled again,
     reading its meshes (the slow part: 0.7 s for the UR5e's 30 MB of OBJ files).
     """
     import mujoco
 
-    from poekin.sources import load_model
+    from poekin.io.sources import load_model
 
     missing = [s for s in loaded.stripped if "mesh" in s]
     if missing:
@@ -269,7 +269,7 @@ def _resolve_urdf_mesh(filename: str, urdf_dir: pathlib.Path) -> pathlib.Path | 
 def urdf_geometry(path: str | os.PathLike[str], subject: Subject) -> Geometry:
     """Each link's ``<visual>`` (boxes, cylinders, spheres and mesh files, the meshes loaded by
     trimesh); the stand-in if a mesh file cannot be found or there are none."""
-    from poekin.import_urdf import parse_urdf
+    from poekin.io.import_urdf import parse_urdf
 
     trimesh = _trimesh()
     urdf_path = pathlib.Path(path)

@@ -30,7 +30,7 @@ from poekin import lie
 from poekin.errors import AnalyticIKError, InputError
 from poekin.ik import IKResult
 from poekin.ik.numerical import check_targets
-from poekin.verify import pose_errors
+from poekin.verification.verify import pose_errors
 from poekin.viewer.scene import Subject, joint_anchors, link_frames, snapshot_base
 
 __all__ = [

@@ -12,7 +12,7 @@ from numpy.typing import NDArray
 
 from poekin.chain import Chain
 from poekin.dh import DHTable
-from poekin.sources import LoadedModel
+from poekin.io.sources import LoadedModel
 from poekin.tree import Tree
 from poekin.viewer.scene import Comparison, Subject, compare, make_subject
 
@@ -48,9 +48,9 @@ def load_shown(model: Any, frame: str | None = None) -> Shown:
     Raises:
         PoekinError: an unknown robot or frame, an unreadable file.
     """
-    from poekin.import_mujoco import tree_from_model
-    from poekin.loading import is_urdf, load_tree
-    from poekin.sources import load_model
+    from poekin.io.import_mujoco import tree_from_model
+    from poekin.io.loading import is_urdf, load_tree
+    from poekin.io.sources import load_model
 
     if isinstance(model, (Tree, Chain, DHTable)):
         return Shown(make_subject(model, frame))
@@ -66,7 +66,7 @@ def load_params_comparison(
     subject: Subject, params: str | os.PathLike[str] | Chain | DHTable | None
 ) -> Comparison | None:
     """``params`` (a file, a named set, a chain or a table) diagnosed against the subject."""
-    from poekin.paramfile import load_params
+    from poekin.io.paramfile import load_params
 
     if params is None:
         return None

@@ -196,7 +196,7 @@ def dh_text(table: DHTable) -> str:
 
 
 def compare_text(comparison: Comparison, ghost: Ghost, aligned: bool) -> str:
-    """The live end-frame error, the verdict and :func:`~poekin.diagnose.diagnose`'s findings."""
+    """The live end-frame error, the verdict and :func:`poekin.diagnose`'s findings."""
     d = comparison.diagnosis
     verdict = "MATCH" if d.matches else "MISMATCH"
     placed = d.placement(aligned) + ("" if aligned else ", on the model's base frame")

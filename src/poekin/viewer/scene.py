@@ -38,10 +38,10 @@ from numpy.typing import ArrayLike, NDArray
 from poekin import lie
 from poekin.chain import Chain, JacobianConvention, as_joint_values, check_jacobian_convention
 from poekin.dh import Convention, DHTable, dh_from_chain, joint_lines
-from poekin.diagnose import Diagnosis, diagnose
 from poekin.errors import InputError, ModelError
 from poekin.tree import Tree
-from poekin.verify import pose_errors
+from poekin.verification.diagnose import Diagnosis, diagnose
+from poekin.verification.verify import pose_errors
 
 __all__ = [
     "FORMS",
@@ -530,7 +530,7 @@ def snapshot_base(subject: Subject, qpos: FloatArray) -> FloatArray:
 
 @dataclasses.dataclass(frozen=True, eq=False)
 class Comparison:
-    """A parameter set shown beside the model: :func:`~poekin.diagnose.diagnose`'s result.
+    """A parameter set shown beside the model: :func:`poekin.diagnose`'s result.
 
     ``yours`` is the set as a chain, in its own base frame; ``diagnosis.aligned`` is the same
     moved by the base alignment into the model's base frame.

@@ -21,12 +21,12 @@ from matplotlib.figure import Figure
 from matplotlib.legend_handler import HandlerTuple
 from matplotlib.lines import Line2D
 
-from poekin._labels import Label, directions_away, place_labels, screen_direction
 from poekin.chain import Chain
 from poekin.dh import joint_lines
-from poekin.diagnose import Diagnosis
 from poekin.errors import InputError
-from poekin.fileio import check_writable, figure_format, save_figure
+from poekin.io.fileio import check_writable, figure_format, save_figure
+from poekin.verification._labels import Label, directions_away, place_labels, screen_direction
+from poekin.verification.diagnose import Diagnosis
 
 __all__ = ["plot_diagnosis", "plot_errors"]
 
@@ -263,7 +263,7 @@ def plot_errors(
         ori_err: ``{method: (N,) orientation errors [rad]}``, same keys and lengths.
         title: the figure title.
         path: where to write the figure, in the format its suffix names (``.png``, ``.pdf``,
-            ``.svg``, ``.jpg``...: :data:`poekin.fileio.FIGURE_FORMATS`); its folder must
+            ``.svg``, ``.jpg``...: :data:`poekin.io.fileio.FIGURE_FORMATS`); its folder must
             exist and take new files (checked first). An existing file is overwritten.
         pos_tol: position tolerance [m] to draw, or ``None``.
         ori_tol: orientation tolerance [rad] to draw, or ``None``.
@@ -276,7 +276,7 @@ def plot_errors(
     Raises:
         InputError: the two mappings have different keys or lengths, an array is not 1-D, the
             suffix names no figure format, or the file cannot be written there
-            (:func:`poekin.fileio.cannot_write` says why; checked before any drawing).
+            (:func:`poekin.io.fileio.cannot_write` says why; checked before any drawing).
     """
     p = pathlib.Path(path)
     figure_format(p, "plot")
@@ -731,7 +731,7 @@ def _diagnosis_figure(diagnosis: Diagnosis, title: str | None = None) -> Figure:
 def plot_diagnosis(
     diagnosis: Diagnosis, path: str | os.PathLike[str], *, title: str | None = None
 ) -> None:
-    """Save a picture of a :func:`~poekin.diagnose.diagnose` result.
+    """Save a picture of a :func:`~poekin.verification.diagnose.diagnose` result.
 
     The arm at ``q = 0`` as a 3-D skeleton (base origin, joint points, end-frame origin) with
     each joint's screw axis as an arrow, the model's chain in blue and yours in orange, overlaid:
@@ -741,15 +741,15 @@ def plot_diagnosis(
     triads. The figure is 14 x 7 in at 120 dpi.
 
     Args:
-        diagnosis: what :func:`~poekin.diagnose.diagnose` returned.
+        diagnosis: what :func:`~poekin.verification.diagnose.diagnose` returned.
         path: where to write it, in the format its suffix names (``.png``, ``.pdf``, ...:
-            :data:`poekin.fileio.FIGURE_FORMATS`); an existing file is overwritten.
+            :data:`poekin.io.fileio.FIGURE_FORMATS`); an existing file is overwritten.
         title: the figure title; default ``"<yours> vs <model>: match|mismatch"``. A second line
             gives the largest errors.
 
     Raises:
         InputError: the suffix names no figure format, or the file cannot be written there
-            (:func:`poekin.fileio.cannot_write` says why; checked before any drawing).
+            (:func:`poekin.io.fileio.cannot_write` says why; checked before any drawing).
     """
     figure_format(path, "plot")
     check_writable(path, "the plot")

@@ -1,8 +1,8 @@
 /*
- * poekin._kernel: the compiled forward-kinematics kernel.
+ * poekin.kernel._kernel: the compiled forward-kinematics kernel.
  *
  * One generic interpreter serves every FK path (space PoE, body PoE, whole trees). Python
- * compiles a model into a small *program* of pose operations (see poekin/_fast.py); this file
+ * compiles a model into a small *program* of pose operations (see poekin/kernel/_fast.py); this file
  * runs it on blocks of LANES configurations at once, each operation one SIMD instruction
  * sequence over the block (GCC vector types), and on several threads for big batches. The code
  * that depends on LANES is in _kernel_core.h, compiled three times: 8 lanes for AVX-512, 4 for
@@ -621,11 +621,11 @@ static PyMethodDef Kernel_methods[] = {
 };
 
 static PyTypeObject KernelType = {
-    PyVarObject_HEAD_INIT(NULL, 0).tp_name = "poekin._kernel.Kernel",
+    PyVarObject_HEAD_INIT(NULL, 0).tp_name = "poekin.kernel._kernel.Kernel",
     .tp_basicsize = sizeof(KernelObject),
     .tp_dealloc = (destructor)Kernel_dealloc,
     .tp_flags = Py_TPFLAGS_DEFAULT,
-    .tp_doc = "A compiled forward-kinematics program (built by poekin._fast).",
+    .tp_doc = "A compiled forward-kinematics program (built by poekin.kernel._fast).",
     .tp_methods = Kernel_methods,
     .tp_init = (initproc)Kernel_init,
     .tp_new = PyType_GenericNew,
@@ -765,7 +765,7 @@ static PyGetSetDef FastMethod_getset[] = {
 };
 
 static PyTypeObject FastMethodType = {
-    PyVarObject_HEAD_INIT(NULL, 0).tp_name = "poekin._kernel.FastMethod",
+    PyVarObject_HEAD_INIT(NULL, 0).tp_name = "poekin.kernel._kernel.FastMethod",
     .tp_basicsize = sizeof(FastMethodObject),
     .tp_dealloc = (destructor)FastMethod_dealloc,
     .tp_vectorcall_offset = offsetof(FastMethodObject, vectorcall),
@@ -773,7 +773,7 @@ static PyTypeObject FastMethodType = {
     .tp_repr = (reprfunc)FastMethod_repr,
     .tp_flags = Py_TPFLAGS_DEFAULT | Py_TPFLAGS_HAVE_GC | Py_TPFLAGS_HAVE_VECTORCALL |
                 Py_TPFLAGS_METHOD_DESCRIPTOR,
-    .tp_doc = "A method that runs its object's compiled kernel before any Python (poekin._fast).",
+    .tp_doc = "A method that runs its object's compiled kernel before any Python (poekin.kernel._fast).",
     .tp_traverse = (traverseproc)FastMethod_traverse,
     .tp_clear = (inquiry)FastMethod_clear,
     .tp_descr_get = FastMethod_get,
@@ -951,7 +951,7 @@ static PyMethodDef module_methods[] = {
 };
 
 static struct PyModuleDef module_def = {
-    PyModuleDef_HEAD_INIT, "poekin._kernel", "Compiled forward-kinematics kernel.", -1,
+    PyModuleDef_HEAD_INIT, "poekin.kernel._kernel", "Compiled forward-kinematics kernel.", -1,
     module_methods, NULL, NULL, NULL, NULL,
 };
 

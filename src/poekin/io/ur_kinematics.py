@@ -56,7 +56,7 @@ from numpy.typing import ArrayLike, NDArray
 from poekin import lie
 from poekin.chain import Chain
 from poekin.errors import InputError
-from poekin.params import UR5E_JOINT_NAMES, UR_DH_LENGTHS
+from poekin.io.params import UR5E_JOINT_NAMES, UR_DH_LENGTHS
 
 __all__ = [
     "UR_JOINT_NAMES",
@@ -142,7 +142,7 @@ def ur_chain(origins: ArrayLike, *, robot: str = "") -> Chain:
 
 
 def nominal_model(origins: ArrayLike) -> str | None:
-    """The UR model (``"ur5e"``, a key of :data:`~poekin.params.UR_DH_LENGTHS`) whose published
+    """The UR model (``"ur5e"``, a key of :data:`~poekin.io.params.UR_DH_LENGTHS`) whose published
     lengths these segment origins have, within 5 mm each; None if no model's.
 
     The file's lengths are read where ur_description's defaults put them: ``d1`` the shoulder's

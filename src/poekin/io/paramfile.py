@@ -16,7 +16,7 @@ Accepted shapes (JSON shown; YAML holds the same structure)::
     {"robot": "", "frame": "ee", "joints": [{"name": "j1", "type": "revolute",
      "screw": [0, 0, 1, 0, 0, 0]}, ...], "home": [[1, 0, 0, 0.8], ...]}
 
-    # a Universal Robots calibration, as ur_calibration writes it (see poekin.ur_kinematics):
+    # a Universal Robots calibration, as ur_calibration writes it (see poekin.io.ur_kinematics):
     # the chain from UR's base frame to tool0
     {"kinematics": {"shoulder": {"x": 0, "y": 0, "z": 0.1625, "roll": 0, "pitch": 0, "yaw": 0},
                     "upper_arm": {...}, "forearm": {...}, "wrist_1": {...}, "wrist_2": {...},
@@ -50,8 +50,8 @@ from poekin import lie
 from poekin.chain import Chain, JointType
 from poekin.dh import Convention, DHTable
 from poekin.errors import InputError, UnitWarning, UnknownParamsError, did_you_mean, nearest
-from poekin.params import PARAM_SETS, named_params
-from poekin.ur_kinematics import UR_ORIGIN_KEYS, UR_SEGMENTS, nominal_model, ur_chain
+from poekin.io.params import PARAM_SETS, named_params
+from poekin.io.ur_kinematics import UR_ORIGIN_KEYS, UR_SEGMENTS, nominal_model, ur_chain
 
 __all__ = ["FILE_SUFFIXES", "load_params", "params_from_dict"]
 
@@ -385,7 +385,7 @@ def params_from_dict(obj: object, source: str) -> Chain | DHTable:
         A :class:`~poekin.dh.DHTable` (the document has ``rows``) or a :class:`Chain` (it has
         ``screws``, ``body_screws`` or ``joints``, and ``home``; or ``kinematics``, a UR
         calibration: the chain from UR's ``base`` to ``tool0``, see
-        :mod:`poekin.ur_kinematics`). ``describe()`` of either reads back to the same kinematics.
+        :mod:`poekin.io.ur_kinematics`). ``describe()`` of either reads back to the same kinematics.
 
     Raises:
         InputError: the document is malformed; the message names the source and the place.
@@ -484,7 +484,7 @@ def load_params(spec: str | os.PathLike[str]) -> Chain | DHTable:
     """A named parameter set, or a DH table / PoE set read from a ``.json``/``.yaml`` file.
 
     Args:
-        spec: a key of :data:`~poekin.params.PARAM_SETS` (e.g. ``"ur5e-dh"``), or the path of
+        spec: a key of :data:`~poekin.io.params.PARAM_SETS` (e.g. ``"ur5e-dh"``), or the path of
             a ``.json``, ``.yaml`` or ``.yml`` file in a shape :func:`params_from_dict` accepts,
             UR's calibration file (``kinematics:``, from ``ur_calibration``) included. YAML needs
             PyYAML (the extra ``poekin[yaml]``).

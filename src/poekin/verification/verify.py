@@ -23,9 +23,9 @@ from poekin import lie
 from poekin.chain import Chain
 from poekin.dh import DHTable
 from poekin.errors import InputError, ModelError, UnknownRobotError
-from poekin.import_mujoco import FrameKind, find_frame, frame_pose, tree_from_model
-from poekin.loading import default_frame, is_urdf, load_tree
-from poekin.sources import LoadedModel, load_model
+from poekin.io.import_mujoco import FrameKind, find_frame, frame_pose, tree_from_model
+from poekin.io.loading import default_frame, is_urdf, load_tree
+from poekin.io.sources import LoadedModel, load_model
 from poekin.tree import Tree
 
 if TYPE_CHECKING:
@@ -381,7 +381,7 @@ def verify(
 
     Args:
         source: what to check: a model (a Menagerie robot name, an MJCF or URDF path, or a
-            :class:`~poekin.sources.LoadedModel`), checked against itself; or a
+            :class:`~poekin.io.sources.LoadedModel`), checked against itself; or a
             :class:`Chain`, :class:`Tree` or DH table, checked against ``against`` (default:
             the model its ``robot`` names, as for a chain from ``poekin.load(name)``). A tree
             is checked on all its frames.
@@ -408,7 +408,7 @@ def verify(
     whole_number(seed, "the seed", 0)
     label: str | None = params if isinstance(params, str) else None
     if isinstance(params, str):
-        from poekin.paramfile import load_params
+        from poekin.io.paramfile import load_params
 
         params = load_params(params)
     elif params is not None:

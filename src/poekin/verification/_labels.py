@@ -8,7 +8,7 @@ covers least of the drawing's lines is taken. A label that ends up far from its 
 thin leader line back to it. Labels are placed once their axes are laid out (limits, view,
 figure layout), in axes coordinates, so the placement holds at any dpi and in any format.
 
-Shared by the diagnosis figure (:mod:`poekin.plotting`) and ``poekin draw``
+Shared by the diagnosis figure (:mod:`poekin.verification.plotting`) and ``poekin draw``
 (:mod:`poekin.viewer.draw`).
 """
 

@@ -210,7 +210,7 @@ def _ur_dh(robot: str, d1: float, a2: float, a3: float, d4: float, d5: float, d6
 #: The six nonzero lengths ``(d1, a2, a3, d4, d5, d6)`` (m) of every UR model's standard DH
 #: table, as Universal Robots publishes them (article 45257, and its linked UR20 and UR30 pages;
 #: see the comment above). ``ur_description``'s ``config/<model>/default_kinematics.yaml`` holds
-#: the same numbers. :mod:`poekin.ur_kinematics` names the model of a calibration file by them.
+#: the same numbers. :mod:`poekin.io.ur_kinematics` names the model of a calibration file by them.
 UR_DH_LENGTHS: Mapping[str, tuple[float, float, float, float, float, float]] = MappingProxyType(
     {
         "ur3": (0.1519, -0.24365, -0.21325, 0.11235, 0.08535, 0.0819),

@@ -162,7 +162,7 @@ BUILTIN_ROBOTS: dict[str, str] = {"universal_robots_ur5e": "ur5e.xml"}
 
 
 def _builtin(name: str) -> pathlib.Path:
-    return pathlib.Path(__file__).parent / "data" / name / BUILTIN_ROBOTS[name]
+    return pathlib.Path(__file__).parents[1] / "data" / name / BUILTIN_ROBOTS[name]
 
 
 def _unknown_robot(name: str, names: list[str]) -> UnknownRobotError:
@@ -658,7 +658,7 @@ def load_model(
     Args:
         source: a Menagerie robot name (``"universal_robots_ur5e"``) or a path to an MJCF or
             URDF file. A URDF is compiled with ``fusestatic`` off, so that every link stays a
-            body (poekin reads URDF itself with :func:`poekin.import_urdf.tree_from_urdf`;
+            body (poekin reads URDF itself with :func:`poekin.io.import_urdf.tree_from_urdf`;
             this compile is the reference it is verified against).
         free_root: URDF only: give the root link a free joint of this name before compiling,
             as :func:`poekin.load_tree` does with ``floating_base=True``, so that the two can be

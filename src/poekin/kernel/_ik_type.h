@@ -1,6 +1,6 @@
 /*
  * Python type IKSolver(kernel, limits, flags, start_base, start_span): a chain's compiled
- * inverse kinematics solver (built by poekin._fast.ik_kernel). Included by _kernel.c after
+ * inverse kinematics solver (built by poekin.kernel._fast.ik_kernel). Included by _kernel.c after
  * the Kernel type, whose world-Jacobian program it runs.
  */
 
@@ -278,11 +278,11 @@ static PyMethodDef IKSolver_methods[] = {
 };
 
 static PyTypeObject IKSolverType = {
-    PyVarObject_HEAD_INIT(NULL, 0).tp_name = "poekin._kernel.IKSolver",
+    PyVarObject_HEAD_INIT(NULL, 0).tp_name = "poekin.kernel._kernel.IKSolver",
     .tp_basicsize = sizeof(IKSolverObject),
     .tp_dealloc = (destructor)IKSolver_dealloc,
     .tp_flags = Py_TPFLAGS_DEFAULT,
-    .tp_doc = "A chain's compiled inverse kinematics solver (built by poekin._fast.ik_kernel).",
+    .tp_doc = "A chain's compiled inverse kinematics solver (built by poekin.kernel._fast.ik_kernel).",
     .tp_methods = IKSolver_methods,
     .tp_init = (initproc)IKSolver_init,
     .tp_new = PyType_GenericNew,

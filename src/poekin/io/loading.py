@@ -1,8 +1,8 @@
 """``poekin.load`` and ``poekin.load_tree``: one entry point for Menagerie names, MJCF and URDF.
 
-MJCF models and Menagerie robots are compiled by MuJoCo (:mod:`poekin.sources`) and read from
-the compiled model (:mod:`poekin.import_mujoco`). A ``.urdf`` path is read by
-:mod:`poekin.import_urdf`, without meshes.
+MJCF models and Menagerie robots are compiled by MuJoCo (:mod:`poekin.io.sources`) and read from
+the compiled model (:mod:`poekin.io.import_mujoco`). A ``.urdf`` path is read by
+:mod:`poekin.io.import_urdf`, without meshes.
 """
 
 from __future__ import annotations
@@ -12,8 +12,8 @@ import pathlib
 
 from poekin.chain import Chain
 from poekin.errors import InputError, UnknownFrameError, did_you_mean
-from poekin.import_mujoco import tree_from_model
-from poekin.sources import LoadedModel, load_model
+from poekin.io.import_mujoco import tree_from_model
+from poekin.io.sources import LoadedModel, load_model
 from poekin.tree import Tree
 
 __all__ = ["default_frame", "is_urdf", "load", "load_tree"]
@@ -46,7 +46,7 @@ def load_tree(source: Source, *, floating_base: bool = False) -> Tree:
         (14, 4, 4)
     """
     if is_urdf(source):
-        from poekin.import_urdf import tree_from_urdf
+        from poekin.io.import_urdf import tree_from_urdf
 
         return tree_from_urdf(_path(source), floating_base=floating_base)
     if floating_base:

@@ -1,4 +1,5 @@
-"""The compiled FK path: models as programs for the C kernel ``poekin._kernel``, and its settings.
+"""The compiled FK path: models as programs for the C kernel ``poekin.kernel._kernel``, and its
+settings.
 
 A program is a list of pose operations, each ``(code, qpos address, parameter offset, slot)``,
 and one float64 array of parameters. :func:`chain_program` and :func:`tree_program` write them
@@ -28,7 +29,7 @@ from poekin import lie
 from poekin.errors import InputError, did_you_mean
 
 try:
-    from poekin import _kernel  # type: ignore[attr-defined]
+    from poekin.kernel import _kernel  # type: ignore[attr-defined]
 except ImportError:  # built without a C compiler: the NumPy path serves
     _kernel = None
 

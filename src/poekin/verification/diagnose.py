@@ -44,10 +44,15 @@ from poekin.dh import (
     joint_lines,
 )
 from poekin.errors import InputError
-from poekin.verify import check_sample_memory, pose_errors, sample_joint_values, whole_number
+from poekin.verification.verify import (
+    check_sample_memory,
+    pose_errors,
+    sample_joint_values,
+    whole_number,
+)
 
 if TYPE_CHECKING:
-    from poekin.sources import LoadedModel
+    from poekin.io.sources import LoadedModel
     from poekin.tree import Tree
 
 __all__ = ["BisectStep", "Diagnosis", "Finding", "diagnose", "joint_differences"]
@@ -235,8 +240,8 @@ class Diagnosis:
 def _is_param_set(spec: str | os.PathLike[str]) -> bool:
     """Whether ``spec`` names a parameter set (a named set, or a .json/.yaml/.yml file), not a
     model (a Menagerie name, an MJCF or URDF file)."""
-    from poekin.paramfile import FILE_SUFFIXES
-    from poekin.params import PARAM_SETS
+    from poekin.io.paramfile import FILE_SUFFIXES
+    from poekin.io.params import PARAM_SETS
 
     text = os.fspath(spec)
     return text in PARAM_SETS or os.path.splitext(text)[1].lower() in FILE_SUFFIXES
@@ -246,7 +251,7 @@ def _yours(yours: object) -> Chain | DHTable:
     if isinstance(yours, Chain | DHTable):
         return yours
     if isinstance(yours, str | os.PathLike):
-        from poekin.paramfile import load_params
+        from poekin.io.paramfile import load_params
 
         return load_params(yours)
     raise InputError(
@@ -259,7 +264,7 @@ def _model_chain(model: object, frame: str | None) -> Chain:
     if isinstance(model, Chain):
         return model
     if isinstance(model, str | os.PathLike) and _is_param_set(model):
-        from poekin.paramfile import load_params
+        from poekin.io.paramfile import load_params
 
         if frame is not None:
             raise InputError(
@@ -268,8 +273,8 @@ def _model_chain(model: object, frame: str | None) -> Chain:
             )
         params = load_params(model)
         return params.to_chain() if isinstance(params, DHTable) else params
-    from poekin.loading import default_frame, load
-    from poekin.sources import LoadedModel
+    from poekin.io.loading import default_frame, load
+    from poekin.io.sources import LoadedModel
     from poekin.tree import Tree
 
     if isinstance(model, Tree):

@@ -39,8 +39,8 @@ from collections.abc import Iterable, Sequence
 import numpy as np
 
 from poekin.errors import InputError, MetricsFileError, ModelError
-from poekin.fileio import cannot_write, check_writable
-from poekin.verify import VerifyReport
+from poekin.io.fileio import cannot_write, check_writable
+from poekin.verification.verify import VerifyReport
 
 __all__ = [
     "METRICS_HEADER",
@@ -207,7 +207,7 @@ def check_metrics_file(path: str | os.PathLike[str]) -> None:
 
     Raises:
         MetricsFileError: the directory does not exist, ``path`` is a directory, the file or
-            its folder is not writable (:func:`poekin.fileio.check_writable`), or an existing
+            its folder is not writable (:func:`poekin.io.fileio.check_writable`), or an existing
             file is not a poekin metrics CSV.
     """
     p = pathlib.Path(path)
