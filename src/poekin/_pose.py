@@ -1,6 +1,6 @@
 """Pose arithmetic entry by entry: the reference path's formulas, for every array library.
 
-The reference FK and Jacobian paths (:func:`poekin.chain.poe`, :mod:`poekin._levels`) and the
+The reference FK and Jacobian paths (:func:`poekin._poe.poe`, :mod:`poekin._levels`) and the
 quaternion and matrix helpers of :mod:`poekin.lie` are written here once, and NumPy, JAX and
 PyTorch run the very same functions. A rotation is three rows of three *entries*, a point three
 entries; an entry is an array of the batch shape (one value per configuration) or a Python float

@@ -31,14 +31,12 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from poekin import _levels, _pose, arrays, lie
+from poekin._poe import Column, as_joint_values, check_shape
 from poekin.chain import (
     Chain,
-    Column,
     JacobianConvention,
     JointType,
-    as_joint_values,
     check_jacobian_convention,
-    check_shape,
     generic_inputs,
     jacobian_array,
     jacobian_from_world,

@@ -43,7 +43,13 @@ from poekin.calibration.identify import (
     recommended_poses,
     unidentified,
 )
-from poekin.calibration.model import CalibrationModel, Measure, expected_identifiable
+from poekin.calibration.model import (
+    CalibrationModel,
+    Measure,
+    as_chain,
+    expected_identifiable,
+    model_of,
+)
 from poekin.calibration.plan import plan_poses
 from poekin.calibration.report import Calibration, Change
 from poekin.chain import Chain, as_joint_values
@@ -67,21 +73,6 @@ __all__ = [
 FloatArray = NDArray[np.float64]
 _UNIT = 1e-6  # a rotation block must be orthonormal to this (as Chain's home pose)
 _WORKSPACE, _SEED = 100, 20261125  # configurations that judge the calibrated chain
-
-
-def as_chain(model: Chain | str | os.PathLike[str] | LoadedModel, frame: str | None) -> Chain:
-    """``model`` if it is a chain, else :func:`poekin.load` of it (with ``frame``)."""
-    if isinstance(model, Chain):
-        return model
-    from poekin.io.loading import load
-
-    return load(model, frame)
-
-
-@functools.lru_cache(maxsize=16)
-def model_of(chain: Chain, measure: Measure) -> CalibrationModel:
-    """The calibration model of ``chain`` (its structure analysed once per chain)."""
-    return CalibrationModel.of(chain, measure)
 
 
 def check_measurements(measured: ArrayLike, n_poses: int) -> FloatArray:

@@ -212,7 +212,7 @@ def params_document(result: Calibration) -> dict[str, Any]:
     """The calibrated chain as a PoE parameter file (what ``Chain.describe()`` writes, which
     :func:`poekin.load_params` and ``--params`` read), with the calibration's summary beside it
     under ``"calibration"`` (ignored when read)."""
-    from poekin.cli._describe import finite_json
+    from poekin.io.fileio import finite_json
 
     summary = result.summary()
     keep = (

@@ -38,15 +38,20 @@ from __future__ import annotations
 
 import dataclasses
 import functools
+import os
 from collections.abc import Sequence
-from typing import Literal
+from typing import TYPE_CHECKING, Literal
 
 import numpy as np
 from numpy.typing import NDArray
 
-from poekin.chain import Chain, _ScrewTerms
+from poekin._poe import _ScrewTerms
+from poekin.chain import Chain
 from poekin.dh import joint_lines
 from poekin.lie import _one_minus_cos_over_t2, _sin_over_t, _t_minus_sin_over_t3
+
+if TYPE_CHECKING:
+    from poekin.io.sources import LoadedModel
 
 __all__ = [
     "MEASURES",
@@ -55,7 +60,9 @@ __all__ = [
     "Parameter",
     "Redundancy",
     "State",
+    "as_chain",
     "expected_identifiable",
+    "model_of",
 ]
 
 FloatArray = NDArray[np.float64]
@@ -183,7 +190,7 @@ def _hat(v: FloatArray) -> FloatArray:
 
 def _exponentials(terms: _ScrewTerms, theta: FloatArray) -> FloatArray:
     """``(N, n, 4, 4)`` ``exp([S_i] theta_i)`` of unit screws, in the form of
-    :class:`poekin.chain._ScrewTerms` (whose constants they are): ``R = I + sin W + (1 - cos)
+    :class:`poekin._poe._ScrewTerms` (whose constants they are): ``R = I + sin W + (1 - cos)
     W^2``, ``p = r - R r + theta u`` (a prismatic screw: ``W = 0``, ``r = 0``, ``u = v``),
     evaluated for every joint and pose at once."""
     W = _hat(terms.w)  # (n, 3, 3)
@@ -213,7 +220,7 @@ class Geometry:
     joint directions and points ``(n, 3)``, offsets ``(n,)``, screws ``(n, 6)``, home ``M'``,
     and, for the Jacobian, each joint's tilt rotation and its right Jacobian ``(n, 3, 3)``, the
     tool's turn ``phi`` ``(3,)`` and its right Jacobian; and the screws' terms
-    (:class:`poekin.chain._ScrewTerms`) for :meth:`CalibrationModel.products`."""
+    (:class:`poekin._poe._ScrewTerms`) for :meth:`CalibrationModel.products`."""
 
     dirs: FloatArray
     points: FloatArray
@@ -649,3 +656,18 @@ def words(model: CalibrationModel, keys: Sequence[int]) -> str:
     if len(items) <= 1:
         return "".join(items)
     return ", ".join(items[:-1]) + " and " + items[-1]
+
+
+def as_chain(model: Chain | str | os.PathLike[str] | LoadedModel, frame: str | None) -> Chain:
+    """``model`` if it is a chain, else :func:`poekin.load` of it (with ``frame``)."""
+    if isinstance(model, Chain):
+        return model
+    from poekin.io.loading import load
+
+    return load(model, frame)
+
+
+@functools.lru_cache(maxsize=16)
+def model_of(chain: Chain, measure: Measure) -> CalibrationModel:
+    """The calibration model of ``chain`` (its structure analysed once per chain)."""
+    return CalibrationModel.of(chain, measure)

@@ -19,7 +19,14 @@ from numpy.typing import NDArray
 
 from poekin.calibration._blas import one_thread
 from poekin.calibration.identify import observability, scaled_jacobian
-from poekin.calibration.model import CalibrationModel, Measure, State, generic_point
+from poekin.calibration.model import (
+    CalibrationModel,
+    Measure,
+    State,
+    as_chain,
+    generic_point,
+    model_of,
+)
 from poekin.chain import Chain
 from poekin.errors import InputError
 from poekin.verification.verify import sample_joint_values, whole_number
@@ -84,7 +91,6 @@ def plan_poses(
     Raises:
         InputError: ``n`` too small to identify the parameters, or ``candidates`` below ``n``.
     """
-    from poekin.calibration import as_chain, model_of
     from poekin.calibration.identify import minimum_poses
 
     with one_thread():  # small matrices: see poekin.calibration._blas

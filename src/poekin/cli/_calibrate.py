@@ -64,7 +64,8 @@ def _check_options(args: argparse.Namespace) -> None:
 
 
 def _plan(args: argparse.Namespace, chain: Any, out: TextIO) -> int:
-    from poekin.calibration import model_of, plan_poses
+    from poekin.calibration import plan_poses
+    from poekin.calibration.model import model_of
     from poekin.calibration.plan import quality, sampling_chain
     from poekin.verification.verify import sample_joint_values
 
@@ -157,7 +158,7 @@ def _cmd_calibrate(args: argparse.Namespace, out: TextIO) -> int:
             f"{'poses' if result.measure == 'pose' else 'positions'}",
         )
     if args.json:
-        from poekin.cli._describe import finite_json
+        from poekin.io.fileio import finite_json
 
         print(json.dumps(finite_json(result.summary())), file=out)
         return 0

@@ -6,8 +6,6 @@ import argparse
 import json
 from typing import TYPE_CHECKING, Any, TextIO
 
-import numpy as np
-
 from poekin.cli._args import (
     add_params,
     add_precision,
@@ -17,23 +15,13 @@ from poekin.cli._args import (
 )
 from poekin.cli._text import fixed, matrix_lines, table
 from poekin.errors import InputError
+from poekin.io.fileio import finite_json
 
 if TYPE_CHECKING:
     from poekin.chain import Chain
     from poekin.dh import DHTable
 
-__all__ = ["finite_json", "params_or_chain", "register"]
-
-
-def finite_json(obj: Any) -> Any:
-    """Replace non-finite floats (unlimited joints) with None so the output is strict JSON."""
-    if isinstance(obj, float):
-        return obj if np.isfinite(obj) else None
-    if isinstance(obj, dict):
-        return {k: finite_json(v) for k, v in obj.items()}
-    if isinstance(obj, list):
-        return [finite_json(v) for v in obj]
-    return obj
+__all__ = ["params_or_chain", "register"]
 
 
 def params_or_chain(args: argparse.Namespace) -> Chain | DHTable:

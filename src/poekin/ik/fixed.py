@@ -55,19 +55,18 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from poekin import _pose, arrays
-from poekin.chain import ChainParams, _Model, check_shape, poe, pose_of
+from poekin._poe import ChainParams, ChainTerms, _Model, chain_terms, check_shape, poe, pose_of
 from poekin.errors import InputError
 from poekin.ik import _rng
 from poekin.ik.numerical import (
-    ChainTerms,
     Entries,
     IKResult,
     Lanes,
     Settings,
     advance,
-    chain_terms,
     check_seed,
     damped_step,
+    damping_floor,
     errors,
     evaluate,
     first_start_entries,
@@ -472,7 +471,7 @@ def _linearised(
     q = [q_star[..., j] for j in range(chain.n_joints)]
     pose, _ = problem.evaluate(q, model)
     r = residual(pose, pose_of(T), problem.s, xp)[0]
-    lam = problem.terms.floor(problem.s)
+    lam = damping_floor(problem.terms, problem.s)
     dq = damped_step(J, r, lam, lam, xp)
     return _pose.stack(dq, (chain.n_joints,), xp, xp.zeros_like(q_star[..., 0]))
 

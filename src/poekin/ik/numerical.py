@@ -1,7 +1,7 @@
 """Numerical inverse kinematics of a chain: damped least squares inside the joint limits.
 
 One algorithm, written here once as the NumPy reference (batched over targets, entry by entry
-like :func:`poekin.chain.poe`), and repeated operation for operation by the compiled kernel
+like :func:`poekin._poe.poe`), and repeated operation for operation by the compiled kernel
 (``_ik_core.h``): both give the same bits (``tests/test_ik_numerical.py`` checks it).
 
 **One attempt**, for a target ``(R_t, p_t)`` from a start ``q`` inside the limits, repeats:
@@ -60,10 +60,19 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from poekin import _pose, arrays, lie
-from poekin.chain import Column, Trig, _Model, as_joint_values, space_jacobian, world_columns
+from poekin._poe import (
+    ChainTerms,
+    Column,
+    Trig,
+    _Model,
+    as_joint_values,
+    chain_terms,
+    space_jacobian,
+    world_columns,
+)
 from poekin.errors import InputError
 from poekin.ik import _rng
-from poekin.ik._angles import TWO_PI, within_limits, wrap_into_limits
+from poekin.ik._angles import within_limits, wrap_into_limits
 from poekin.kernel import _fast, _sincos
 
 if TYPE_CHECKING:
@@ -235,97 +244,18 @@ def check_seed(seed: object) -> int:
     return int(seed)
 
 
-# --- the chain's constants ------------------------------------------------------------------
+# --- the damping's bounds for a chain ------------------------------------------------------
 
 
-@dataclasses.dataclass(frozen=True)
-class ChainTerms:
-    """What the solver needs of a chain besides its screws (computed once per chain).
-
-    ``start_base + u start_span`` is a random start for ``u`` uniform in ``[0, 1)``: uniform
-    within finite limits, ``(-pi, pi]`` for an unlimited revolute joint, a turn (or ``L``
-    metres) from a one-sided limit, ``[-L, L)`` for an unlimited prismatic joint.
-
-    The per-iteration functions read the Python values (``bounds``, ``turns``, ``base``,
-    ``span``), never the NumPy arrays, so that code traced by JAX or torch.compile sees
-    constants.
-    """
-
-    limits: FloatArray  # (n, 2)
-    revolute: BoolArray  # (n,)
-    cyclic: BoolArray  # (n,) revolute without limits: kept in (-pi, pi]
-    start_base: FloatArray  # (n,)
-    start_span: FloatArray  # (n,)
-    scale: float  # L (m): the distance from the home frame to the farthest joint axis, >= 0.1
-    bounds: tuple[tuple[float, float], ...]  # the limits (lower, upper)
-    turns: tuple[bool, ...]  # revolute
-    base: tuple[float, ...]  # start_base
-    span: tuple[float, ...]  # start_span
-
-    def floor(self, s: Settings) -> float:
-        """The damping's floor, ``1e-18 L^2`` with ``L`` at least the orientation weight."""
-        length = max(self.scale, 0.0 if s.position_only else s.orientation_weight)
-        return FLOOR * length * length
-
-    def ceiling(self, s: Settings) -> float:
-        length = max(self.scale, 0.0 if s.position_only else s.orientation_weight)
-        return length * length
+def damping_floor(terms: ChainTerms, s: Settings) -> float:
+    """The damping's floor, ``1e-18 L^2`` with ``L`` at least the orientation weight."""
+    length = max(terms.scale, 0.0 if s.position_only else s.orientation_weight)
+    return FLOOR * length * length
 
 
-def chain_terms(chain: Chain, single: bool = False) -> ChainTerms:
-    """The chain's :class:`ChainTerms` (kept with the chain: :meth:`poekin.Chain.__post_init__`
-    computes them, as torch.compile cannot trace their NumPy); ``single``: for a float32
-    solve, the bounds rounded inwards to float32 values, so that an answer within them in
-    float32 is within the model's limits."""
-    terms: ChainTerms = chain._ik_cache["terms32" if single else "terms"]
-    return terms
-
-
-def keep_chain_terms(chain: Chain) -> None:
-    """Compute the chain's :class:`ChainTerms` (both) into its IK cache."""
-    terms = _chain_terms(chain)
-    lo32 = terms.limits.astype(np.float32)
-    up, down = np.float32(np.inf), np.float32(-np.inf)
-    inward = np.where(
-        np.arange(2) == 0,
-        np.where(lo32 < terms.limits, np.nextafter(lo32, up), lo32),
-        np.where(lo32 > terms.limits, np.nextafter(lo32, down), lo32),
-    ).astype(np.float64)
-    chain._ik_cache["terms"] = terms
-    chain._ik_cache["terms32"] = dataclasses.replace(
-        terms, bounds=tuple((float(a), float(b)) for a, b in inward)
-    )
-
-
-def _chain_terms(chain: Chain) -> ChainTerms:
-    assert chain.limits is not None  # Chain sets them (infinite where there are none)
-    lo, hi = chain.limits[:, 0], chain.limits[:, 1]
-    revolute = np.array([t == "revolute" for t in chain.joint_types], dtype=bool)
-    cyclic = revolute & np.isneginf(lo) & np.isposinf(hi)
-    w, v = chain.screws[:, :3], chain.screws[:, 3:]
-    points = np.cross(w, v)  # the point of each revolute axis nearest the origin
-    reach = np.linalg.norm(chain.home[:3, 3] - points[revolute], axis=-1)
-    scale = max(0.1, float(reach.max()) if reach.size else 0.0)
-    turn = np.where(revolute, TWO_PI, scale)
-    base = np.where(np.isfinite(lo), lo, np.where(np.isfinite(hi), hi, -turn / 2))
-    span = np.where(np.isfinite(lo) & np.isfinite(hi), hi - lo, turn)
-    span = np.where(np.isneginf(lo) & np.isfinite(hi), -turn, span)
-    base = np.where(cyclic, np.pi, base)
-    span = np.where(cyclic, -TWO_PI, span)
-    for a in (base, span):
-        a.flags.writeable = False
-    return ChainTerms(
-        chain.limits,
-        revolute,
-        cyclic,
-        base,
-        span,
-        scale,
-        tuple((float(a), float(b)) for a, b in chain.limits),
-        tuple(bool(x) for x in revolute),
-        tuple(float(x) for x in base),
-        tuple(float(x) for x in span),
-    )
+def damping_ceiling(terms: ChainTerms, s: Settings) -> float:
+    length = max(terms.scale, 0.0 if s.position_only else s.orientation_weight)
+    return length * length
 
 
 # --- one iteration's maths (entries; every array library) ---------------------------------
@@ -474,7 +404,7 @@ def step(
     xp: Any,
 ) -> Entries:
     """The next iterate from ``q`` (module step 4 and 5): inside the limits."""
-    floor, ceiling = terms.floor(s), terms.ceiling(s)
+    floor, ceiling = damping_floor(terms, s), damping_ceiling(terms, s)
     lam = xp.minimum(DAMPING * cost + floor, arrays.scalar(ceiling, xp, cost))
     d = _capped(damped_step(J, r, lam, floor, xp), xp)
     v = [qi + di for qi, di in zip(q, d, strict=True)]
@@ -888,8 +818,8 @@ def _kernel_options(chain: Chain, s: Settings) -> tuple[float, ...]:
             s.ori_tol2,
             s.orientation_weight,
             DAMPING,
-            terms.floor(s),
-            terms.ceiling(s),
+            damping_floor(terms, s),
+            damping_ceiling(terms, s),
             STEP_MAX,
             STALL_FACTOR,
             float(STALL_ITERATIONS),

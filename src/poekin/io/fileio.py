@@ -53,6 +53,7 @@ __all__ = [
     "check_new_file",
     "check_writable",
     "figure_format",
+    "finite_json",
     "is_number",
     "read_array",
     "save_figure",
@@ -410,3 +411,14 @@ def write_text(path: str | os.PathLike[str], text: str, *, what: str = "file") -
     with _replacing(p, f"the {what}") as f:
         f.write(text.encode())
     return p
+
+
+def finite_json(obj: Any) -> Any:
+    """Replace non-finite floats (unlimited joints) with None so the output is strict JSON."""
+    if isinstance(obj, float):
+        return obj if np.isfinite(obj) else None
+    if isinstance(obj, dict):
+        return {k: finite_json(v) for k, v in obj.items()}
+    if isinstance(obj, list):
+        return [finite_json(v) for v in obj]
+    return obj

@@ -3,7 +3,7 @@ settings.
 
 A program is a list of pose operations, each ``(code, qpos address, parameter offset, slot)``,
 and one float64 array of parameters. :func:`chain_program` and :func:`tree_program` write them
-from the same constants the pure-NumPy reference path uses (:func:`poekin.chain.poe`,
+from the same constants the pure-NumPy reference path uses (:func:`poekin._poe.poe`,
 ``poekin._levels.evaluate``), with the same formulas in the same order, so both agree to ~1e-16.
 
 Without the extension (no C compiler at install time) every function here still works:
@@ -271,7 +271,7 @@ def _hinge(
 def _chain_joints(
     p: _Program, w: FloatArray, r: FloatArray, u: FloatArray, columns: FloatArray | None
 ) -> None:
-    """Each screw's exponential in turn (``chain._ScrewTerms``); with ``columns`` (the screws),
+    """Each screw's exponential in turn (``_poe._ScrewTerms``); with ``columns`` (the screws),
     first its Jacobian column ``Ad(cur) S_i``."""
     W = lie.hat_so3(w)  # every joint's [w] and [w]^2 at once (entry by entry, as one at a time)
     W2 = lie.rotate_compose(W, W)
@@ -289,9 +289,9 @@ def chain_program(
     left: FloatArray | None,
     right: FloatArray | None,
 ) -> Any:
-    """Kernel for ``left @ exp([S_1] q_1) ... exp([S_n] q_n) @ right`` (see ``chain.poe``).
+    """Kernel for ``left @ exp([S_1] q_1) ... exp([S_n] q_n) @ right`` (see ``_poe.poe``).
 
-    The screws' constants are those of ``chain._ScrewTerms``; None if not compiled.
+    The screws' constants are those of ``_poe._ScrewTerms``; None if not compiled.
     """
     if _kernel is None:
         return None
@@ -315,7 +315,7 @@ def chain_jacobian_program(
     home: FloatArray,
     convention: str,
 ) -> Any:
-    """Kernel for a chain's Jacobian in ``convention`` (see ``chain.space_jacobian`` and
+    """Kernel for a chain's Jacobian in ``convention`` (see ``_poe.space_jacobian`` and
     ``chain.jacobian_from_world``): before each joint its column ``Ad(T_{i-1}) S_i``, then the
     home pose, then the columns turned into the convention at the end pose. None if not
     compiled, or for a chain without joints (a program with no column is an FK program)."""

@@ -16,7 +16,7 @@
 #define IK_MIN_TARGETS_PER_THREAD 32
 
 /* The chain: its world-Jacobian program and, per joint, limits, flags and random starts
- * base + u span (poekin.ik.numerical.ChainTerms). */
+ * base + u span (poekin._poe.ChainTerms). */
 typedef struct {
     const Program *prog;
     int n;

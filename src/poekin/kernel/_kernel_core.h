@@ -354,7 +354,7 @@ AI void emit(const Pose *p, int form, double *out, npy_intp stride, int lanes) {
 }
 
 /* col += P[6] Ad(cur) [w; v] for the screw (w, v) = P[0..5]: [a; p x a + R v] with a = R w,
- * the sums in poekin.chain.space_jacobian's order; P[6] is 1, or a mimic joint's multiplier. */
+ * the sums in poekin._poe.space_jacobian's order; P[6] is 1, or a mimic joint's multiplier. */
 AI void jacobian_column(const Pose *cur, const double *P, vd *col) {
     const vd *R = cur->R, *p = cur->t;
     vd a[3], Rv[3];
@@ -368,7 +368,7 @@ AI void jacobian_column(const Pose *cur, const double *P, vd *col) {
 }
 
 /* v + a x p for a space column col = [a; v]: the velocity of the point p (the frame's origin)
- * in the world frame (poekin.chain.world_columns). */
+ * in the world frame (poekin._poe.world_columns). */
 AI void world_velocity(const vd *col, const vd *p, vd *v) {
     v[0] = col[3] + (col[1] * p[2] - col[2] * p[1]);
     v[1] = col[4] + (col[2] * p[0] - col[0] * p[2]);
