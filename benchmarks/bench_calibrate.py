@@ -20,7 +20,7 @@ norm and of the orientation angle). One run reports:
 * the identifiable counts, and Monte-Carlo z-scores of the fitted corrections (their RMS is 1
   when the standard errors are honest; 200 runs).
 
-No figure is asserted here; ``tests/test_calibration_fit.py`` asserts the issue's goals.
+No figure is asserted here; ``tests/calibration/test_calibration_fit.py`` asserts the issue's goals.
 
 examples:
   python benchmarks/bench_calibrate.py --quick         # seconds; what CI runs

@@ -75,6 +75,39 @@ def mj_frame_pose(model: mujoco.MjModel, data: mujoco.MjData, kind: str, fid: in
     return T
 
 
+def mj_pose(model: mujoco.MjModel, qpos: np.ndarray, frame: str) -> np.ndarray:
+    """``(N, 4, 4)`` poses of a site or body from mj_forward, for ``(N, nq)`` qpos."""
+    data = mujoco.MjData(model)
+    fid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, frame)
+    kind = "site" if fid >= 0 else "body"
+    if fid < 0:
+        fid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, frame)
+    out = np.empty((len(qpos), 4, 4))
+    for k, row in enumerate(qpos):
+        data.qpos[:] = row
+        mujoco.mj_forward(model, data)
+        out[k] = mj_frame_pose(model, data, kind, fid)
+    return out
+
+
+def run(capsys: pytest.CaptureFixture[str], *argv: str) -> tuple[int, str, str]:
+    """``poekin ARGV...`` in this process: the exit code, stdout and stderr."""
+    from poekin.cli import main
+
+    code = main(list(argv))
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+def assert_one_error_line(err: str, message: str) -> None:
+    """stderr holds exactly one error line (plus, at most, notes) and no traceback."""
+    lines = err.splitlines()
+    errors = [ln for ln in lines if ln.startswith("poekin: error: ")]
+    assert len(errors) == 1 and message in errors[0], err
+    assert all(ln.startswith("poekin: note: ") for ln in lines if ln not in errors), err
+    assert "Traceback" not in err
+
+
 def import_extra(module: str) -> Any:
     """``module`` (JAX, PyTorch, array-api-compat), or skip the test without it; with
     ``POEKIN_REQUIRE_EXTRAS=1`` (CI) a missing one fails instead, so the array-library tests

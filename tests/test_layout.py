@@ -112,6 +112,32 @@ def _cycle(graph: dict[str, set[str]]) -> list[str]:
     return []
 
 
+# docs/development.md's picture, bottom row first: a module imports from its own row and those
+# below it only (prefixes of module names; the package's __init__, the public names, is none)
+LAYERS = (
+    ("poekin.errors", "poekin._extras", "poekin.arrays", "poekin._pose", "poekin.lie"),
+    ("poekin.kernel",),
+    ("poekin._poe", "poekin._levels"),
+    ("poekin.ik",),
+    ("poekin.chain", "poekin.tree", "poekin.dh"),
+    ("poekin.io",),
+    ("poekin.verification",),
+    ("poekin.calibration",),
+    ("poekin.cli", "poekin.viewer", "poekin.__main__"),
+)
+
+
+def _row(module: str) -> int:
+    rows = [
+        k
+        for k, row in enumerate(LAYERS)
+        for prefix in row
+        if module == prefix or module.startswith(prefix + ".")
+    ]
+    assert len(rows) == 1, f"{module} is in no row of LAYERS (or in several): add it"
+    return rows[0]
+
+
 def test_the_graph_sees_function_level_imports_and_skips_type_checking() -> None:
     """The reader itself: chain.ik's import of the solver is inside a method (seen at run
     time, not at module level); ik's import of Chain is for type checking only (not seen)."""
@@ -148,6 +174,19 @@ def test_solvers_do_not_import_the_model() -> None:
 def test_the_model_imports_its_solvers_only_when_called(model: str) -> None:
     top = import_graph(module_level_only=True)[model]
     assert sorted(t for t in top if t == SOLVERS or t.startswith(SOLVERS + ".")) == []
+
+
+def test_imports_run_down_the_layers() -> None:
+    """Every runtime import goes to its own row of LAYERS or one below (chain.ik's import of
+    the solver goes down: ik/ sits below the model it solves)."""
+    up = sorted(
+        (name, target)
+        for name, targets in import_graph().items()
+        if name != "poekin"
+        for target in targets
+        if _row(target) > _row(name)
+    )
+    assert up == []
 
 
 @pytest.mark.parametrize("library", ["ik", "io", "verification", "calibration", "kernel"])

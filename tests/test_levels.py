@@ -23,7 +23,7 @@ from poekin.tree import Mimic, Tree, TreeParams
 from poekin.verification.verify import sample_qpos
 
 BATCH_SHAPES = [(), (1,), (3, 1, 2)]
-# The NumPy reference path vs the compiled kernel, as tests/test_fast.py; JAX and PyTorch vs
+# The NumPy reference path vs the compiled kernel, as tests/kernel/test_fast.py; JAX and PyTorch vs
 # the kernel, as tests/test_arrays.py: per metre the frames reach.
 REF_TOL = 1e-15
 LIB_TOL = 1e-15

@@ -465,7 +465,7 @@ def leave_out(fitted: Fit, fold: NDArray[np.int_]) -> tuple[FloatArray, FloatArr
     ``dy`` they give is the other folds' fit (one Gauss-Newton step from the whole fit, which
     is within a few standard errors of it), and the fold's predicted residuals are
     ``r_f - A_f dy``. What the linearisation leaves out is second order in that step: some
-    1e-6 of the noise (``tests/test_calibration_fit.py`` checks it against refitting).
+    1e-6 of the noise (``tests/calibration/test_calibration_fit.py`` checks it against refitting).
     """
     b, J = fitted.weighted()
     A3 = J @ fitted.basis

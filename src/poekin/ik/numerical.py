@@ -2,7 +2,7 @@
 
 One algorithm, written here once as the NumPy reference (batched over targets, entry by entry
 like :func:`poekin._poe.poe`), and repeated operation for operation by the compiled kernel
-(``_ik_core.h``): both give the same bits (``tests/test_ik_numerical.py`` checks it).
+(``_ik_core.h``): both give the same bits (``tests/ik/test_ik_numerical.py`` checks it).
 
 **One attempt**, for a target ``(R_t, p_t)`` from a start ``q`` inside the limits, repeats:
 

@@ -26,7 +26,7 @@ from poekin.verification.verify import sample_qpos
 
 # limits.urdf's note is checked once, in test_unusable_limits_are_unlimited_as_in_mujoco
 pytestmark = pytest.mark.filterwarnings("ignore::poekin.io.import_urdf.URDFLimitsWarning")
-DATA = pathlib.Path(__file__).parent / "data" / "urdf"
+DATA = pathlib.Path(__file__).parents[1] / "data" / "urdf"
 N_SAMPLES = 1000
 HAND_TOL = 1e-14  # closed form vs tree.fk: a few roundings of numbers of order 1
 

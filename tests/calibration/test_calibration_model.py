@@ -147,7 +147,8 @@ def test_calibrated_chain_absorbs_the_offsets() -> None:
 )
 def test_simulated_robot_without_perturbation_is_the_model(robot: str, frame: str | None) -> None:
     """The simulation edits the model with MjSpec and poses it with mj_forward: unperturbed it
-    gives poekin's FK, which tests/test_verify.py checks against MuJoCo, to rounding."""
+    gives poekin's FK, which tests/verification/test_verify.py checks against MuJoCo, to
+    rounding."""
     chain = _load(robot, frame)
     sizes = dict.fromkeys(
         ("link_m", "link_rad", "axis_rad", "anchor_m", "tool_m", "tool_rad", "offset_rad"), 0.0

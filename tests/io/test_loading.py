@@ -13,7 +13,7 @@ import poekin
 from poekin import InputError, UnknownFrameError
 from poekin.cli import main
 
-URDF = pathlib.Path(__file__).parent / "data" / "urdf"
+URDF = pathlib.Path(__file__).parents[1] / "data" / "urdf"
 
 
 def test_load_tree_reads_urdf_itself() -> None:

@@ -12,10 +12,8 @@ from typing import Any
 
 import numpy as np
 import pytest
-from helpers import MJ_TOL, load_quiet
-from test_cli import run
+from helpers import MJ_TOL, load_quiet, mj_pose, run
 from test_ik_numerical import arm, mj_poses
-from test_ik_trees import mj_pose
 
 import poekin
 from poekin.cli import _ik

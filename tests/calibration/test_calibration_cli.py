@@ -1,5 +1,5 @@
 """``poekin calibrate`` (issue #22, items 3-4): outputs, files, and one-line errors (exit 2,
-nothing written) in the style of ``tests/test_cli.py``'s ``BAD_INPUTS``."""
+nothing written) in the style of ``tests/cli/test_cli.py``'s ``BAD_INPUTS``."""
 
 from __future__ import annotations
 
@@ -11,7 +11,7 @@ import re
 import numpy as np
 import pytest
 from calibration_helpers import JSON_KEYS
-from test_cli import assert_one_error_line, run
+from helpers import assert_one_error_line, run
 
 import poekin
 from poekin.calibration.files import read_measurements, write_measurements

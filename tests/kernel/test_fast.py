@@ -31,7 +31,7 @@ from poekin.verification.verify import sample_qpos
 # and cos (the kernel's own, below 1 ulp, against the C library's), which moves a pose by a
 # few 1e-16 on metre-sized robots. Issue #5 asks for <= 1e-15.
 REF_TOL = 1e-15
-URDF = pathlib.Path(__file__).parent / "data" / "urdf"
+URDF = pathlib.Path(__file__).parents[1] / "data" / "urdf"
 N_SAMPLES = 10_000
 BATCH_SHAPES = [(), (1,), (3, 1, 2, 1)]
 FORMS = ["4x4", "3x4", "pos_quat"]

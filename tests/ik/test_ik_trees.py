@@ -10,7 +10,7 @@ from typing import Any
 import mujoco
 import numpy as np
 import pytest
-from helpers import MJ_TOL, load_quiet, mj_frame_pose
+from helpers import MJ_TOL, load_quiet, mj_pose
 from test_tree import FEATURES_XML, _two_link
 
 import poekin
@@ -18,21 +18,6 @@ from poekin.io.import_mujoco import tree_from_model
 from poekin.tree import Mimic, Tree
 
 TOL = 1e-10
-
-
-def mj_pose(model: mujoco.MjModel, qpos: np.ndarray, frame: str) -> np.ndarray:
-    """``(N, 4, 4)`` poses of a site or body from mj_forward, for ``(N, nq)`` qpos."""
-    data = mujoco.MjData(model)
-    fid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, frame)
-    kind = "site" if fid >= 0 else "body"
-    if fid < 0:
-        fid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, frame)
-    out = np.empty((len(qpos), 4, 4))
-    for k, row in enumerate(qpos):
-        data.qpos[:] = row
-        mujoco.mj_forward(model, data)
-        out[k] = mj_frame_pose(model, data, kind, fid)
-    return out
 
 
 def check(

@@ -13,7 +13,7 @@ from typing import Any
 
 import numpy as np
 import pytest
-from helpers import MJ_TOL, SUMMARY_KEYS, assert_close, load_quiet
+from helpers import MJ_TOL, SUMMARY_KEYS, assert_close, assert_one_error_line, load_quiet, run
 
 import poekin
 from poekin import load
@@ -21,12 +21,6 @@ from poekin.cli import main
 from poekin.verification.metrics import METRICS_HEADER
 
 UR5E_XML = pathlib.Path(os.environ["MENAGERIE_ROOT"]) / "universal_robots_ur5e" / "ur5e.xml"
-
-
-def run(capsys: pytest.CaptureFixture[str], *argv: str) -> tuple[int, str, str]:
-    code = main(list(argv))
-    out, err = capsys.readouterr()
-    return code, out, err
 
 
 def test_verify_json(capsys: pytest.CaptureFixture[str]) -> None:
@@ -419,7 +413,7 @@ BAD_INPUTS = [
 ]
 
 # {name}.yaml files for BAD_INPUTS: the synthetic UR5e calibration of tests/data/ur, edited
-UR_CALIBRATION = pathlib.Path(__file__).parent / "data" / "ur" / "ur5e_calibration.yaml"
+UR_CALIBRATION = pathlib.Path(__file__).parents[1] / "data" / "ur" / "ur5e_calibration.yaml"
 BAD_UR_CALIBRATIONS: dict[str, Callable[[dict[str, Any]], object]] = {
     "ur_missing_segment": lambda k: k.pop("wrist_2"),
     "ur_misspelled_segment": lambda k: k.update(wrist1=k.pop("wrist_1")),
@@ -470,15 +464,6 @@ def _param_file(tmp_path: pathlib.Path, name: str, joint: int, screw: list[float
     else:
         described["home"][0][0] = 2.0
     return _write(tmp_path, name, json.dumps(described))
-
-
-def assert_one_error_line(err: str, message: str) -> None:
-    """stderr holds exactly one error line (plus, at most, notes) and no traceback."""
-    lines = err.splitlines()
-    errors = [ln for ln in lines if ln.startswith("poekin: error: ")]
-    assert len(errors) == 1 and message in errors[0], err
-    assert all(ln.startswith("poekin: note: ") for ln in lines if ln not in errors), err
-    assert "Traceback" not in err
 
 
 @pytest.mark.parametrize(("argv", "message"), BAD_INPUTS)
@@ -951,7 +936,7 @@ def test_model_kinds_by_suffix_in_any_case(
 ) -> None:
     urdf = tmp_path / "arm3.URDF"
     urdf.write_bytes(
-        (pathlib.Path(__file__).parent / "data" / "urdf" / "serial_arm.urdf").read_bytes()
+        (pathlib.Path(__file__).parents[1] / "data" / "urdf" / "serial_arm.urdf").read_bytes()
     )
     code, out, err = run(capsys, "verify", str(urdf), "--samples", "20")
     assert code == 0 and "PASS" in out, err
@@ -1154,7 +1139,7 @@ def test_a_dh_file_in_degrees_without_saying_so_gets_a_note(
 
 
 def test_floating_base_from_the_command_line(capsys: pytest.CaptureFixture[str]) -> None:
-    urdf = str(pathlib.Path(__file__).parent / "data" / "urdf" / "serial_arm.urdf")
+    urdf = str(pathlib.Path(__file__).parents[1] / "data" / "urdf" / "serial_arm.urdf")
     tree = poekin.load_tree(urdf, floating_base=True)
     qpos = poekin.sample_qpos(tree, 1, seed=4)[0]
     q = [repr(float(x)) for x in qpos]
@@ -1177,7 +1162,7 @@ def test_verify_of_a_malformed_urdf_names_the_joint(
 ) -> None:
     """poekin reads a URDF before MuJoCo compiles it, so its message (naming the joint and the
     fix) comes first, not MuJoCo's 'attribute has too much data'."""
-    text = (pathlib.Path(__file__).parent / "data" / "urdf" / "serial_arm.urdf").read_text()
+    text = (pathlib.Path(__file__).parents[1] / "data" / "urdf" / "serial_arm.urdf").read_text()
     bad = text.replace('rpy="0 0 0.3"', 'rpy="0 0 0.3 0"', 1)
     assert bad != text
     path = _write(tmp_path, "bad.urdf", bad)

@@ -29,7 +29,7 @@ from poekin.io.params import UR5E_JOINT_NAMES
 from poekin.io.sources import kinematics_spec
 from poekin.io.ur_kinematics import UR_ORIGIN_KEYS, ur_chain
 
-REPO = pathlib.Path(__file__).resolve().parents[1]
+REPO = pathlib.Path(__file__).resolve().parents[2]
 CALIBRATION = REPO / "tests" / "data" / "ur" / "ur5e_calibration.yaml"  # synthetic (see its header)
 HASH = "calib_7351942216840930177"
 SEGMENTS = ("shoulder", "upper_arm", "forearm", "wrist_1", "wrist_2", "wrist_3")
@@ -471,7 +471,7 @@ def test_every_command_reads_it(
         assert "nearly parallel" in err + out
 
 
-# The lead merges these rows into tests/test_cli.py's BAD_INPUTS.
+# The lead merges these rows into tests/cli/test_cli.py's BAD_INPUTS.
 # --- the user page ------------------------------------------------------------------------------
 
 PAGE = REPO / "docs" / "ur_calibration.md"

@@ -34,7 +34,7 @@ from poekin.chain import Chain, ChainParams
 from poekin.ik import IKResult, _rng, fixed
 from poekin.ik._angles import within_limits, wrap_into_limits
 
-REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+REPO = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 # XLA's quick compile on the CPU: 2-4x less compile time, slower programs (docs/ik.md)
 FAST_COMPILE = {"xla_cpu_use_fusion_emitters": False, "xla_backend_optimization_level": 0}
 TIGHT = {"pos_tol": 1e-13, "ori_tol": 1e-13, "max_attempts": 1}  # derivative tests: from q0

@@ -11,8 +11,7 @@ from typing import Any
 import mujoco
 import numpy as np
 import pytest
-from helpers import MJ_TOL, assert_close, load_quiet
-from test_ik_trees import mj_pose
+from helpers import MJ_TOL, assert_close, load_quiet, mj_pose
 from test_tree import _two_link
 
 import poekin
