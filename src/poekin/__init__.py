@@ -22,6 +22,7 @@ from poekin.diagnose import Diagnosis, diagnose
 from poekin.errors import (
     AnalyticIKError,
     InputError,
+    JointLimitsWarning,
     MenagerieUnavailableError,
     MetricsFileError,
     MissingExtraError,
@@ -96,6 +97,7 @@ __all__ = [
     "Diagnosis",
     "Form",
     "InputError",
+    "JointLimitsWarning",
     "JointType",
     "LoadedModel",
     "MenagerieUnavailableError",
@@ -157,6 +159,16 @@ __all__ = [
     "vee_so3",
     "verify",
 ]
+
+
+# The names imported at first use, by __getattr__: listed by dir(poekin), not in __all__ (a
+# star import would import the viewer, which needs the extra `view`).
+_LAZY = ("calibrate", "draw", "plan_poses", "view")
+
+
+def __dir__() -> list[str]:
+    """The module's names and the lazily imported ones, so that completion offers them."""
+    return sorted({*globals(), *_LAZY})
 
 
 def __getattr__(name: str) -> Any:
