@@ -24,9 +24,10 @@ An HTML comment on the line before a fence changes how it is run:
   runs (the install and test commands);
 * ``<!-- readme: offline -->``: run without ``MENAGERIE_ROOT``, with an empty Menagerie download
   cache and no address to download from, as on a fresh machine;
-* no directive: run with ``MENAGERIE_ROOT`` as the tests set it (``tests/data/menagerie``, XML
-  only). The UR5e there loads with a kinematics-only note that the reader never sees (poekin's
-  built-in copy, or a clone with the meshes, loads silently): that note is ignored;
+* no directive: run with ``MENAGERIE_ROOT`` as the tests set it (``src/poekin/data``, poekin's
+  built-in copies, XML only, read as a clone). The UR5e there loads with a kinematics-only note
+  that the reader never sees (poekin's built-in copy, or a clone with the meshes, loads
+  silently): that note is ignored;
 * ``<!-- readme: file NAME -->``: the block (a parameter file, say) is written to ``NAME`` in the
   scratch folder, for the commands after it;
 * ``<!-- readme: not run -->``: shown only (a server that runs until stopped); say why beside it.

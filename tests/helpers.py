@@ -166,9 +166,9 @@ def assert_labels_apart(fig: Any) -> None:
 
 def mesh_menagerie() -> pathlib.Path:
     """A Menagerie clone with the UR5e's meshes, for the few tests that draw or hash them
-    (tests/data/menagerie is XML only): ``POEKIN_MESH_MENAGERIE`` if set, else
-    ``../shared/menagerie`` beside the checkout. Without one the test skips, saying how to
-    enable it; with ``POEKIN_REQUIRE_MESHES=1`` (CI) it fails instead."""
+    (poekin's built-in copies in src/poekin/data are XML only): ``POEKIN_MESH_MENAGERIE`` if
+    set, else ``../shared/menagerie`` beside the checkout. Without one the test skips, saying
+    how to enable it; with ``POEKIN_REQUIRE_MESHES=1`` (CI) it fails instead."""
     root = pathlib.Path(__file__).resolve().parents[1]
     folder = pathlib.Path(
         os.environ.get("POEKIN_MESH_MENAGERIE") or root.parent / "shared" / "menagerie"

@@ -38,13 +38,57 @@ def test_where_poekin_comes_from() -> None:
     assert metadata.version("poekin") == poekin.__version__
 
 
-def test_the_builtin_robot_and_the_licenses_are_installed() -> None:
-    data = resources.files("poekin") / "data" / "universal_robots_ur5e"
-    assert (data / "ur5e.xml").read_text().startswith('<mujoco model="ur5e">')
-    assert "ROS Industrial Consortium" in (data / "LICENSE").read_text()
+def test_the_builtin_robots_and_the_licenses_are_installed() -> None:
+    """Every built-in robot's model files and its own license are in the package, and each
+    license is among the distribution's license files; poekin's own license too."""
+    from poekin.io.sources import BUILTIN_ROBOTS
+
+    assert len(BUILTIN_ROBOTS) == 9
+    data = resources.files("poekin") / "data"
+    assert (
+        (data / "universal_robots_ur5e" / "ur5e.xml")
+        .read_text()
+        .startswith('<mujoco model="ur5e">')
+    )
+    assert "ROS Industrial Consortium" in (data / "universal_robots_ur5e" / "LICENSE").read_text()
+    assert "Trossen Robotics" in (data / "aloha" / "LICENSE").read_text()
+    assert "Apache License" in (data / "franka_fr3" / "LICENSE").read_text()
+    assert "franka_fr3/fr3.xml" in (data / "SOURCE.md").read_text()  # where each file is from
+    assert (data / "aloha" / "keyframe_ctrl.xml").is_file()  # an included file
     assert (resources.files("poekin") / "py.typed").is_file()
-    licenses = [str(f) for f in metadata.files("poekin") or [] if "LICENSE" in str(f)]
+    licenses = [str(f) for f in metadata.files("poekin") or [] if "licenses/" in str(f)]
     assert any(f.endswith("licenses/LICENSE") for f in licenses), licenses
+    for robot, xml in BUILTIN_ROBOTS.items():
+        assert (data / robot / xml).read_text().startswith("<mujoco"), robot
+        names = [f.name for f in (data / robot).iterdir() if f.name.startswith("LICENSE")]
+        assert len(names) == 1, robot
+        if os.environ.get("POEKIN_EXPECT_INSTALLED") == "1":  # the wheel lists each one
+            assert any(f.endswith(f"data/{robot}/{names[0]}") for f in licenses), robot
+
+
+def test_a_builtin_robot_loads_offline(tmp_path: pathlib.Path) -> None:
+    """Not only the UR5e: the docs' FR3 example works with no network (issue #26)."""
+    proc = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "poekin",
+            "ik",
+            "franka_fr3",
+            "--pose",
+            *["0.5", "0", "0.4", "0", "1", "0", "0"],
+        ],
+        capture_output=True,
+        text=True,
+        check=False,
+        cwd=tmp_path,
+        env=_offline_env(tmp_path),
+        timeout=60,
+    )
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stderr == ""
+    assert "SOLVED" in proc.stdout
+    assert not (tmp_path / "cache").exists()  # nothing was fetched
 
 
 def test_verify_runs_offline_on_the_builtin_ur5e(tmp_path: pathlib.Path) -> None:

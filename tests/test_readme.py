@@ -8,6 +8,7 @@ from __future__ import annotations
 import contextlib
 import functools
 import io
+import os
 import pathlib
 import re
 import select
@@ -149,3 +150,46 @@ def test_the_comparison_can_fail() -> None:
     assert not db.output_agrees(["model: ... (clone)"], ["model: /x/y.xml (cache)"])
     with contextlib.redirect_stdout(io.StringIO()):
         assert db.run("poekin --version", pathlib.Path.cwd())[0] == 0
+
+
+def test_without_the_development_install_the_tests_say_what_to_install(
+    tmp_path: pathlib.Path,
+) -> None:
+    """README: Test. A suite run where a package it imports is missing (the wheel install, or
+    the pytest of another Python) stops at the first module with one line that names the
+    package and the install command, instead of a collection error per module (issue #26)."""
+    fake = tmp_path / "hypothesis"
+    fake.mkdir()
+    (fake / "__init__.py").write_text(
+        "raise ModuleNotFoundError(\"No module named 'hypothesis'\", name='hypothesis')\n"
+    )
+    env = {
+        k: v
+        for k, v in os.environ.items()
+        if not k.startswith(("PYTEST_", "COV_CORE_"))  # not this run's xdist worker, coverage
+    }
+    env["PYTHONPATH"] = f"{tmp_path}:{db.REPO / 'src'}"
+    proc = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "pytest",
+            *["-p", "no:cacheprovider", "-p", "no:hypothesispytest", "-p", "no:xdist", "-q"],
+            *["tests/test_lie.py", "tests/test_chain.py"],
+        ],
+        capture_output=True,
+        text=True,
+        check=False,
+        cwd=db.REPO,
+        env=env,
+    )
+    out = proc.stdout + proc.stderr
+    assert proc.returncode == pytest.ExitCode.USAGE_ERROR, out
+    assert "ERROR collecting" not in out and "Traceback" not in out, out
+    assert (
+        f"tests/test_lie.py cannot import 'hypothesis' in {sys.executable}: the tests need "
+        "poekin's development install in the Python that runs them: in the checkout, "
+        'pip install -e ".[dev,jax,torch]" (README: Test), then pytest' in out
+    ), out
+    readme = db.README.read_text()
+    assert 'pip install -e ".[dev,jax,torch]"\npytest\n' in readme  # the command it names

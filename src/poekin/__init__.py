@@ -20,6 +20,7 @@ from poekin.dh import DHTable, dh_from_chain
 from poekin.errors import (
     AnalyticIKError,
     InputError,
+    JointLimitsWarning,
     MenagerieUnavailableError,
     MetricsFileError,
     MissingExtraError,
@@ -102,6 +103,7 @@ __all__ = [
     "Diagnosis",
     "Form",
     "InputError",
+    "JointLimitsWarning",
     "JointType",
     "LoadedModel",
     "MenagerieUnavailableError",
@@ -163,6 +165,16 @@ __all__ = [
     "vee_so3",
     "verify",
 ]
+
+
+# The names imported at first use, by __getattr__: listed by dir(poekin), not in __all__ (a
+# star import would import the viewer, which needs the extra `view`).
+_LAZY = ("calibrate", "draw", "plan_poses", "view")
+
+
+def __dir__() -> list[str]:
+    """The module's names and the lazily imported ones, so that completion offers them."""
+    return sorted({*globals(), *_LAZY})
 
 
 def __getattr__(name: str) -> Any:

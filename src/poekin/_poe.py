@@ -35,6 +35,7 @@ __all__ = [
     "keep_chain_terms",
     "poe",
     "pose_of",
+    "real_array",
     "space_jacobian",
     "world_columns",
 ]
@@ -49,6 +50,32 @@ def _shown(x: object) -> str:
     return text if len(text) <= 60 else text[:57] + "..."
 
 
+def real_array(x: ArrayLike, what: str) -> FloatArray:
+    """``x`` as a float64 array: the one conversion of every array poekin takes from its user
+    (joint values, targets, measurements). Integers, booleans and float32 are converted;
+    anything that is not a real number (``None``, text, objects, ragged lists, complex numbers:
+    never cast to their real part) raises :class:`~poekin.errors.InputError`, ``what`` naming
+    the values. Shape and finiteness are the caller's to check."""
+    try:
+        raw = np.asarray(x)
+    except (TypeError, ValueError) as e:  # ragged nested lists
+        raise InputError(f"{what} must be numbers, got {_shown(x)}") from e
+    values = list(raw.flat) if raw.dtype.kind in "OUS" else []
+    not_number = [v for v in values if v is None or isinstance(v, str | bytes)]
+    if not_number:
+        bad = not_number[0].item() if isinstance(not_number[0], np.generic) else not_number[0]
+        raise InputError(f"{what} must be numbers, got {bad!r} in {_shown(x)}")
+    if raw.dtype.kind == "c" or any(isinstance(v, complex | np.complexfloating) for v in values):
+        raise InputError(
+            f"{what} must be real numbers, got complex numbers; pass their real part "
+            "(numpy.real) if that is what you mean"
+        )
+    try:
+        return np.asarray(raw, dtype=np.float64)
+    except (TypeError, ValueError) as e:  # objects that are no numbers
+        raise InputError(f"{what} must be numbers, got {_shown(x)}") from e
+
+
 def as_joint_values(
     q: ArrayLike, n: int, *, what: str = "joint values", layout: str = ""
 ) -> FloatArray:
@@ -59,24 +86,7 @@ def as_joint_values(
     NaN or inf raises :class:`~poekin.errors.InputError`; ``what`` names the values in the
     message, and ``layout`` (if given) is appended to a wrong-shape message.
     """
-    try:
-        raw = np.asarray(q)
-    except (TypeError, ValueError) as e:  # ragged nested lists
-        raise InputError(f"{what} must be numbers, got {_shown(q)}") from e
-    values = list(raw.flat) if raw.dtype.kind in "OUS" else []
-    not_number = [x for x in values if x is None or isinstance(x, str | bytes)]
-    if not_number:
-        bad = not_number[0].item() if isinstance(not_number[0], np.generic) else not_number[0]
-        raise InputError(f"{what} must be numbers, got {bad!r} in {_shown(q)}")
-    if raw.dtype.kind == "c" or any(isinstance(x, complex | np.complexfloating) for x in values):
-        raise InputError(
-            f"{what} must be real numbers, got complex numbers; pass their real part "
-            "(numpy.real) if that is what you mean"
-        )
-    try:
-        arr = np.asarray(raw, dtype=np.float64)
-    except (TypeError, ValueError) as e:  # objects that are no numbers
-        raise InputError(f"{what} must be numbers, got {_shown(q)}") from e
+    arr = real_array(q, what)
     if arr.ndim == 0 or arr.shape[-1] != n:
         raise InputError(
             f"expected {n} {what} (shape (..., {n})), got an array of shape {arr.shape}"

@@ -35,6 +35,7 @@ from poekin._poe import (
     keep_chain_terms,
     poe,
     pose_of,
+    real_array,
     space_jacobian,
     world_columns,
 )
@@ -58,6 +59,7 @@ __all__ = [
     "jacobian_from_world",
     "poe",
     "readonly_array",
+    "real_array",
     "relative_jacobian",
 ]
 
@@ -577,9 +579,14 @@ class Chain:
             NumPy arrays, or arrays of the inputs' library, float dtype and device.
 
         Raises:
-            InputError: targets of the wrong shape, not finite or not rigid transforms, ``q0``
-                of the wrong length or batch shape, a tolerance or weight that is not > 0, a
-                count below 1, a bad seed, JAX arrays mixed with PyTorch tensors.
+            InputError: targets of the wrong shape, not real numbers, not finite or not rigid
+                transforms, ``q0`` of the wrong length or batch shape, a tolerance or weight
+                that is not > 0, a count below 1, a bad seed, JAX arrays mixed with PyTorch
+                tensors.
+
+        Warns:
+            JointLimitsWarning: NumPy ``q0`` outside the joint limits (the solve starts from it
+                brought into them); JAX and PyTorch values are not checked.
 
         Example:
             >>> chain = poekin.load("universal_robots_ur5e")

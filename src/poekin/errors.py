@@ -13,6 +13,7 @@ __all__ = [
     "AnalyticIKError",
     "CalibrationWarning",
     "InputError",
+    "JointLimitsWarning",
     "MenagerieUnavailableError",
     "MetricsFileError",
     "MissingExtraError",
@@ -96,6 +97,12 @@ class MissingExtraError(PoekinError, ImportError):
 
 class UnitWarning(UserWarning):
     """Values that look like another unit than the one they are read in (degrees as radians)."""
+
+
+class JointLimitsWarning(UserWarning):
+    """Joint values given as a start (``q0`` of :meth:`poekin.Chain.ik`) lie outside the joint
+    limits: the solve starts from them brought into the limits (whole turns, else clamped), so
+    a start far outside, such as degrees read as radians, does not keep the answer near it."""
 
 
 class CalibrationWarning(UserWarning):

@@ -911,7 +911,8 @@ class Tree:
             qpos: ``(..., nq)`` the values of every joint (MuJoCo's layout), broadcast against
                 the targets; default :attr:`qpos0`.
             warm_start: start the first attempt at ``qpos``'s values of the solved joints
-                (a trajectory stays on its branch), rather than at a random configuration.
+                (a trajectory stays on its branch), rather than at a random configuration; a
+                start outside the joint limits gets a :class:`~poekin.JointLimitsWarning`.
             seed: the random starts' seed, as for :meth:`poekin.Chain.ik`.
             pos_tol: success: position within this (m), as for :meth:`poekin.Chain.ik`.
             ori_tol: and orientation within this (rad).

@@ -410,6 +410,40 @@ BAD_INPUTS = [
         "cannot write the joint values to /sys/q.npy: folder /sys is not writable",
         marks=_ON_LINUX,
     ),
+    # issue #26: an empty batch printed "SOLVED: all 0 targets ... nan iterations"; fk wrote an
+    # empty file from an .npy and refused an empty .csv: every --input without rows is refused
+    (
+        [
+            "ik",
+            "universal_robots_ur5e",
+            "--input",
+            "{empty_poses}",
+            "--output",
+            "{tmp}/answers.npy",
+        ],
+        "empty_poses.npy holds no numbers (an array of shape (0, 4, 4))",
+    ),
+    (
+        [
+            "ik",
+            "universal_robots_ur5e",
+            "--all",
+            "--input",
+            "{empty_poses}",
+            "--output",
+            "{tmp}/a.npy",
+        ],
+        "holds no numbers (an array of shape (0, 4, 4))",
+    ),
+    (
+        ["fk", "universal_robots_ur5e", "--input", "{empty_q}", "--output", "{tmp}/T.npy"],
+        "empty_q.npy holds no numbers (an array of shape (0, 6))",
+    ),
+    # issue #26: complex targets
+    (
+        ["ik", "universal_robots_ur5e", "--input", "{complex_poses}", "--output", "{tmp}/a.npy"],
+        "holds complex numbers; give real numbers",
+    ),
 ]
 
 # {name}.yaml files for BAD_INPUTS: the synthetic UR5e calibration of tests/data/ur, edited
@@ -499,6 +533,9 @@ def test_bad_input_gives_one_line_and_exit_2(
         "bad_quat_csv": _write(
             tmp_path, "bad_quat.csv", "0.4,0.2,0.3,1,0,0,0\n0.4,0.2,0.3,1,1,0,0\n"
         ),
+        "empty_poses": _npy(tmp_path / "empty_poses.npy", np.zeros((0, 4, 4))),
+        "empty_q": _npy(tmp_path / "empty_q.npy", np.zeros((0, 6))),
+        "complex_poses": _npy(tmp_path / "complex_poses.npy", np.tile(np.eye(4), (2, 1, 1)) + 0j),
         "nan_poses": _npy(
             tmp_path / "nan_poses.npy", np.array([[0.4, 0, 0, 1, 0, 0, 0], [np.nan] * 7])
         ),
@@ -549,7 +586,8 @@ def test_argparse_errors_are_one_line(
 
 
 def test_no_network_menagerie(capsys: pytest.CaptureFixture[str], fresh_machine: None) -> None:
-    code, _, err = run(capsys, "verify", "franka_fr3")
+    """A robot poekin does not ship (the FR3 it does: issue #26), with no network."""
+    code, _, err = run(capsys, "verify", "unitree_g1")
     assert code == 2
     assert_one_error_line(
         err, "set MENAGERIE_ROOT to a local mujoco_menagerie clone, or pass a path"

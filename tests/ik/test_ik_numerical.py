@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import functools
 import pickle
+import warnings
 from typing import Any
 
 import mujoco
@@ -212,9 +213,40 @@ def test_q0_keeps_a_trajectory_on_its_branch(ur5e: Chain) -> None:
 def test_q0_outside_the_limits_is_brought_inside(ur5e: Chain) -> None:
     q = np.array([0.3, -1.2, 1.4, -0.5, 1.1, 0.2])
     start = q + np.array([4 * np.pi, -4 * np.pi, 0.0, 2 * np.pi, 0.0, 0.0])  # whole turns out
-    found = ur5e.ik(ur5e.fk(q), start)
+    with pytest.warns(poekin.JointLimitsWarning, match="q0 is outside the joint limits"):
+        found = ur5e.ik(ur5e.fk(q), start)
     assert found.success and found.attempts == 1
     assert within_limits(found.q, ur5e.limits)
+
+
+@pytest.mark.parametrize("kernel", [True, False])
+def test_q0_far_outside_the_limits_is_named_in_python(
+    ur5e: Chain, kernel: bool, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Issue #26: the shell notes a start outside the limits, Python said nothing. Degrees
+    read as radians: a JointLimitsWarning names each joint outside, its value and limits, at
+    the caller's line, with the kernel and without; a start inside warns of nothing."""
+    if not kernel:
+        monkeypatch.setattr(_fast, "_kernel", None)
+    chain = Chain(ur5e.joint_names, ur5e.joint_types, ur5e.screws, ur5e.home, ur5e.limits)
+    q = np.array([0.3, -1.2, 1.4, -0.5, 0.05, 0.02])
+    T = chain.fk(q)
+    with pytest.warns(poekin.JointLimitsWarning) as said:
+        chain.ik(T, np.degrees(q))
+    assert len(said) == 1 and said[0].filename == __file__
+    message = str(said[0].message)
+    assert message.startswith(
+        "q0 is outside the joint limits: 'shoulder_pan_joint' = 17.1887 rad, not in "
+        "[-6.28319, 6.28319]; 'shoulder_lift_joint' = -68.7549 rad, not in [-6.28319, 6.28319]; "
+        "'elbow_joint' = 80.2141 rad, not in [-3.1415, 3.1415]; 'wrist_1_joint' = -28.6479 rad"
+    ), message
+    assert "wrist_2_joint" not in message  # 2.86 rad is inside
+    with pytest.warns(poekin.JointLimitsWarning, match=r"2 of 3 configurations are outside"):
+        chain.ik(np.stack([T] * 3), np.stack([q, np.degrees(q), np.degrees(q)]))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert chain.ik(T, q + 0.01).success
+        assert chain.ik(np.stack([T] * 3), np.stack([q] * 3)).success.all()
 
 
 def test_unlimited_joints_come_back_in_minus_pi_pi(ur5e: Chain) -> None:
@@ -250,6 +282,7 @@ def assert_same_bits(a: tuple, b: tuple, what: str) -> None:
 
 
 @pytest.mark.skipif(not poekin.compiled_kernel(), reason="needs the compiled kernel")
+@pytest.mark.filterwarnings("ignore::poekin.JointLimitsWarning")  # starts far outside, on purpose
 @pytest.mark.parametrize("name", ARMS)
 def test_the_kernel_gives_the_reference_bits(name: str) -> None:
     _, chain = arm(name)
@@ -269,6 +302,7 @@ def test_the_kernel_gives_the_reference_bits(name: str) -> None:
 
 
 @pytest.mark.skipif(not poekin.compiled_kernel(), reason="needs the compiled kernel")
+@pytest.mark.filterwarnings("ignore::poekin.JointLimitsWarning")  # starts far outside, on purpose
 def test_the_kernel_gives_the_reference_bits_for_unlimited_and_prismatic_joints() -> None:
     """Cyclic joints wrapped from far away (numpy.mod's arithmetic in C), a prismatic joint
     with and without limits, a tilted (non coordinate) axis and a pitched screw."""
@@ -478,3 +512,52 @@ def test_a_chain_without_joints_is_refused() -> None:
     chain = Chain((), (), np.zeros((0, 6)), np.eye(4))
     with pytest.raises(poekin.InputError, match="no joints"):
         chain.ik(np.eye(4))
+
+
+@pytest.mark.parametrize(
+    "call",
+    [
+        "chain.ik",
+        "chain.ik_all",
+        "chain.ik q0",
+        "tree.ik",
+        "calibrate measured",
+        "list of complex",
+    ],
+)
+def test_complex_targets_are_refused_not_cast(ur5e: Chain, go2: poekin.Tree, call: str) -> None:
+    """Issue #26: complex targets were cast to their real part with only NumPy's
+    ComplexWarning. Every public entry that takes arrays refuses them with a named InputError
+    (one conversion, chain.real_array), and warns of nothing first."""
+    from poekin.calibration import check_measurements
+
+    T = ur5e.fk(np.array([0.3, -1.2, 1.4, -0.5, 1.1, 0.2])) + 0j
+    calls = {
+        "chain.ik": lambda: ur5e.ik(T),
+        "chain.ik_all": lambda: ur5e.ik_all(T),
+        "chain.ik q0": lambda: ur5e.ik(T.real, np.zeros(6) + 1e-9j),
+        "tree.ik": lambda: go2.ik(T, "FL_calf"),
+        "calibrate measured": lambda: check_measurements(np.stack([T] * 2), 2),
+        "list of complex": lambda: ur5e.ik(T.tolist()),
+    }
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        with pytest.raises(poekin.InputError, match="must be real numbers, got complex") as info:
+            calls[call]()
+    assert "pass their real part (numpy.real)" in str(info.value)
+
+
+def test_an_empty_batch_gives_empty_answers_without_a_warning(ur5e: Chain) -> None:
+    """Issue #26: no targets, no answers: arrays of the batch shape (0,), and no warning (the
+    command line refuses an --input without rows instead)."""
+    T = np.zeros((0, 4, 4))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        found = ur5e.ik(T)
+        found_q0 = ur5e.ik(T, np.zeros((0, 6)))
+        every = ur5e.ik_all(T)
+    for got in (found, found_q0):
+        assert got.q.shape == (0, 6) and got.q.dtype == np.float64
+        for field in (got.success, got.pos_err, got.ori_err, got.iterations, got.attempts):
+            assert field.shape == (0,)
+    assert every.q.shape == (0, 8, 6) and every.valid.shape == (0, 8)

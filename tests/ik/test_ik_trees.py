@@ -83,6 +83,20 @@ def test_warm_start_begins_at_qpos(go2: Tree) -> None:
     assert cold.success.all() and np.all(cold.iterations > 1)
 
 
+def test_a_warm_start_outside_the_limits_is_named(go2: Tree) -> None:
+    """Issue #26: the start of a warm-started leg far outside its limits (degrees read as
+    radians) gets the JointLimitsWarning of chain.ik, at this line."""
+    qpos = poekin.sample_qpos(go2, 1, seed=5, within_limits=True)[0]
+    T = go2.pose(qpos, "RL_calf")
+    start = qpos.copy()
+    calf = int(go2.qpos_adr[list(go2.joint_names).index("RL_calf_joint")])
+    start[calf] = np.degrees(start[calf])
+    with pytest.warns(poekin.JointLimitsWarning, match="q0 is outside.*'RL_calf_joint'") as said:
+        found = go2.ik(T, "RL_calf", start, warm_start=True)
+    assert said[0].filename == __file__
+    assert found.success
+
+
 @pytest.mark.parametrize("batch", [(), (1,), (3, 1, 2)])
 def test_batch_shapes_and_broadcasting(go2: Tree, batch: tuple[int, ...]) -> None:
     n = int(np.prod(batch))

@@ -3,11 +3,14 @@
 from __future__ import annotations
 
 import hashlib
+import json
 import os
 import pathlib
 import re
 import shutil
 import struct
+import subprocess
+import sys
 import warnings
 import zlib
 from collections.abc import Sequence
@@ -27,8 +30,9 @@ from poekin import (
     UnknownRobotError,
     load_model,
 )
+from poekin.io.sources import BUILTIN_ROBOTS
 
-MENAGERIE = pathlib.Path(os.environ["MENAGERIE_ROOT"])  # tests/data/menagerie: XML only
+MENAGERIE = pathlib.Path(os.environ["MENAGERIE_ROOT"])  # poekin's built-in copies: XML only
 UR5E_DIR = MENAGERIE / "universal_robots_ur5e"
 
 
@@ -48,10 +52,13 @@ def _digest(folder: pathlib.Path) -> dict[str, str]:
     }
 
 
-def test_the_test_models_are_the_upstream_files_their_source_lists() -> None:
-    """Every file of tests/data/menagerie is in its SOURCE.md with its size and sha256 (an
-    unmodified upstream copy), every file listed is there, and none is a mesh; the UR5e is
-    poekin's built-in copy."""
+def test_the_builtin_models_are_the_upstream_files_their_source_lists() -> None:
+    """Every file of poekin's built-in robots (src/poekin/data, which the tests read as
+    MENAGERIE_ROOT) is in its SOURCE.md with its size and sha256 (an unmodified upstream copy),
+    every file listed is there, and none is a mesh; each robot folder is in BUILTIN_ROBOTS with
+    its main model file, and holds its license."""
+    data = pathlib.Path(poekin.__file__).parent / "data"
+    assert data == MENAGERIE
     table = re.findall(
         r"^\| (\S+) \| (\d+) \| ([0-9a-f]{64}) \| .+ \|$",
         (MENAGERIE / "SOURCE.md").read_text(),
@@ -64,12 +71,93 @@ def test_the_test_models_are_the_upstream_files_their_source_lists() -> None:
         if p.is_file() and p.name != "SOURCE.md"
     }
     assert sorted(listed) == sorted(files)
-    for path, data in files.items():
-        assert (len(data), hashlib.sha256(data).hexdigest()) == listed[path], path
+    for path, content in files.items():
+        assert (len(content), hashlib.sha256(content).hexdigest()) == listed[path], path
         assert path.endswith((".xml", "/LICENSE", "/LICENSE.md")), path
-    builtin = pathlib.Path(poekin.__file__).parent / "data" / "universal_robots_ur5e"
-    for name in ("ur5e.xml", "LICENSE"):
-        assert files[f"universal_robots_ur5e/{name}"] == (builtin / name).read_bytes(), name
+    folders = sorted(p.name for p in MENAGERIE.iterdir() if p.is_dir())
+    assert folders == sorted(BUILTIN_ROBOTS)
+    for robot, xml in BUILTIN_ROBOTS.items():
+        assert (MENAGERIE / robot / xml).is_file(), robot
+        assert list((MENAGERIE / robot).glob("LICENSE*")), f"{robot} has no license file"
+
+
+# The robots poekin ships: those the docs' examples load (the FR3, SO-100, ALOHA, go2, ...).
+SHIPPED = [
+    "aloha",
+    "franka_emika_panda",
+    "franka_fr3",
+    "rethink_robotics_sawyer",
+    "trs_so_arm100",
+    "ufactory_lite6",
+    "unitree_go2",
+    "universal_robots_ur10e",
+    "universal_robots_ur5e",
+]
+
+# Runs in a fresh interpreter on a fresh machine (no MENAGERIE_ROOT, an empty download cache,
+# nowhere to download from): each robot named on its command line, how long its load took, where
+# it came from, any warning, and the largest gap between poekin's FK of every body and site and
+# mj_forward's, on random configurations within the limits.
+_OFFLINE_BUILTINS = """
+import json, sys, time, warnings
+import mujoco, numpy as np, poekin
+out = {}
+for robot in sys.argv[1:]:
+    start = time.perf_counter()
+    with warnings.catch_warnings(record=True) as said:
+        warnings.simplefilter("always")
+        loaded = poekin.load_model(robot)
+        tree = poekin.load_tree(loaded)
+    seconds = time.perf_counter() - start
+    model, data = loaded.model, mujoco.MjData(loaded.model)
+    qpos = poekin.sample_qpos(tree, 20, seed=1, within_limits=True)
+    got = tree.fk(qpos)
+    gap, nb = 0.0, model.nbody - 1
+    for k, q in enumerate(qpos):
+        data.qpos[:] = q
+        mujoco.mj_forward(model, data)
+        rot = np.concatenate([data.xmat[1:].reshape(-1, 3, 3), data.site_xmat.reshape(-1, 3, 3)])
+        pos = np.concatenate([data.xpos[1:], data.site_xpos])
+        gap = max(gap, float(np.abs(got[k, :, :3, :3] - rot).max()))
+        gap = max(gap, float(np.abs(got[k, :, :3, 3] - pos).max()))
+    out[robot] = {
+        "seconds": seconds,
+        "origin": loaded.origin,
+        "xml": str(loaded.xml_path),
+        "frames": tree.n_frames,
+        "expected_frames": nb + model.nsite,
+        "gap": gap,
+        "warnings": [str(w.message) for w in said],
+    }
+json.dump(out, sys.stdout)
+"""
+
+
+def test_builtin_robots_load_offline_at_once_and_match_mj_forward(
+    fresh_machine: None, tmp_path: pathlib.Path
+) -> None:
+    """Issue #26: offline, every robot but the UR5e failed by name after about 8 s. Each
+    built-in robot now loads by name from poekin's own copy (the origin says so), silently
+    and without waiting for a network, and its FK is MuJoCo's."""
+    proc = subprocess.run(
+        [sys.executable, "-c", _OFFLINE_BUILTINS, *SHIPPED],
+        capture_output=True,
+        text=True,
+        check=False,
+        cwd=tmp_path,
+    )
+    assert proc.returncode == 0, proc.stderr
+    found = json.loads(proc.stdout)
+    assert sorted(found) == sorted(BUILTIN_ROBOTS) == sorted(SHIPPED)
+    data = pathlib.Path(poekin.__file__).parent / "data"
+    for robot, got in found.items():
+        assert got["origin"].startswith(f"poekin's built-in copy of Menagerie's {robot} "), robot
+        assert got["xml"] == str(data / robot / BUILTIN_ROBOTS[robot])
+        assert got["warnings"] == [], robot  # the built-in copies are XML only by design
+        assert got["seconds"] < 2.0, robot  # compiles in milliseconds; a download wait is 8 s
+        assert got["frames"] == got["expected_frames"] > 1, robot
+        assert got["gap"] < MJ_TOL, robot
+    assert not (tmp_path / "menagerie-cache").exists()
 
 
 def test_menagerie_name_and_path_give_the_same_model() -> None:
@@ -777,9 +865,11 @@ def test_robot_missing_under_menagerie_root(
 
 
 def test_download_that_cannot_happen(fresh_machine: None) -> None:
-    """No local clone and no reachable archive: one clear error naming the fix."""
+    """No local clone and no reachable archive, for a robot poekin does not ship: one clear
+    error naming the fix."""
+    assert "unitree_g1" not in BUILTIN_ROBOTS
     with pytest.raises(MenagerieUnavailableError, match="set MENAGERIE_ROOT to a local"):
-        load_model("franka_fr3")
+        load_model("unitree_g1")
 
 
 def test_mujoco_warnings_are_notes_not_a_log_file(

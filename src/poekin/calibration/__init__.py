@@ -52,7 +52,7 @@ from poekin.calibration.model import (
 )
 from poekin.calibration.plan import plan_poses
 from poekin.calibration.report import Calibration, Change
-from poekin.chain import Chain, as_joint_values
+from poekin.chain import Chain, as_joint_values, real_array
 from poekin.errors import CalibrationWarning, InputError
 from poekin.verification.verify import pose_errors
 
@@ -82,10 +82,7 @@ def check_measurements(measured: ArrayLike, n_poses: int) -> FloatArray:
         InputError: another shape or count, NaN or inf, a rotation block that is not
             orthonormal with det +1 (to 1e-6), or a last row other than ``[0, 0, 0, 1]``.
     """
-    try:
-        m = np.asarray(measured, dtype=np.float64)
-    except (TypeError, ValueError) as e:
-        raise InputError(f"the measurements must be numbers, got {measured!r:.60}") from e
+    m = real_array(measured, "the measurements")
     if m.shape not in ((n_poses, 4, 4), (n_poses, 3)):
         raise InputError(
             f"expected {n_poses} measured poses (N, 4, 4) or positions (N, 3), one per row of "

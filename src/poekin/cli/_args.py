@@ -267,26 +267,8 @@ def read_joint_values(args: argparse.Namespace, space: JointSpace) -> NDArray[np
 def _note_limits(q: NDArray[np.float64], space: JointSpace) -> None:
     """One note naming every joint with a value outside its limits (in a batch: in how many
     rows, and the first such value)."""
-    lo, hi = space.limits[:, 0], space.limits[:, 1]
-    rows = q.reshape(-1, q.shape[-1])
-    outside = (rows < lo) | (rows > hi)
-    if not np.any(outside):
-        return
-    one = rows.shape[0] == 1
-    joints = []
-    for j in np.flatnonzero(outside.any(axis=0)):
-        bad = np.flatnonzero(outside[:, j])
-        r = int(bad[0])
-        value = f"{rows[r, j]:.6g} {'rad' if space.angles[j] else 'm'}"
-        rows_word = f"{len(bad)} row{'s' if len(bad) > 1 else ''}"
-        where = f"= {value}" if one else f"in {rows_word} (first row {r}: {value})"
-        joints.append(f"{space.names[j]!r} {where}, not in [{lo[j]:.6g}, {hi[j]:.6g}]")
-    named = "; ".join(joints)
-    if one:
-        note(f"outside the joint limits: {named} (computed all the same)")
-    else:
-        n_bad = int(np.count_nonzero(outside.any(axis=-1)))
-        note(
-            f"{n_bad} of {rows.shape[0]} configurations are outside the joint limits: {named} "
-            "(computed all the same)"
-        )
+    from poekin.ik._angles import outside_limits
+
+    said = outside_limits(q, space.limits, space.names, list(space.angles))
+    if said:
+        note(f"{said} (computed all the same)")

@@ -26,6 +26,7 @@ import dataclasses
 import json
 import math
 import sys
+import warnings
 from collections.abc import Callable, Sequence
 from typing import Any, TextIO
 
@@ -44,7 +45,7 @@ from poekin.cli._args import (
 )
 from poekin.cli._fk import end_chain
 from poekin.cli._text import fixed, sig, table
-from poekin.errors import AnalyticIKError, InputError
+from poekin.errors import AnalyticIKError, InputError, JointLimitsWarning
 
 __all__ = ["QUAT_TOL", "register"]
 
@@ -551,7 +552,9 @@ def _cmd_ik(args: argparse.Namespace, out: TextIO) -> int:
     _check_args(args)
     T, target = _targets(args)
     problem = _tree_problem(args) if args.tree else _chain_problem(args)
-    got = _solve(problem, T)
+    with warnings.catch_warnings():  # --q0 outside the limits: noted once, as it was read
+        warnings.simplefilter("ignore", JointLimitsWarning)
+        got = _solve(problem, T)
     if args.input is not None:
         return _write_batch(args, problem, got, target, out)
     if args.all:

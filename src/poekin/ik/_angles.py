@@ -5,6 +5,7 @@ pose at ``q`` and ``q + 2 pi k``."""
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
@@ -12,7 +13,7 @@ from numpy.typing import NDArray
 
 from poekin import arrays
 
-__all__ = ["TWO_PI", "within_limits", "wrap_into_limits"]
+__all__ = ["TWO_PI", "outside_limits", "within_limits", "wrap_into_limits"]
 
 FloatArray = NDArray[np.float64]
 BoolArray = NDArray[np.bool_]
@@ -85,3 +86,32 @@ def within_limits(q: FloatArray, limits: FloatArray, tol: float = 0.0) -> BoolAr
     ``limits``, widened by ``tol`` on each side."""
     inside: BoolArray = np.all((q >= limits[:, 0] - tol) & (q <= limits[:, 1] + tol), axis=-1)
     return inside
+
+
+def outside_limits(
+    q: FloatArray, limits: FloatArray, names: Sequence[str], angles: Sequence[bool]
+) -> str:
+    """The values of ``(..., n)`` ``q`` outside ``(n, 2)`` ``limits``, in words, or ``""``:
+    ``outside the joint limits: 'elbow' = 4 rad, not in [-3.14, 3.14]``, and for a batch
+    ``3 of 20 configurations are outside the joint limits: 'elbow' in 3 rows (first row 2:
+    4 rad), not in [...]``. ``names`` and ``angles`` (rad, else m) say what each entry is. The
+    command line's notes and :class:`~poekin.errors.JointLimitsWarning` say it."""
+    lo, hi = limits[:, 0], limits[:, 1]
+    rows = q.reshape(-1, q.shape[-1])
+    outside = (rows < lo) | (rows > hi)
+    if not np.any(outside):
+        return ""
+    one = rows.shape[0] == 1
+    joints = []
+    for j in map(int, np.flatnonzero(outside.any(axis=0))):
+        bad = np.flatnonzero(outside[:, j])
+        r = int(bad[0])
+        value = f"{rows[r, j]:.6g} {'rad' if angles[j] else 'm'}"
+        rows_word = f"{len(bad)} row{'s' if len(bad) > 1 else ''}"
+        where = f"= {value}" if one else f"in {rows_word} (first row {r}: {value})"
+        joints.append(f"{names[j]!r} {where}, not in [{lo[j]:.6g}, {hi[j]:.6g}]")
+    named = "; ".join(joints)
+    if one:
+        return f"outside the joint limits: {named}"
+    n_bad = int(np.count_nonzero(outside.any(axis=-1)))
+    return f"{n_bad} of {rows.shape[0]} configurations are outside the joint limits: {named}"

@@ -52,6 +52,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from poekin import _pose
+from poekin._poe import real_array
 from poekin.errors import AnalyticIKError, InputError
 from poekin.ik import subproblems as sp
 from poekin.ik._angles import within_limits, wrap_into_limits
@@ -747,10 +748,7 @@ _KINDS: dict[type, int] = {_ThreeParallel: 0, _TwoParallel: 1, _OneTwoMeet: 2, _
 
 def _as_poses(T: ArrayLike) -> FloatArray:
     """``T`` as a float64 array of shape ``(..., 4, 4)``, or :class:`InputError`."""
-    try:
-        arr = np.asarray(T, dtype=np.float64)
-    except (TypeError, ValueError) as e:
-        raise InputError(f"target poses must be numbers, got {T!r:.60}") from e
+    arr = real_array(T, "target poses")
     if arr.ndim < 2 or arr.shape[-2:] != (4, 4):
         raise InputError(f"target poses must have shape (..., 4, 4), got {arr.shape}")
     return arr

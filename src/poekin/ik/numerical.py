@@ -53,6 +53,10 @@ from __future__ import annotations
 import dataclasses
 import functools
 import math
+import os
+import sys
+import types
+import warnings
 from collections.abc import Sequence
 from typing import TYPE_CHECKING, Any, NamedTuple
 
@@ -67,12 +71,13 @@ from poekin._poe import (
     _Model,
     as_joint_values,
     chain_terms,
+    real_array,
     space_jacobian,
     world_columns,
 )
-from poekin.errors import InputError
+from poekin.errors import InputError, JointLimitsWarning
 from poekin.ik import _rng
-from poekin.ik._angles import within_limits, wrap_into_limits
+from poekin.ik._angles import outside_limits, within_limits, wrap_into_limits
 from poekin.kernel import _fast, _sincos
 
 if TYPE_CHECKING:
@@ -692,10 +697,7 @@ def chain_pose_entries(T: Any) -> _pose.Pose:
 
 def check_targets(T: ArrayLike) -> FloatArray:
     """``T`` as float64 ``(..., 4, 4)`` rigid transforms, or :class:`InputError`."""
-    try:
-        arr = np.asarray(T, dtype=np.float64)
-    except (TypeError, ValueError) as e:
-        raise InputError(f"targets must be numbers, got {T!r:.60}") from e
+    arr = real_array(T, "targets")
     if arr.ndim < 2 or arr.shape[-2:] != (4, 4):
         raise InputError(f"targets must have shape (..., 4, 4), got {arr.shape}")
     if not np.all(np.isfinite(arr)):
@@ -766,7 +768,28 @@ def _inputs(chain: Chain, T: ArrayLike, q0: ArrayLike | None) -> tuple[FloatArra
     arr = check_targets(T)
     if q0 is None:
         return arr, None
-    return broadcast_together(arr, as_joint_values(q0, chain.n_joints, what="q0 values"), "q0")
+    start = as_joint_values(q0, chain.n_joints, what="q0 values")
+    angles = [kind == "revolute" for kind in chain.joint_types]
+    said = outside_limits(start, chain_terms(chain).limits, chain.joint_names, angles)
+    if said:
+        warnings.warn(
+            f"q0 is {said}: the first attempt starts from it brought into the limits (whole "
+            "turns, else clamped); q0 is in radians (and metres)",
+            JointLimitsWarning,
+            stacklevel=_caller_level(),
+        )
+    return broadcast_together(arr, start, "q0")
+
+
+def _caller_level() -> int:
+    """The ``stacklevel`` of a warning issued where this is called that points at the first
+    line outside poekin: the user's call of ``chain.ik`` or ``tree.ik``."""
+    package = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+    frame: types.FrameType | None = sys._getframe(1)
+    level = 1
+    while frame is not None and os.path.abspath(frame.f_code.co_filename).startswith(package):
+        frame, level = frame.f_back, level + 1
+    return level
 
 
 def broadcast_together(

@@ -198,7 +198,7 @@ def check_new_file(path: str | os.PathLike[str], what: str, *, force: bool = Fal
 
 def _numbers(arr: NDArray[Any], where: str) -> NDArray[np.float64]:
     if arr.dtype.kind == "c":
-        raise InputError(f"{where} holds complex numbers; joint values are real numbers")
+        raise InputError(f"{where} holds complex numbers; give real numbers")
     if arr.dtype.kind not in "biuf":
         raise InputError(f"{where} holds {arr.dtype} values, not numbers")
     return np.asarray(arr, dtype=np.float64)
@@ -278,8 +278,9 @@ def read_array(
     joint values ``q`` that ``poekin ik`` writes beside its flags, the poses ``T``).
 
     Raises:
-        InputError: unknown suffix, no such file, not that format, or values that are not real
-            numbers (a complex array is refused, not truncated). Never a pickle.
+        InputError: unknown suffix, no such file, not that format, no values (an empty array:
+            a command has no rows to compute), or values that are not real numbers (a complex
+            array is refused, not truncated). Never a pickle.
     """
     suffix = array_format(path, what)
     p = pathlib.Path(path)
@@ -292,6 +293,8 @@ def read_array(
         arr = _read_npz(p, where, name)
     else:
         arr = _read_text(p, where, "," if suffix == ".csv" else None)
+    if arr.size == 0:  # as an empty text file: no rows to compute, nothing to write
+        raise InputError(f"{where} holds no numbers (an array of shape {arr.shape})")
     return _numbers(arr, where)
 
 

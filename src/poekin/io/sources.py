@@ -111,12 +111,14 @@ def _looks_like_path(source: str) -> bool:
 
 @dataclasses.dataclass(frozen=True)
 class Resolved:
-    """Where a source's model file is: ``path``, a ``robot`` label, and its ``origin`` in words
-    (empty for a file path the user gave)."""
+    """Where a source's model file is: ``path``, a ``robot`` label, its ``origin`` in words
+    (empty for a file path the user gave), and whether it is poekin's ``builtin`` copy (XML only
+    by design: loaded without a note of its missing meshes)."""
 
     path: pathlib.Path
     robot: str
     origin: str = ""
+    builtin: bool = False
 
 
 def _check_kind(path: pathlib.Path) -> None:
@@ -157,12 +159,26 @@ def resolve_source(source: str | os.PathLike[str]) -> Resolved:
     return _resolve_menagerie(text)
 
 
-#: Menagerie robots whose model file poekin ships (XML and license, no meshes), by name.
-BUILTIN_ROBOTS: dict[str, str] = {"universal_robots_ur5e": "ur5e.xml"}
+#: Menagerie robots whose model files poekin ships (XML and license, no meshes: kinematics
+#: only), by name: the main model file of each, in ``poekin/data/NAME/`` (its ``SOURCE.md`` gives
+#: the upstream commits and licenses).
+BUILTIN_ROBOTS: dict[str, str] = {
+    "aloha": "aloha.xml",
+    "franka_emika_panda": "panda.xml",
+    "franka_fr3": "fr3.xml",
+    "rethink_robotics_sawyer": "sawyer.xml",
+    "trs_so_arm100": "so_arm100.xml",
+    "ufactory_lite6": "lite6.xml",
+    "unitree_go2": "go2.xml",
+    "universal_robots_ur10e": "ur10e.xml",
+    "universal_robots_ur5e": "ur5e.xml",
+}
 
 
 def _builtin(name: str) -> pathlib.Path:
-    return pathlib.Path(__file__).parents[1] / "data" / name / BUILTIN_ROBOTS[name]
+    from importlib import resources
+
+    return pathlib.Path(str(resources.files("poekin") / "data" / name / BUILTIN_ROBOTS[name]))
 
 
 def _unknown_robot(name: str, names: list[str]) -> UnknownRobotError:
@@ -198,6 +214,7 @@ def _resolve_menagerie(name: str) -> Resolved:
             name,
             f"poekin's built-in copy of Menagerie's {name} (XML only; set MENAGERIE_ROOT to use "
             "your own clone)",
+            builtin=True,
         )
     try:
         xml = pathlib.Path(robot.xml(robot.default_model, cache))
@@ -682,8 +699,7 @@ def load_model(
         _, model, stripped, files = _kinematics(xml_path, free_root, read_assets)
     for message in dict.fromkeys(said):
         warnings.warn(f"{xml_path.name}: MuJoCo: {message}", MuJoCoWarning, stacklevel=2)
-    builtin = resolved.robot in BUILTIN_ROBOTS and xml_path == _builtin(resolved.robot)
-    if stripped and not builtin:  # the built-in copy has no meshes by design, and says so
+    if stripped and not resolved.builtin:  # the built-in copy has no meshes by design, and says so
         warnings.warn(
             f"{xml_path.name}: loaded for kinematics only, stripped {'; '.join(stripped)}",
             AssetsStrippedWarning,

@@ -186,7 +186,8 @@ static int ik_run(IKTask *proto, int threads) {
 /* solve(T, q0, seed, options, checked): (q, success, pos_err, ori_err, iterations, attempts)
  * for (..., 4, 4) targets T and (..., n) starts q0 of the same batch shape (or None), or None
  * if the arguments need validating first (not plain float64 arrays of those shapes, or, unless
- * checked, values that are not finite or targets that are not rigid transforms). */
+ * checked, targets that are not finite rigid transforms or starts that are not finite and
+ * within the limits). */
 static PyObject *IKSolver_solve(IKSolverObject *self, PyObject *const *args, Py_ssize_t nargs) {
     if (nargs != 5) {
         PyErr_SetString(PyExc_TypeError, "solve(T, q0, seed, options, checked)");
@@ -223,8 +224,10 @@ static PyObject *IKSolver_solve(IKSolverObject *self, PyObject *const *args, Py_
     if (!checked) {
         for (npy_intp t = 0; t < N; ++t)
             if (!ik_rigid(Td + 16 * t)) Py_RETURN_NONE;
+        /* a start outside the limits gets poekin.JointLimitsWarning from the Python side */
         for (npy_intp k = 0; q0d != NULL && k < N * m->n; ++k)
-            if (!isfinite(q0d[k])) Py_RETURN_NONE;
+            if (!isfinite(q0d[k]) || q0d[k] < m->lo[k % m->n] || q0d[k] > m->hi[k % m->n])
+                Py_RETURN_NONE;
     }
     PyObject *out[6] = {
         PyArray_SimpleNew(nd - 1, dims, NPY_FLOAT64), PyArray_SimpleNew(nd - 2, dims, NPY_BOOL),
