@@ -58,7 +58,7 @@ from poekin.lie import (
     vee_so3,
 )
 from poekin.loading import load, load_tree
-from poekin.paramfile import load_params
+from poekin.paramfile import load_params, load_registration
 from poekin.params import (
     PARAM_SETS,
     UR5_DH,
@@ -77,6 +77,7 @@ from poekin.verify import VerifyReport, pose_errors, sample_joint_values, sample
 if TYPE_CHECKING:
     from poekin.calibration import calibrate as calibrate
     from poekin.calibration import plan_poses as plan_poses
+    from poekin.export import export as export
     from poekin.viewer.app import view as view
     from poekin.viewer.draw import draw as draw
 
@@ -132,6 +133,7 @@ __all__ = [
     "load",
     "load_model",
     "load_params",
+    "load_registration",
     "load_tree",
     "log_se3",
     "log_so3",
@@ -160,8 +162,9 @@ __all__ = [
 
 
 def __getattr__(name: str) -> Any:
-    """``poekin.view`` and ``poekin.draw``, imported at first use (viser, matplotlib), and
-    ``poekin.calibrate`` and ``poekin.plan_poses`` (:mod:`poekin.calibration`)."""
+    """``poekin.view`` and ``poekin.draw``, imported at first use (viser, matplotlib),
+    ``poekin.calibrate`` and ``poekin.plan_poses`` (:mod:`poekin.calibration`), and
+    ``poekin.export`` (:mod:`poekin.export`)."""
     if name == "view":
         from poekin._extras import require_view
 
@@ -177,4 +180,8 @@ def __getattr__(name: str) -> Any:
         from poekin import calibration
 
         return getattr(calibration, name)
+    if name == "export":
+        from poekin.export import export as export
+
+        return export
     raise AttributeError(f"module 'poekin' has no attribute {name!r}")

@@ -44,7 +44,9 @@ def params_or_chain(args: argparse.Namespace) -> Chain | DHTable:
         raise InputError("give a model SOURCE or --params FILE|NAME, not both")
     if args.params and args.frame:
         raise InputError("--frame names a model's frame; a parameter set has its own end frame")
-    return params(args.params) if args.params else load(model_source(args, None), args.frame)
+    if args.params:
+        return params(args.params, args)
+    return load(model_source(args, None), args.frame)
 
 
 # --- screws -----------------------------------------------------------------------------------
@@ -80,7 +82,8 @@ def _cmd_screws(args: argparse.Namespace, out: TextIO) -> int:
 # --- dh ----------------------------------------------------------------------------------------
 
 
-def _dh_table(args: argparse.Namespace) -> DHTable:
+def _dh_table(args: argparse.Namespace) -> tuple[DHTable, Chain | None]:
+    """The table to print, and the chain it was extracted from (None: a table given as is)."""
     from poekin.dh import DHTable, dh_from_chain
 
     if args.parallel_tol <= 0:
@@ -88,15 +91,71 @@ def _dh_table(args: argparse.Namespace) -> DHTable:
     obj = params_or_chain(args)
     if isinstance(obj, DHTable):
         if obj.convention == args.convention:
-            return obj
+            return obj, None
         obj = obj.to_chain()
-    return dh_from_chain(obj, args.convention, parallel_tol=args.parallel_tol)
+    return dh_from_chain(obj, args.convention, parallel_tol=args.parallel_tol), obj
+
+
+# The residual of an approximate table: its FK against the chain's on this many random q.
+_RESIDUAL_SAMPLES = 1000
+
+
+def _residual(table_: DHTable, chain: Chain) -> tuple[float, float]:
+    """Max position (m) and orientation (rad) error of the table's FK against the chain's, over
+    random q (seeded) within the chain's limits, or [-pi, pi] where it has none."""
+    from poekin.verify import pose_errors, random_generator
+
+    low = np.where(np.isfinite(chain.limits[:, 0]), chain.limits[:, 0], -np.pi)  # type: ignore[index]
+    high = np.where(np.isfinite(chain.limits[:, 1]), chain.limits[:, 1], np.pi)  # type: ignore[index]
+    q = random_generator(0).uniform(low, high, size=(_RESIDUAL_SAMPLES, chain.n_joints))
+    pos, ori = pose_errors(chain.fk(q), table_.fk(q))
+    return float(np.max(pos)), float(np.max(ori))
+
+
+def _size(pos: float, ori: float) -> str:
+    """A residual in mm and mrad, two significant digits (geometry decides them, not rounding)."""
+    return f"{pos * 1e3:.2g} mm and {ori * 1e3:.2g} mrad"
+
+
+def _conditioning(table_: DHTable, chain: Chain, args: argparse.Namespace) -> list[str]:
+    """What the output says when the chain's DH form is ill-conditioned (nearly parallel axes)
+    or the table is not exact (axes taken as parallel), with the residual of the table offered."""
+    from poekin.dh import NEAR_PARALLEL_SIN, PARALLEL_SIN, dh_from_chain, joint_lines
+
+    dirs, _ = joint_lines(chain)
+    tilts = np.linalg.norm(np.cross(dirs[:-1], dirs[1:]), axis=1)
+    pairs = [
+        f"{i + 1}-{i + 2} ({tilts[i] * 1e3:.2g} mrad)"
+        for i in range(len(tilts))
+        if PARALLEL_SIN < tilts[i] < NEAR_PARALLEL_SIN
+    ]
+    if not pairs:
+        return []
+    if np.any((tilts > PARALLEL_SIN) & (tilts < args.parallel_tol)):  # taken as parallel
+        return [
+            f"not exact: axes {', '.join(pairs)} are taken as parallel, so this table's FK is "
+            f"within {_size(*_residual(table_, chain))} of the chain's (max over "
+            f"{_RESIDUAL_SAMPLES} random q within the limits)"
+        ]
+    nearest = dh_from_chain(chain, table_.convention, parallel_tol=NEAR_PARALLEL_SIN)
+    where = f"--params {args.params}" if args.params else args.source or ""
+    d = float(np.max(np.abs(table_.d)))
+    return [
+        f"this arm has no well-conditioned DH form: axes {', '.join(pairs)} are nearly but not "
+        "exactly parallel, as a calibrated arm's always are, and DH puts the common normal of "
+        f"nearly parallel axes far away (|d| up to {d:.3g} m): the table above is exact, but its "
+        "lengths are not the arm's",
+        f"nearest DH table, with those axes parallel: poekin dh {where} --parallel-tol "
+        f"{NEAR_PARALLEL_SIN:g}; its FK is within {_size(*_residual(nearest, chain))} of the "
+        f"chain's (max over {_RESIDUAL_SAMPLES} random q within the limits)",
+    ]
 
 
 def _cmd_dh(args: argparse.Namespace, out: TextIO) -> int:
-    table_ = _dh_table(args)
+    table_, chain = _dh_table(args)
+    extra = _conditioning(table_, chain, args) if chain is not None else []
     if args.json:
-        print(json.dumps(table_.describe()), file=out)
+        print(json.dumps({**table_.describe(), "notes": [*table_.notes, *extra]}), file=out)
         return 0
     std = table_.convention == "standard"
     form = (
@@ -122,7 +181,7 @@ def _cmd_dh(args: argparse.Namespace, out: TextIO) -> int:
     print("\n".join(matrix_lines(table_.base, p)), file=out)
     print(f"tool = T_frame{table_.n_joints}_{table_.frame}:", file=out)
     print("\n".join(matrix_lines(table_.tool, p)), file=out)
-    for text in table_.notes:
+    for text in [*table_.notes, *extra]:
         print(f"note: {text}", file=out)
     return 0
 
