@@ -77,7 +77,7 @@ from poekin.verify import VerifyReport, pose_errors, sample_joint_values, sample
 if TYPE_CHECKING:
     from poekin.calibration import calibrate as calibrate
     from poekin.calibration import plan_poses as plan_poses
-    from poekin.export import export as export
+    from poekin.exporters import export as export
     from poekin.viewer.app import view as view
     from poekin.viewer.draw import draw as draw
 
@@ -164,7 +164,7 @@ __all__ = [
 def __getattr__(name: str) -> Any:
     """``poekin.view`` and ``poekin.draw``, imported at first use (viser, matplotlib),
     ``poekin.calibrate`` and ``poekin.plan_poses`` (:mod:`poekin.calibration`), and
-    ``poekin.export`` (:mod:`poekin.export`)."""
+    ``poekin.export`` (:mod:`poekin.exporters`)."""
     if name == "view":
         from poekin._extras import require_view
 
@@ -181,7 +181,7 @@ def __getattr__(name: str) -> Any:
 
         return getattr(calibration, name)
     if name == "export":
-        from poekin.export import export as export
+        from poekin.exporters import export as export
 
         return export
     raise AttributeError(f"module 'poekin' has no attribute {name!r}")

@@ -41,7 +41,7 @@ Lengths no arm has are refused: a chain whose end frame is more than 20 m from o
 revolute axes (no arm reaches that far: the longest, the ISS's Canadarm2, reaches 17.6 m; a file
 in millimetres lands 1000 times too far).
 
-This module only reads; :mod:`poekin.export` writes. Every malformed input raises
+This module only reads; :mod:`poekin.exporters` writes. Every malformed input raises
 :class:`~poekin.errors.InputError` whose one-line message names the source, the place in it and
 what to do.
 """

@@ -89,9 +89,11 @@ UR_ORIGIN_KEYS = ("x", "y", "z", "roll", "pitch", "yaw")
 #: The joints ``ur_description`` names, base to tip (the Menagerie UR5e's too).
 UR_JOINT_NAMES: tuple[str, ...] = UR5E_JOINT_NAMES
 
-# A chain is a UR arm's when each joint axis is within these of the nearest model's: calibrations
-# move them by about a millimetre and a milliradian; the closest two models differ by 10 mm.
-_UR_LIKE_M, _UR_LIKE_RAD = 0.01, 0.02
+# A chain is a UR arm's when each joint axis, at q = 0, is within these of the nearest model's.
+# Calibrations move the axes by about a millimetre and a milliradian, and their encoder offsets,
+# absorbed, turn each later axis about the earlier ones by up to a few tens of milliradians
+# (30 mrad at 0.4 m: 12 mm). Another arm's axes are tens of centimetres or a right angle away.
+_UR_LIKE_M, _UR_LIKE_RAD = 0.05, 0.1
 # ur_macro.xacro's fixed joints after wrist_3_link: rpy of wrist_3-flange, then flange-tool0.
 _FLANGE_RPY = (0.0, -np.pi / 2.0, -np.pi / 2.0)
 _TOOL0_RPY = (np.pi / 2.0, 0.0, np.pi / 2.0)
@@ -261,7 +263,7 @@ def ur_origins(
     Each joint's link frame is the nearest UR model's default one (:func:`default_origins`)
     moved onto the chain's axis line: its z turned onto the axis by the smallest rotation, its
     origin to the foot of the default one on the line. ``tool0`` is the chain's end frame moved
-    so onto joint 6's axis when the end frame is within 10 mm and 0.02 rad of the model's
+    so onto joint 6's axis when the end frame is within 50 mm and 0.1 rad of the model's
     ``tool0`` (a calibrated flange), else the model's ``tool0`` moved onto it (the end frame is
     a tool). The rest, ``tcp = T_tool0_frame``, is what the controller's TCP setting holds:
     identity (to rounding) for a chain that ends at ``tool0``.
@@ -276,8 +278,9 @@ def ur_origins(
         of :data:`UR_SEGMENTS`; ``T_tool0_frame``; the nearest model's name.
 
     Raises:
-        InputError: not six revolute joints, or an axis more than 10 mm or 0.02 rad from the
-            nearest UR model's (calibrations move them by about a millimetre and a milliradian).
+        InputError: not six revolute joints, or an axis more than 50 mm or 0.1 rad from the
+            nearest UR model's at ``q = 0`` (a calibration moves them by a millimetre and a
+            milliradian, its encoder offsets by up to tens of milliradians).
     """
     check_order(order)
     if chain.n_joints != 6 or any(t != "revolute" for t in chain.joint_types):

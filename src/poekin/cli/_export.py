@@ -17,7 +17,7 @@ def _cmd_export(args: argparse.Namespace, out: TextIO) -> int:
     from poekin import lie
     from poekin.diagnose import _is_param_set
     from poekin.errors import InputError
-    from poekin.export import check_export, export
+    from poekin.exporters import check_export, export
     from poekin.loading import load
 
     check_export(args.to, args.output, force=args.force)  # before anything is read
