@@ -358,22 +358,21 @@ def test_export_controller_order(
 def test_dh_of_a_calibrated_arm_offers_the_nearest_table(
     tmp_path: pathlib.Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    """d = 82.9 m once came without a word. Now the output says why, and offers the table with
-    the nearly parallel axes made parallel, with its residual: a true bound on its FK error
-    (checked on other random q) printed with two significant digits."""
+    """d = 82.9 m once came without a word. Now the output says why, and offers the nearest
+    table with the nearly parallel axes made parallel, with its residual: a true bound on its FK
+    error (checked on other random q) printed with two significant digits."""
     path = _write_calibration(tmp_path, capsys)
     code, out, _ = run(capsys, "dh", "--params", str(path))
     assert code == 0
     assert "note: this arm has no well-conditioned DH form: axes 2-3 (" in out
     assert "the table above is exact, but its lengths are not the arm's" in out
     offer = re.search(
-        r"nearest DH table, with those axes parallel: poekin dh --params \S+ --parallel-tol "
-        r"(\S+); its FK is within ([\d.]+) mm and ([\d.]+) mrad of the chain's",
-        out,
-    )
+        r"nearest DH table, with those axes parallel: poekin dh --params \S+ --nearest; its FK "
+        r"is within ([\d.]+) mm and ([\d.]+) mrad of the chain's", out
+    )  # fmt: skip
     assert offer, out
-    tol, mm, mrad = offer.groups()
-    code, nearest_out, _ = run(capsys, "dh", "--params", str(path), "--parallel-tol", tol, "--json")
+    mm, mrad = offer.groups()
+    code, nearest_out, _ = run(capsys, "dh", "--params", str(path), "--nearest", "--json")
     doc = json.loads(nearest_out)
     assert any(f"within {mm} mm and {mrad} mrad" in note for note in doc["notes"])
     table = poekin.paramfile.params_from_dict(doc, "nearest")
@@ -381,7 +380,7 @@ def test_dh_of_a_calibrated_arm_offers_the_nearest_table(
     chain = poekin.load_params(path)
     q = poekin.sample_joint_values(chain, 3000, seed=77, within_limits=True)
     pos, ori = poekin.pose_errors(chain.fk(q), table.fk(q))
-    assert 0.5 * float(mm) < np.max(pos) * 1e3 < 1.05 * float(mm)
-    assert 0.5 * float(mrad) < np.max(ori) * 1e3 < 1.05 * float(mrad)
+    assert 0.5 * float(mm) < np.max(pos) * 1e3 < 1.1 * float(mm)
+    assert 0.5 * float(mrad) < np.max(ori) * 1e3 < 1.1 * float(mrad)
     code, out, _ = run(capsys, "dh", ROBOT)  # a model's exact parallel axes: nothing to say
     assert "well-conditioned" not in out and "not exact" not in out

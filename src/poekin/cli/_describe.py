@@ -84,15 +84,17 @@ def _cmd_screws(args: argparse.Namespace, out: TextIO) -> int:
 
 def _dh_table(args: argparse.Namespace) -> tuple[DHTable, Chain | None]:
     """The table to print, and the chain it was extracted from (None: a table given as is)."""
-    from poekin.dh import DHTable, dh_from_chain
+    from poekin.dh import DHTable, dh_from_chain, nearest_dh
 
     if args.parallel_tol <= 0:
         raise InputError(f"--parallel-tol must be positive, got {args.parallel_tol}")
     obj = params_or_chain(args)
     if isinstance(obj, DHTable):
-        if obj.convention == args.convention:
+        if obj.convention == args.convention and not args.nearest:
             return obj, None
         obj = obj.to_chain()
+    if args.nearest:
+        return nearest_dh(obj, args.convention), obj
     return dh_from_chain(obj, args.convention, parallel_tol=args.parallel_tol), obj
 
 
@@ -119,35 +121,37 @@ def _size(pos: float, ori: float) -> str:
 
 def _conditioning(table_: DHTable, chain: Chain, args: argparse.Namespace) -> list[str]:
     """What the output says when the chain's DH form is ill-conditioned (nearly parallel axes)
-    or the table is not exact (axes taken as parallel), with the residual of the table offered."""
-    from poekin.dh import NEAR_PARALLEL_SIN, PARALLEL_SIN, dh_from_chain, joint_lines
+    or the table is not exact (axes made parallel), with the residual of the table offered."""
+    from poekin.dh import NEAR_PARALLEL_SIN, PARALLEL_SIN, joint_lines, nearest_dh
 
     dirs, _ = joint_lines(chain)
     tilts = np.linalg.norm(np.cross(dirs[:-1], dirs[1:]), axis=1)
-    pairs = [
-        f"{i + 1}-{i + 2} ({tilts[i] * 1e3:.2g} mrad)"
-        for i in range(len(tilts))
-        if PARALLEL_SIN < tilts[i] < NEAR_PARALLEL_SIN
-    ]
+    near = (tilts > PARALLEL_SIN) & (tilts < NEAR_PARALLEL_SIN)
+    pairs = ", ".join(f"{i + 1}-{i + 2} ({tilts[i] * 1e3:.2g} mrad)" for i in np.flatnonzero(near))
     if not pairs:
         return []
-    if np.any((tilts > PARALLEL_SIN) & (tilts < args.parallel_tol)):  # taken as parallel
+    over = f"max over {_RESIDUAL_SAMPLES} random q within the limits"
+    if args.nearest:
         return [
-            f"not exact: axes {', '.join(pairs)} are taken as parallel, so this table's FK is "
-            f"within {_size(*_residual(table_, chain))} of the chain's (max over "
-            f"{_RESIDUAL_SAMPLES} random q within the limits)"
+            f"not exact: the nearest DH table with axes {pairs} made parallel; its FK is "
+            f"within {_size(*_residual(table_, chain))} of the chain's ({over})"
         ]
-    nearest = dh_from_chain(chain, table_.convention, parallel_tol=NEAR_PARALLEL_SIN)
+    if np.any(near & (tilts < args.parallel_tol)):  # taken as parallel
+        return [
+            f"not exact: axes {pairs} are taken as parallel, so this table's FK is within "
+            f"{_size(*_residual(table_, chain))} of the chain's ({over}); --nearest fits the "
+            "rest to do better"
+        ]
+    nearest = nearest_dh(chain, table_.convention)
     where = f"--params {args.params}" if args.params else args.source or ""
     d = float(np.max(np.abs(table_.d)))
     return [
-        f"this arm has no well-conditioned DH form: axes {', '.join(pairs)} are nearly but not "
-        "exactly parallel, as a calibrated arm's always are, and DH puts the common normal of "
-        f"nearly parallel axes far away (|d| up to {d:.3g} m): the table above is exact, but its "
+        f"this arm has no well-conditioned DH form: axes {pairs} are nearly but not exactly "
+        "parallel, as a calibrated arm's always are, and DH puts the common normal of nearly "
+        f"parallel axes far away (|d| up to {d:.3g} m): the table above is exact, but its "
         "lengths are not the arm's",
-        f"nearest DH table, with those axes parallel: poekin dh {where} --parallel-tol "
-        f"{NEAR_PARALLEL_SIN:g}; its FK is within {_size(*_residual(nearest, chain))} of the "
-        f"chain's (max over {_RESIDUAL_SAMPLES} random q within the limits)",
+        f"nearest DH table, with those axes parallel: poekin dh {where} --nearest; its FK is "
+        f"within {_size(*_residual(nearest, chain))} of the chain's ({over})",
     ]
 
 
@@ -210,7 +214,8 @@ def register(sub: Any, fmt: type[argparse.HelpFormatter]) -> None:
         "choices (parallel axes, prismatic joints) are printed as notes.",
         epilog="examples:\n  poekin dh universal_robots_ur5e\n"
         "  poekin dh franka_fr3 --convention modified --json > fr3_dh.json\n"
-        "  poekin dh --params lynch-park-ur5",
+        "  poekin dh --params lynch-park-ur5\n"
+        "  poekin dh --params my_calibrated_ur5e.json --nearest",
         formatter_class=fmt,
     )
     add_source(d)
@@ -227,6 +232,12 @@ def register(sub: Any, fmt: type[argparse.HelpFormatter]) -> None:
         default=1e-8,
         metavar="SIN",
         help="treat axes within this sine of parallel as parallel (1e-8: float rounding only)",
+    )
+    d.add_argument(
+        "--nearest",
+        action="store_true",
+        help="the nearest table with nearly parallel axes (within 0.05 sine) made parallel: "
+        "fitted to the chain's FK, for a calibrated arm (its exact table has d of metres)",
     )
     d.add_argument("--json", action="store_true", help="print one JSON object")
     add_precision(d)

@@ -9,6 +9,7 @@ from typing import Any, TextIO
 import numpy as np
 
 from poekin.cli._args import add_ur_yaml_order, params
+from poekin.cli._text import fixed
 
 __all__ = ["register"]
 
@@ -35,12 +36,12 @@ def _cmd_export(args: argparse.Namespace, out: TextIO) -> int:
         turn = float(lie.rotation_angle(done.tcp[:3, :3]))
         frame = chain.frame
         if offset > 1e-9 or turn > 1e-9:
-            x, y, z = done.tcp[:3, 3] * 1e3
-            rx, ry, rz = np.asarray(lie.log_so3(done.tcp[:3, :3]), dtype=np.float64)
+            x, y, z = (fixed(v, 4) for v in done.tcp[:3, 3] * 1e3)
+            rx, ry, rz = (fixed(v, 6) for v in np.asarray(lie.log_so3(done.tcp[:3, :3])))
             print(
                 f"the end frame {frame!r} is not tool0 (on joint 6's axis, which the file ends "
-                f"at): set the controller's TCP to x {x:.4f} y {y:.4f} z {z:.4f} mm, "
-                f"rx {rx:.6f} ry {ry:.6f} rz {rz:.6f} rad to reach it",
+                f"at): set the controller's TCP to x {x} y {y} z {z} mm, rx {rx} ry {ry} rz {rz} "
+                "rad (a rotation vector) to reach it",
                 file=out,
             )
         else:
