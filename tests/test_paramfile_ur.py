@@ -386,6 +386,31 @@ def test_controller_order_on_the_command_line(capsys: pytest.CaptureFixture[str]
     assert code == 0 and "MATCH" in out  # both sides read alike
 
 
+@pytest.mark.parametrize(
+    "argv",
+    [
+        ["verify", "--params", "{cal}", "--json"],
+        ["dh", "--params", "{cal}", "--json"],
+        ["jacobian", "--params", "{cal}", "--q", "0", "-1", "1", "0", "1", "0", "--json"],
+    ],
+)
+def test_every_command_takes_the_order(
+    argv: list[str], capsys: pytest.CaptureFixture[str], tmp_path: pathlib.Path
+) -> None:
+    """Each command that reads --params reads the file in the order asked: the numbers differ."""
+    import json
+
+    args = [a.format(cal=CALIBRATION) for a in argv]
+    outputs = []
+    for order in ("description", "controller"):
+        code, out, err = _run(capsys, *args, "--ur-yaml-order", order)
+        assert code in (0, 1) and "error" not in err, err
+        result = json.loads(out)
+        result.pop("params", None)  # verify names the file, or the chain read from it
+        outputs.append(result)
+    assert outputs[0] != outputs[1]
+
+
 def test_an_unknown_order_is_refused() -> None:
     with pytest.raises(InputError, match="did you mean 'controller'"):
         load_params(CALIBRATION, ur_yaml_order="controler")  # type: ignore[arg-type]
