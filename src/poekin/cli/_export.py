@@ -72,7 +72,7 @@ def register(sub: Any, fmt: type[argparse.HelpFormatter]) -> None:
         "an MJCF or URDF path)",
     )
     e.add_argument(
-        "--frame", metavar="F", help="a model's end frame: site or body name (default: the only)"
+        "--frame", metavar="F", help="a model's end frame: site or body (default: its only site)"
     )
     e.add_argument("--to", required=True, choices=("ur-yaml", "urdf"), help="the file's format")
     e.add_argument(
