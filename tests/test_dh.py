@@ -4,6 +4,7 @@ tables of Menagerie robots against mj_forward."""
 from __future__ import annotations
 
 import functools
+import pathlib
 from dataclasses import dataclass
 
 import numpy as np
@@ -14,7 +15,9 @@ from hypothesis import strategies as st
 
 import poekin
 from poekin import Chain, InputError, exp_se3
-from poekin.dh import CONVENTIONS, DHTable, dh_from_chain
+from poekin.dh import CONVENTIONS, NEAR_PARALLEL_SIN, DHTable, dh_from_chain, nearest_dh
+from poekin.io.paramfile import load_params
+from poekin.io.params import named_params
 from poekin.verification.verify import mujoco_poses, pose_errors
 
 # Frame axes and origins that dh builds from unit vectors and O(1) m points (base z, base
@@ -612,3 +615,37 @@ def test_bad_convention_for_extraction() -> None:
     chain = Chain(("j",), ("revolute",), [[0.0, 0.0, 1.0, 0.0, 0.0, 0.0]], np.eye(4))
     with pytest.raises(InputError, match=r"unknown DH convention 'dh'.*'modified' \(Craig\)"):
         dh_from_chain(chain, "dh")  # type: ignore[arg-type]
+
+
+# --- issue #26: the nearest table of a calibrated arm --------------------------------------------
+
+
+def test_nearest_dh_of_a_calibrated_arm() -> None:
+    """UR's calibration file (axes 1 to 2 mrad from parallel): the exact table has d of hundreds
+    of metres; the nearest one keeps those axes parallel (d = 0) and, fitted, is nearer the
+    chain on configurations it was not fitted on than the table that only drops the tilt."""
+    chain = load_params(pathlib.Path(__file__).parent / "data" / "ur" / "ur5e_calibration.yaml")
+    assert isinstance(chain, Chain)
+    assert np.max(np.abs(dh_from_chain(chain).d)) > 100.0
+    nearest = nearest_dh(chain)
+    dropped = dh_from_chain(chain, parallel_tol=NEAR_PARALLEL_SIN)
+    assert nearest.d[1] == nearest.d[2] == 0.0 and np.max(np.abs(nearest.d)) < 0.2
+    q = np.random.default_rng(99).uniform(-np.pi, np.pi, (2000, 6))
+    pos_n, ori_n = pose_errors(chain.fk(q), nearest.fk(q))
+    pos_d, ori_d = pose_errors(chain.fk(q), dropped.fk(q))
+
+    def rms(e: np.ndarray) -> float:
+        return float(np.sqrt(np.mean(e**2)))
+
+    # the fit minimises the squares: nearer in RMS (positions most: the orientation error is the
+    # in-plane tilt itself, which nothing else in the table can turn back), in the maxima too
+    assert rms(pos_n) < 0.8 * rms(pos_d) and rms(ori_n) < 0.95 * rms(ori_d)
+    assert np.max(pos_n) < np.max(pos_d) and np.max(ori_n) < np.max(ori_d)
+    assert np.max(pos_n) < 2e-3  # millimetres: the in-plane tilt DH cannot hold
+
+
+def test_nearest_dh_of_exactly_parallel_axes_is_exact() -> None:
+    chain = named_params("ur5e-dh").to_chain()  # type: ignore[union-attr]
+    q = np.random.default_rng(3).uniform(-np.pi, np.pi, (500, 6))
+    pos, ori = pose_errors(chain.fk(q), nearest_dh(chain, "modified").fk(q))
+    assert np.max(pos) < 1e-12 and np.max(ori) < 1e-12

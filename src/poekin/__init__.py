@@ -35,7 +35,7 @@ from poekin.errors import (
 from poekin.io.import_mujoco import chain_from_model, tree_from_model
 from poekin.io.import_urdf import URDFLimitsWarning, tree_from_urdf
 from poekin.io.loading import load, load_tree
-from poekin.io.paramfile import load_params
+from poekin.io.paramfile import load_params, load_registration
 from poekin.io.params import (
     PARAM_SETS,
     UR5_DH,
@@ -84,6 +84,7 @@ from poekin.verification.verify import (
 if TYPE_CHECKING:
     from poekin.calibration import calibrate as calibrate
     from poekin.calibration import plan_poses as plan_poses
+    from poekin.io.exporters import export as export
     from poekin.viewer.app import view as view
     from poekin.viewer.draw import draw as draw
 
@@ -140,6 +141,7 @@ __all__ = [
     "load",
     "load_model",
     "load_params",
+    "load_registration",
     "load_tree",
     "log_se3",
     "log_so3",
@@ -169,7 +171,7 @@ __all__ = [
 
 # The names imported at first use, by __getattr__: listed by dir(poekin), not in __all__ (a
 # star import would import the viewer, which needs the extra `view`).
-_LAZY = ("calibrate", "draw", "plan_poses", "view")
+_LAZY = ("calibrate", "draw", "export", "plan_poses", "view")
 
 
 def __dir__() -> list[str]:
@@ -178,8 +180,9 @@ def __dir__() -> list[str]:
 
 
 def __getattr__(name: str) -> Any:
-    """``poekin.view`` and ``poekin.draw``, imported at first use (viser, matplotlib), and
-    ``poekin.calibrate`` and ``poekin.plan_poses`` (:mod:`poekin.calibration`)."""
+    """``poekin.view`` and ``poekin.draw``, imported at first use (viser, matplotlib),
+    ``poekin.calibrate`` and ``poekin.plan_poses`` (:mod:`poekin.calibration`), and
+    ``poekin.export`` (:mod:`poekin.io.exporters`)."""
     if name == "view":
         from poekin._extras import require_view
 
@@ -195,4 +198,8 @@ def __getattr__(name: str) -> Any:
         from poekin import calibration
 
         return getattr(calibration, name)
+    if name == "export":
+        from poekin.io.exporters import export as export
+
+        return export
     raise AttributeError(f"module 'poekin' has no attribute {name!r}")

@@ -34,6 +34,7 @@ __all__ = [
     "DHTable",
     "dh_from_chain",
     "joint_lines",
+    "nearest_dh",
 ]
 
 Convention = Literal["standard", "modified"]
@@ -449,3 +450,108 @@ def dh_from_chain(
         robot=chain.robot,
         notes=tuple(notes),
     )
+
+
+# --- the nearest table of a chain whose nearly parallel axes DH cannot hold well ----------------
+
+_FIT_SAMPLES, _FIT_ITERATIONS = 500, 50
+
+
+def _sample(chain: Chain, samples: int, seed: int) -> FloatArray:
+    """``(samples, n)`` random q within the limits, ``[-pi, pi]`` (or +-1 m) where unlimited."""
+    assert chain.limits is not None
+    wide = np.where([t == "revolute" for t in chain.joint_types], np.pi, 1.0)
+    low = np.maximum(chain.limits[:, 0], -wide)
+    high = np.minimum(chain.limits[:, 1], wide)
+    rng = np.random.default_rng(seed)
+    return np.asarray(rng.uniform(low, high, size=(samples, chain.n_joints)), dtype=np.float64)
+
+
+def nearest_dh(
+    chain: Chain,
+    convention: Convention = "standard",
+    *,
+    parallel_tol: float = NEAR_PARALLEL_SIN,
+    samples: int = _FIT_SAMPLES,
+    seed: int = 1,
+) -> DHTable:
+    """The DH table, with axes within ``parallel_tol`` of parallel made parallel, whose FK is
+    nearest the chain's: least squares over random configurations.
+
+    A calibrated arm's "parallel" axes are a few milliradians off, and its exact table
+    (:func:`dh_from_chain`) puts their common normals metres away. Taken as parallel (``d =
+    0``), DH keeps their tilt about the common normal (``alpha``) but cannot hold the tilt
+    within their plane, so the table's FK is off by that tilt times the reach. This starts from
+    that table and fits every other parameter (``a``, ``alpha``, ``theta_offset``, the other
+    ``d``, base and tool) to the chain's poses, position errors and orientation errors times
+    the chain's reach weighed alike (Levenberg-Marquardt, central differences): the remaining
+    error is what DH with those axes parallel cannot hold.
+
+    Args:
+        chain: a serial chain.
+        convention: ``"standard"`` or ``"modified"``.
+        parallel_tol: axes closer than this to parallel (sine) are made parallel.
+        samples, seed: the random configurations fitted on (within the limits).
+
+    Returns:
+        The table; its ``notes`` say which axes were made parallel.
+    """
+    start = dh_from_chain(chain, convention, parallel_tol=parallel_tol)
+    n = chain.n_joints
+    dirs, _ = joint_lines(chain)
+    tilts = np.linalg.norm(np.cross(dirs[:-1], dirs[1:]), axis=1)
+    fixed = np.flatnonzero(tilts < parallel_tol)  # steps whose d the parallel choice set to 0
+    free_d = np.setdiff1d(np.arange(n), fixed)
+    q = _sample(chain, samples, seed)
+    T_ref = chain.fk(q)
+    reach = max(float(np.max(np.linalg.norm(T_ref[:, :3, 3] - T_ref[:1, :3, 3], axis=1))), 1e-3)
+
+    def table(x: FloatArray) -> DHTable:
+        d = start.d.copy()
+        d[free_d] = x[3 * n : 3 * n + len(free_d)]
+        k = 3 * n + len(free_d)
+        return dataclasses.replace(
+            start,
+            a=x[:n],
+            alpha=x[n : 2 * n],
+            theta_offset=x[2 * n : 3 * n],
+            d=d,
+            base=np.asarray(start.base @ lie.exp_se3(x[k : k + 6]), dtype=np.float64),
+            tool=np.asarray(start.tool @ lie.exp_se3(x[k + 6 : k + 12]), dtype=np.float64),
+        )
+
+    def residual(x: FloatArray) -> FloatArray:
+        T = table(x).fk(q)
+        dp = T[:, :3, 3] - T_ref[:, :3, 3]
+        dR = lie.log_so3(np.swapaxes(T_ref[:, :3, :3], -1, -2) @ T[:, :3, :3])
+        return np.concatenate([dp.ravel(), reach * np.asarray(dR).ravel()])
+
+    x = np.concatenate([start.a, start.alpha, start.theta_offset, start.d[free_d], np.zeros(12)])
+    r = residual(x)
+    cost, damping, step = float(r @ r), 1e-3, 1e-7
+    for _ in range(_FIT_ITERATIONS):
+        J = np.empty((len(r), len(x)))
+        for j in range(len(x)):
+            e = np.zeros_like(x)
+            e[j] = step
+            J[:, j] = (residual(x + e) - residual(x - e)) / (2 * step)
+        A, g = J.T @ J, J.T @ r
+        while damping < 1e12:
+            dx = np.linalg.solve(A + damping * np.diag(np.diag(A) + 1e-12), -g)
+            r_new = residual(x + dx)
+            new_cost = float(r_new @ r_new)
+            if new_cost < cost:
+                break
+            damping *= 10.0
+        else:
+            break
+        done = cost - new_cost <= 1e-12 * cost
+        x, r, cost, damping = x + dx, r_new, new_cost, max(damping / 10.0, 1e-12)
+        if done:
+            break
+    pairs = ", ".join(f"{i + 1}-{i + 2}" for i in fixed)
+    note = (
+        f"fitted to the chain's FK on {samples} random q with axes {pairs} made parallel "
+        "(the nearest table DH can give)"
+    )
+    return dataclasses.replace(table(x), notes=(*start.notes, note))

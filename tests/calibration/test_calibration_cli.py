@@ -69,10 +69,11 @@ def test_calibrate_writes_a_parameter_file_that_reads_back(
     assert "joint 2 (shoulder_lift_joint): axis tilted by" in text
     assert f"calibrated parameters written to {out}" in text
     assert plot.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
-    chain = poekin.load_params(out)  # what --params reads
+    chain = poekin.load_params(out)  # what --params reads: the robot in its base frame
     assert isinstance(chain, poekin.Chain)
     _, q, _, truth = _data()
-    pos, ori = pose_errors(truth, chain.fk(q))  # its FK is the measured frame, measured
+    T_meas_base = poekin.load_registration(out).T_meas_base  # beside it: the tracker's view
+    pos, ori = pose_errors(truth, T_meas_base @ chain.fk(q))  # the measured frame, measured
     assert np.sqrt(np.mean(pos**2)) < 0.1e-3 and np.sqrt(np.mean(ori**2)) < 0.1e-3
     doc = json.loads(out.read_text())
     assert doc["calibration"]["identifiable"] == 30

@@ -348,6 +348,21 @@ BAD_INPUTS = [
         ["diagnose", "--params", "{ur_calibration}", "--against", "ur5e-dh", "--frame", "tool0"],
         "frame out",
     ),
+    # parameter files that cannot be right, and export (issue 26)
+    (["fk", "--params", "{ur_millimetres}", "--q", *"000000"], "lengths look like millimetres"),
+    (
+        ["ik", "--params", "{upside_down_limits}", "--pose", *POSE],
+        "joint 'shoulder_lift_joint' has limits [1, -1]: the lower limit is above the upper",
+    ),
+    (["dh", "--params", "{millimetres}"], "farther than any arm reaches"),
+    (["export", "ur5e-dh", "--to", "ur-yaml", "--output", "{tmp}/ur5e.json"], "ends in .yaml"),
+    (["export", "ur5e-dh", "--to", "urdf", "--output", "{other_png}"], "ends in .urdf"),
+    (["export", "lynch-park-ur5", "--to", "ur-yaml", "--output", "{tmp}/lp.yaml"], "not a UR arm"),
+    (["export", "ur5e-dh", "--to", "urdf", "--output", "{tmp}/no/ur5e.urdf"], "does not exist"),
+    (
+        ["export", "ur5e-dh", "--frame", "flange", "--to", "urdf", "--output", "{tmp}/u.urdf"],
+        "--frame names a model's frame",
+    ),
     # poekin ik (issue 21): targets that are no poses, files, options that do not go together
     (["ik", "universal_robots_ur5e", "--pose", *POSE[:3], *"0000"], "the quaternion is zero"),
     (
@@ -453,6 +468,9 @@ BAD_UR_CALIBRATIONS: dict[str, Callable[[dict[str, Any]], object]] = {
     "ur_misspelled_segment": lambda k: k.update(wrist1=k.pop("wrist_1")),
     "ur_text": lambda k: k["forearm"].update(x="abc"),
     "ur_extra_segment": lambda k: k.update(wrist_4=dict(k["wrist_3"])),
+    "ur_millimetres": lambda k: [
+        k[s].update({a: 1000 * k[s][a] for a in "xyz"}) for s in k if s != "hash"
+    ],
 }
 
 
@@ -489,11 +507,27 @@ def _npy(path: pathlib.Path, array: np.ndarray) -> str:
     return str(path)
 
 
-def _param_file(tmp_path: pathlib.Path, name: str, joint: int, screw: list[float]) -> str:
+def _param_file(
+    tmp_path: pathlib.Path,
+    name: str,
+    joint: int,
+    screw: list[float],
+    *,
+    limits: list[float] | None = None,
+    scale: float = 1.0,
+) -> str:
     """The UR5e's screws as ``poekin screws --json`` writes them, one joint's screw replaced
-    (an empty ``screw`` instead skews the home pose M)."""
+    (an empty ``screw`` instead skews the home pose M), or its ``limits``, or every length
+    times ``scale``."""
     described = load("universal_robots_ur5e").describe()
-    if screw:
+    if limits is not None:
+        described["joints"][joint]["limits"] = limits
+    elif scale != 1.0:
+        for j in described["joints"]:
+            j["screw"] = [*j["screw"][:3], *(scale * v for v in j["screw"][3:])]
+        for row in described["home"][:3]:
+            row[3] *= scale
+    elif screw:
         described["joints"][joint]["screw"] = screw
     else:
         described["home"][0][0] = 2.0
@@ -518,6 +552,8 @@ def test_bad_input_gives_one_line_and_exit_2(
         "zero_axis": _param_file(tmp_path, "zero.json", 2, [0.0] * 6),
         "half_axis": _param_file(tmp_path, "half.json", 2, [0.0, -0.5, 0.0, 0.163, 0.0, 0.425]),
         "skewed_home": _param_file(tmp_path, "skewed.json", 0, []),
+        "upside_down_limits": _param_file(tmp_path, "limits.json", 1, [], limits=[1, -1]),
+        "millimetres": _param_file(tmp_path, "mm.json", 0, [], scale=1000.0),
         "other_csv": other,
         "other_png": other_png,
         "q_npy": _npy(tmp_path / "q.npy", np.zeros((2, 6))),

@@ -4,6 +4,7 @@ every malformed file gets a one-line InputError that says where and what."""
 from __future__ import annotations
 
 import json
+import re
 import sys
 from pathlib import Path
 from typing import Any
@@ -13,11 +14,11 @@ import pytest
 from helpers import assert_close
 from test_params import BOOK_BODY_SCREWS, BOOK_HOME
 
-from poekin import Chain, InputError, exp_se3
+from poekin import Chain, InputError, adjoint, dh_from_chain, exp_se3
 from poekin._extras import install_command
 from poekin.dh import DHTable
 from poekin.errors import MissingExtraError, UnitWarning, UnknownParamsError
-from poekin.io.paramfile import load_params, params_from_dict
+from poekin.io.paramfile import load_params, load_registration, params_from_dict
 from poekin.io.params import PARAM_SETS, UR5E_DH, lynch_park_ur5_chain, ur5e_chain
 
 # JSON writes floats with repr(), which reads back bit for bit: round trips are exact.
@@ -346,3 +347,129 @@ def test_angle_unit_mistakes() -> None:
     with pytest.raises(InputError, match="angle_unit applies to a DH table's alpha"):
         params_from_dict({**poe, "angle_unit": "deg"}, "p.json")
     assert isinstance(params_from_dict({**poe, "angle_unit": "rad"}, "p.json"), Chain)
+
+
+# --- issue #26: joint limits, and lengths no arm has ----------------------------------------------
+
+
+def test_limits_read_back(tmp_path: Path) -> None:
+    """Chain.describe()'s limits, and a screws form's 'limits' (null and JSON's Infinity for
+    none), are the chain's limits when read."""
+    chain = ur5e_chain()
+    loaded = load_params(_write(tmp_path / "chain.json", chain.describe()))
+    assert isinstance(loaded, Chain) and loaded.limits is not None
+    assert np.array_equal(loaded.limits, chain.limits)
+    doc = {
+        "screws": [[0, 0, 1, 0, 0, 0], [0, 0, 0, 1, 0, 0]],
+        "home": EYE,
+        "joint_types": ["revolute", "prismatic"],
+        "limits": [[-1.5, None], [float("-inf"), 0.25]],
+    }
+    path = tmp_path / "rp.json"
+    path.write_text(json.dumps(doc))  # -inf written as JSON's -Infinity
+    rp = load_params(path)
+    assert isinstance(rp, Chain) and rp.limits is not None
+    assert rp.limits.tolist() == [[-1.5, np.inf], [-np.inf, 0.25]]
+
+
+@pytest.mark.parametrize("form", ["joints", "screws"])
+def test_limits_upside_down_are_refused_naming_the_joint(tmp_path: Path, form: str) -> None:
+    """[1, -1] once was accepted, and IK then failed after 1,359 iterations without a word."""
+    doc = ur5e_chain().describe()
+    if form == "joints":
+        doc["joints"][1]["limits"] = [1, -1]
+        where = "joints[1].limits"
+    else:
+        doc = {
+            "screws": [j["screw"] for j in doc["joints"]],
+            "joint_names": [j["name"] for j in doc["joints"]],
+            "home": doc["home"],
+            "limits": [[-3, 3], [1, -1], None, None, None, None],
+        }
+        where = "limits[1]"
+    path = _write(tmp_path / "limits.json", doc)
+    with pytest.raises(InputError) as info:
+        load_params(path)
+    assert str(info.value) == (
+        f"{path}: joint 'shoulder_lift_joint' has limits [1, -1]: the lower limit is above the "
+        f"upper ({where}); write [lower, upper] (rad, or m for a prismatic joint), null for no "
+        "limit"
+    )
+
+
+@pytest.mark.parametrize(
+    ("limits", "phrase"),
+    [([1], "must be [lower, upper], got a list of 1"), ("wide", "must be [lower, upper]"),
+     ([0, "pi"], "joints[0].limits[1] must be a number")],
+)  # fmt: skip
+def test_malformed_limits(tmp_path: Path, limits: Any, phrase: str) -> None:
+    doc = ur5e_chain().describe()
+    doc["joints"][0]["limits"] = limits
+    with pytest.raises(InputError, match=re.escape(phrase)):
+        load_params(_write(tmp_path / "l.json", doc))
+
+
+def _scaled(chain: Chain, factor: float) -> dict[str, Any]:
+    """The chain's describe() with every length times ``factor``."""
+    doc = chain.describe()
+    for joint in doc["joints"]:
+        joint["screw"] = [*joint["screw"][:3], *(factor * v for v in joint["screw"][3:])]
+    home = np.array(doc["home"])
+    home[:3, 3] *= factor
+    doc["home"] = home.tolist()
+    return doc
+
+
+def test_lengths_in_millimetres_are_refused(tmp_path: Path) -> None:
+    """The UR5e in millimetres reaches 850 m from its wrist axes; a DH table so too."""
+    path = _write(tmp_path / "mm.json", _scaled(ur5e_chain(), 1000.0))
+    with pytest.raises(InputError) as info:
+        load_params(path)
+    text = str(info.value)
+    assert text.startswith(f"{path}: the end frame is ")
+    assert " m from joint '" in text and "look like millimetres" in text
+    table = UR5E_DH.describe()
+    for row in table["rows"]:
+        row["a"], row["d"] = 1000 * row["a"], 1000 * row["d"]
+    with pytest.raises(InputError, match="look like millimetres"):
+        load_params(_write(tmp_path / "dh_mm.json", table))
+
+
+def test_the_reach_bound_is_the_arm_not_its_numbers(tmp_path: Path) -> None:
+    """15 m of reach is an arm (the ISS's reaches 17.6 m), 25 m no arm; a DH table's d of
+    tens of metres (nearly parallel axes) is not a reach, and an arm far from the origin of
+    its world is no longer for it."""
+    big = load_params(_write(tmp_path / "big.json", _scaled(ur5e_chain(), 15.0)))
+    assert isinstance(big, Chain)
+    with pytest.raises(InputError, match="farther than any arm reaches"):
+        load_params(_write(tmp_path / "huge.json", _scaled(ur5e_chain(), 25.0)))
+    calibrated = load_params(Path(__file__).parents[1] / "data" / "ur" / "ur5e_calibration.yaml")
+    table = dh_from_chain(calibrated)  # type: ignore[arg-type]
+    assert np.max(np.abs(table.d)) > 50.0
+    assert isinstance(load_params(_write(tmp_path / "dh.json", table.describe())), DHTable)
+    moved = exp_se3([0.3, -0.2, 0.1, 1000.0, 0.0, 0.0])  # placed 1 km away, turned
+    doc = ur5e_chain().describe()
+    for joint in doc["joints"]:
+        joint["screw"] = (adjoint(moved) @ np.array(joint["screw"])).tolist()
+    doc["home"] = (moved @ ur5e_chain().home).tolist()
+    assert isinstance(load_params(_write(tmp_path / "far.json", doc)), Chain)
+
+
+def test_registration_is_read_beside_the_chain(tmp_path: Path) -> None:
+    T = exp_se3([0.1, 0.2, -0.3, 1.0, 0.5, 2.0])
+    registration = {"T_meas_base": T.tolist(), "std_m": [1e-5, 2e-5, 3e-5], "std_rad": None}
+    doc = {**ur5e_chain().describe(), "registration": registration}
+    path = _write(tmp_path / "cal.json", doc)
+    chain = load_params(path)
+    assert_close("fk", chain.fk(Q), ur5e_chain().fk(Q), EXACT)  # not applied to the chain
+    reg = load_registration(path)
+    assert np.array_equal(reg.T_meas_base, T) and reg.std_rad is None
+    assert reg.std_m is not None and reg.std_m.tolist() == [1e-5, 2e-5, 3e-5]
+    with pytest.raises(InputError, match="has no 'registration'"):
+        load_registration(_write(tmp_path / "plain.json", ur5e_chain().describe()))
+    bad = {**doc, "registration": {"T_meas_base": (2 * np.eye(4)).tolist()}}
+    with pytest.raises(InputError, match=r"registration\.T_meas_base"):
+        load_params(_write(tmp_path / "bad.json", bad))
+    bad = {**doc, "registration": {"T_meas_base": T.tolist(), "std_m": [-1, 0, 0]}}
+    with pytest.raises(InputError, match="negative standard error"):
+        load_registration(_write(tmp_path / "bad2.json", bad))

@@ -354,6 +354,86 @@ def test_calibration_typed_as_a_dh_table(convention: str) -> None:
     assert d.bisect[-1].max_pos_err_m < 1e-12
 
 
+# --- the orientation order: ur_calibration's Rx Ry Rz against ur_description's Rz Ry Rx -----------
+
+
+def test_controller_order_reads_the_angles_as_ur_calibration_wrote_them() -> None:
+    """The two readings of this file differ measurably (0.5 um, 2.6 urad); each matches its own
+    hand-written product (reference_fk above, which does not use poekin)."""
+    q = Q[:500]
+    description = load_params(CALIBRATION)
+    controller = load_params(CALIBRATION, ur_yaml_order="controller")
+    assert isinstance(controller, poekin.Chain)
+    T_eigen = np.array([reference_fk(_calibration(), x, order="eigen") for x in q])
+    assert_close("controller", controller.fk(q), T_eigen, PRODUCT_TOL)
+    assert_close("description", description.fk(q), np.array([reference_fk(_calibration(), x)
+                                                             for x in q]), PRODUCT_TOL)  # fmt: skip
+    pos, ori = poekin.pose_errors(description.fk(q), controller.fk(q))
+    assert 1e-7 < np.max(pos) < 1e-5 and 1e-6 < np.max(ori) < 1e-5  # micrometres apart
+
+
+def test_controller_order_on_the_command_line(capsys: pytest.CaptureFixture[str]) -> None:
+    import json
+
+    q = [0.3, -1.2, 1.1, -0.4, 1.3, 0.2]
+    argv = ["fk", "--params", str(CALIBRATION), "--q", *map(str, q), "--json"]
+    code, out, _ = _run(capsys, *argv, "--ur-yaml-order", "controller")
+    assert code == 0
+    T = json.loads(out)["T"]
+    assert_close("T", T, reference_fk(_calibration(), np.array(q), order="eigen"), PRODUCT_TOL)
+    code, out, _ = _run(capsys, "diagnose", "--params", str(CALIBRATION), "--against",
+                        str(CALIBRATION), "--ur-yaml-order", "controller")  # fmt: skip
+    assert code == 0 and "MATCH" in out  # both sides read alike
+
+
+@pytest.mark.parametrize(
+    "argv",
+    [
+        ["verify", "--params", "{cal}", "--json"],
+        ["dh", "--params", "{cal}", "--json"],
+        ["jacobian", "--params", "{cal}", "--q", "0", "-1", "1", "0", "1", "0", "--json"],
+    ],
+)
+def test_every_command_takes_the_order(
+    argv: list[str], capsys: pytest.CaptureFixture[str], tmp_path: pathlib.Path
+) -> None:
+    """Each command that reads --params reads the file in the order asked: the numbers differ."""
+    import json
+
+    args = [a.format(cal=CALIBRATION) for a in argv]
+    outputs = []
+    for order in ("description", "controller"):
+        code, out, err = _run(capsys, *args, "--ur-yaml-order", order)
+        assert code in (0, 1) and "error" not in err, err
+        result = json.loads(out)
+        result.pop("params", None)  # verify names the file, or the chain read from it
+        outputs.append(result)
+    assert outputs[0] != outputs[1]
+
+
+def test_an_unknown_order_is_refused() -> None:
+    with pytest.raises(InputError, match="did you mean 'controller'"):
+        load_params(CALIBRATION, ur_yaml_order="controler")  # type: ignore[arg-type]
+
+
+# --- lengths no UR arm has ----------------------------------------------------------------------
+
+
+def test_a_file_in_millimetres_is_refused(tmp_path: pathlib.Path) -> None:
+    """ur_calibration's file with its x y z in millimetres put the flange 425 m away."""
+    kin = _calibration()
+    for name in SEGMENTS:
+        for key in ("x", "y", "z"):
+            kin[name][key] *= 1000.0
+    path = tmp_path / "mm.yaml"
+    path.write_text(yaml.safe_dump({"kinematics": kin}))
+    with pytest.raises(InputError) as e:
+        load_params(path)
+    text = str(e.value)
+    assert text.startswith(f"{path}: kinematics.forearm.x is -424.53")
+    assert "look like millimetres (divided by 1000 they are a ur5e's)" in text
+
+
 # --- bad files ----------------------------------------------------------------------------------
 
 

@@ -570,17 +570,17 @@ def test_ik_ghosts_arrive_with_the_geometry() -> None:
 
 
 def test_dir_lists_the_lazily_imported_names() -> None:
-    """Issue #26: dir(poekin), which completion reads, lists calibrate, plan_poses, view and
-    draw, which poekin imports at first use; every name it lists is there; and listing them
-    imports none of them."""
+    """Issue #26: dir(poekin), which completion reads, lists calibrate, plan_poses, export,
+    view and draw, which poekin imports at first use; every name it lists is there; and
+    listing them imports none of them."""
     code = textwrap.dedent(
         """
         import sys
         import poekin
         names = dir(poekin)
-        lazy = ("poekin.calibration", "poekin.viewer", "viser")
+        lazy = ("poekin.calibration", "poekin.io.exporters", "poekin.viewer", "viser")
         print(sorted(m for m in lazy if m in sys.modules))
-        print([n for n in ("calibrate", "draw", "plan_poses", "view") if n in names])
+        print([n for n in ("calibrate", "draw", "export", "plan_poses", "view") if n in names])
         print([n for n in names if not hasattr(poekin, n)], names == sorted(names))
         print(set(poekin.__all__) <= set(names))
         """
@@ -588,7 +588,7 @@ def test_dir_lists_the_lazily_imported_names() -> None:
     proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert proc.stdout.splitlines() == [
         "[]",
-        "['calibrate', 'draw', 'plan_poses', 'view']",
+        "['calibrate', 'draw', 'export', 'plan_poses', 'view']",
         "[] True",
         "True",
     ]

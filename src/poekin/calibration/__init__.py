@@ -4,7 +4,8 @@
 >>> plan = poekin.plan_poses("universal_robots_ur5e", 50)        # (50, 6) configurations
 >>> # ... move the robot to each, measure the flange with a tracker: T_meas (50, 4, 4) ...
 >>> result = poekin.calibrate("universal_robots_ur5e", plan, T_meas)
->>> result.chain.fk(q)          # the measured frame, in the tracker's frame, for encoder q
+>>> result.robot.fk(q)          # the measured frame in the robot's base frame, for encoder q
+>>> result.chain.fk(q)          # the same in the tracker's frame: result.base @ robot.fk(q)
 
 * :mod:`~.model`: the parametrisation (PoE with local corrections, complete and minimal);
 * :mod:`~.fit`: registration and Levenberg-Marquardt over the identifiable combinations;
@@ -166,8 +167,9 @@ def calibrate(
         seed: the folds' random split.
 
     Returns:
-        The :class:`Calibration`: ``.chain`` is the calibrated chain (FK for encoder readings
-        in the measuring frame), with the identifiability report.
+        The :class:`Calibration`: ``.robot`` is the calibrated robot (FK for encoder readings
+        in its own base frame), ``.chain`` the same in the measuring frame, with the
+        identifiability report.
 
     Raises:
         InputError: malformed data: NaN, shapes, a pose that is not rigid, fewer poses than the

@@ -209,9 +209,13 @@ def write_measurements(
 
 
 def params_document(result: Calibration) -> dict[str, Any]:
-    """The calibrated chain as a PoE parameter file (what ``Chain.describe()`` writes, which
-    :func:`poekin.load_params` and ``--params`` read), with the calibration's summary beside it
-    under ``"calibration"`` (ignored when read)."""
+    """The calibrated robot in its own base frame as a PoE parameter file (what
+    ``Chain.describe()`` writes, which :func:`poekin.load_params` and ``--params`` read), its
+    FK for the encoder readings being the measured frame in the robot's base frame
+    (:attr:`~poekin.calibration.Calibration.robot`); beside it, ``registration``: the base
+    frame in the measuring frame with its standard errors (:func:`poekin.load_registration`
+    reads it; ``fk``, ``diagnose`` and the other commands leave it aside), and ``calibration``,
+    the fit's summary (ignored when read)."""
     from poekin.io.fileio import finite_json
 
     summary = result.summary()
@@ -226,13 +230,25 @@ def params_document(result: Calibration) -> dict[str, Any]:
         "residual_rms_rad",
         "heldout_rms_m",
         "heldout_rms_rad",
-        "base",
         "offsets",
     )
-    doc = result.chain.describe()
+    std = result.std()
+
+    def errors(keys: tuple[str, ...]) -> list[float] | None:
+        return [std[k] for k in keys] if all(k in std for k in keys) else None
+
+    doc = result.robot.describe()
+    doc["registration"] = {
+        "note": "T_meas_base: the robot's base frame in the measuring frame (the tracker's), "
+        "T_meas_frame(q) = T_meas_base fk(q); std_m, std_rad: its standard errors along and "
+        "about the measuring frame's axes",
+        "T_meas_base": result.base.tolist(),
+        "std_m": errors(("base.x", "base.y", "base.z")),
+        "std_rad": errors(("base.rx", "base.ry", "base.rz")),
+    }
     doc["calibration"] = {
         "note": "FK of this chain, for the encoder readings, is the measured frame in the "
-        "measuring frame; the joint offsets are in the screws",
+        "robot's base frame; the joint offsets are in the screws",
         **{k: summary[k] for k in keep},
     }
     return dict(finite_json(doc))

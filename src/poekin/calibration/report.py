@@ -165,8 +165,16 @@ class Calibration:
 
     @property
     def robot(self) -> Chain:
-        """The calibrated robot in its own base frame, encoder offsets not applied."""
-        return self.model.robot_chain(self.state.x)
+        """The calibrated robot in its own base frame: its FK for the encoder readings is the
+        measured frame's pose in the robot's base frame (offsets absorbed, as in
+        :attr:`chain`), ``chain.fk(q) = base @ robot.fk(q)``. ``poekin calibrate --output``
+        writes it, with :attr:`base` as its ``registration``.
+
+        The base frame is the model's, placed where the fit puts it: joint 1's axis line and
+        encoder zero are the model's (a measurement from outside cannot tell them from the
+        base's own place), so it can differ from where the robot's maker puts its base by that
+        joint's small error (a millimetre, a few milliradians)."""
+        return self.model.calibrated_chain(dataclasses.replace(self.state, base=np.eye(4)))
 
     # --- parameters ---------------------------------------------------------------------------
 
@@ -255,7 +263,7 @@ class Calibration:
         """
         from poekin.verification.diagnose import joint_differences
 
-        robot, nominal = self.robot, self.nominal
+        robot, nominal = self.model.robot_chain(self.state.x), self.nominal  # offsets apart
         tilt, offset = joint_differences(robot, nominal)
         partial = {self.model.params[k].joint for k in self.undetermined}
         fitted = {self.model.params[k].joint for k in self.model.free}

@@ -40,10 +40,12 @@ __all__ = [
     "add_q",
     "add_sampling",
     "add_source",
+    "add_ur_yaml_order",
     "import_mujoco_without_gl",
     "model_source",
     "note",
     "params",
+    "params_spec",
     "read_joint_values",
 ]
 
@@ -107,6 +109,19 @@ def add_params(p: argparse.ArgumentParser, what: str) -> None:
         metavar="FILE|NAME",
         help=f"{what}: a DH table or PoE set as a .json/.yaml file, UR's calibration .yaml "
         f"(ur_calibration's kinematics:), or a named set ({PARAM_NAMES})",
+    )
+    add_ur_yaml_order(p)
+
+
+def add_ur_yaml_order(p: argparse.ArgumentParser, written: str = "") -> None:
+    p.add_argument(
+        "--ur-yaml-order",
+        choices=("description", "controller"),  # poekin.io.ur_kinematics.UR_YAML_ORDERS
+        default="description",
+        help="how a UR calibration .yaml's roll, pitch, yaw compose"
+        + (f" (read, and {written})" if written else "")
+        + ": description, Rz Ry Rx, as ur_description reads them (default); controller, "
+        "Rx Ry Rz, as ur_calibration computed them (3-7 um apart on real files)",
     )
 
 
@@ -192,10 +207,20 @@ def model_source(args: argparse.Namespace, default: str | None = DEFAULT_ROBOT) 
     return str(source)
 
 
-def params(spec: str) -> Chain | DHTable:
+def params(spec: str, args: argparse.Namespace | None = None) -> Chain | DHTable:
+    """The parameter set ``spec``, a UR calibration read in ``args.ur_yaml_order``."""
     from poekin.io.paramfile import load_params
 
-    return load_params(spec)
+    order = getattr(args, "ur_yaml_order", "description")
+    return load_params(spec, ur_yaml_order="controller" if order == "controller" else "description")
+
+
+def params_spec(args: argparse.Namespace) -> str | Chain | DHTable | None:
+    """``--params`` for a function that reads it itself: the name as given, or, for a UR
+    calibration read in the controller's order, the parameters read so."""
+    if args.params is None or args.ur_yaml_order == "description":
+        return str(args.params) if args.params is not None else None
+    return params(args.params, args)
 
 
 # --- joint values ------------------------------------------------------------------------------

@@ -188,10 +188,12 @@ def register(sub: Any, fmt: type[argparse.HelpFormatter]) -> None:
         "tool, the joint axes and the encoder offsets, as a complete, minimal set of PoE "
         "corrections, only the combinations the data can tell apart. Prints what the data "
         "identify (rank, condition number, observability O1, standard errors, a k-fold held-out "
-        "residual) and each joint's change in mm and mrad; --output writes the calibrated chain "
+        "residual) and each joint's change in mm and mrad; --output writes the calibrated robot "
         "as a PoE parameter file (--params, poekin.load_params): its FK for the encoder readings "
-        "is the measured frame in the measuring frame. --plan N proposes N poses to measure. "
-        "Exit 0 on success, 2 on bad input.",
+        "is the measured frame in the robot's own base frame, and its registration the base in "
+        "the measuring frame (poekin.load_registration); poekin export writes it for the "
+        "controller or ROS. --plan N proposes N poses to measure. Exit 0 on success, 2 on bad "
+        "input.",
         epilog="measurements: a .csv whose header names the joints, then x,y,z (m) and optionally "
         "qw,qx,qy,qz; or a .npz with q and T (N, 4, 4) or p (N, 3).\n"
         "examples:\n"

@@ -6,6 +6,8 @@ import argparse
 import json
 from typing import TYPE_CHECKING, Any, TextIO
 
+import numpy as np
+
 from poekin.cli._args import (
     add_params,
     add_precision,
@@ -32,7 +34,9 @@ def params_or_chain(args: argparse.Namespace) -> Chain | DHTable:
         raise InputError("give a model SOURCE or --params FILE|NAME, not both")
     if args.params and args.frame:
         raise InputError("--frame names a model's frame; a parameter set has its own end frame")
-    return params(args.params) if args.params else load(model_source(args, None), args.frame)
+    if args.params:
+        return params(args.params, args)
+    return load(model_source(args, None), args.frame)
 
 
 # --- screws -----------------------------------------------------------------------------------
@@ -68,23 +72,84 @@ def _cmd_screws(args: argparse.Namespace, out: TextIO) -> int:
 # --- dh ----------------------------------------------------------------------------------------
 
 
-def _dh_table(args: argparse.Namespace) -> DHTable:
-    from poekin.dh import DHTable, dh_from_chain
+def _dh_table(args: argparse.Namespace) -> tuple[DHTable, Chain | None]:
+    """The table to print, and the chain it was extracted from (None: a table given as is)."""
+    from poekin.dh import DHTable, dh_from_chain, nearest_dh
 
     if args.parallel_tol <= 0:
         raise InputError(f"--parallel-tol must be positive, got {args.parallel_tol}")
     obj = params_or_chain(args)
     if isinstance(obj, DHTable):
-        if obj.convention == args.convention:
-            return obj
+        if obj.convention == args.convention and not args.nearest:
+            return obj, None
         obj = obj.to_chain()
-    return dh_from_chain(obj, args.convention, parallel_tol=args.parallel_tol)
+    if args.nearest:
+        return nearest_dh(obj, args.convention), obj
+    return dh_from_chain(obj, args.convention, parallel_tol=args.parallel_tol), obj
+
+
+# The residual of an approximate table: its FK against the chain's on this many random q.
+_RESIDUAL_SAMPLES = 1000
+
+
+def _residual(table_: DHTable, chain: Chain) -> tuple[float, float]:
+    """Max position (m) and orientation (rad) error of the table's FK against the chain's, over
+    random q (seeded) within the chain's limits, or [-pi, pi] where it has none."""
+    from poekin.verification.verify import pose_errors, random_generator
+
+    low = np.where(np.isfinite(chain.limits[:, 0]), chain.limits[:, 0], -np.pi)  # type: ignore[index]
+    high = np.where(np.isfinite(chain.limits[:, 1]), chain.limits[:, 1], np.pi)  # type: ignore[index]
+    q = random_generator(0).uniform(low, high, size=(_RESIDUAL_SAMPLES, chain.n_joints))
+    pos, ori = pose_errors(chain.fk(q), table_.fk(q))
+    return float(np.max(pos)), float(np.max(ori))
+
+
+def _size(pos: float, ori: float) -> str:
+    """A residual in mm and mrad, two significant digits (geometry decides them, not rounding)."""
+    return f"{pos * 1e3:.2g} mm and {ori * 1e3:.2g} mrad"
+
+
+def _conditioning(table_: DHTable, chain: Chain, args: argparse.Namespace) -> list[str]:
+    """What the output says when the chain's DH form is ill-conditioned (nearly parallel axes)
+    or the table is not exact (axes made parallel), with the residual of the table offered."""
+    from poekin.dh import NEAR_PARALLEL_SIN, PARALLEL_SIN, joint_lines, nearest_dh
+
+    dirs, _ = joint_lines(chain)
+    tilts = np.linalg.norm(np.cross(dirs[:-1], dirs[1:]), axis=1)
+    near = (tilts > PARALLEL_SIN) & (tilts < NEAR_PARALLEL_SIN)
+    pairs = ", ".join(f"{i + 1}-{i + 2} ({tilts[i] * 1e3:.2g} mrad)" for i in np.flatnonzero(near))
+    if not pairs:
+        return []
+    over = f"max over {_RESIDUAL_SAMPLES} random q within the limits"
+    if args.nearest:
+        return [
+            f"not exact: the nearest DH table with axes {pairs} made parallel; its FK is "
+            f"within {_size(*_residual(table_, chain))} of the chain's ({over})"
+        ]
+    if np.any(near & (tilts < args.parallel_tol)):  # taken as parallel
+        return [
+            f"not exact: axes {pairs} are taken as parallel, so this table's FK is within "
+            f"{_size(*_residual(table_, chain))} of the chain's ({over}); --nearest fits the "
+            "rest to do better"
+        ]
+    nearest = nearest_dh(chain, table_.convention)
+    where = f"--params {args.params}" if args.params else args.source or ""
+    d = float(np.max(np.abs(table_.d)))
+    return [
+        f"this arm has no well-conditioned DH form: axes {pairs} are nearly but not exactly "
+        "parallel, as a calibrated arm's always are, and DH puts the common normal of nearly "
+        f"parallel axes far away (|d| up to {d:.3g} m): the table above is exact, but its "
+        "lengths are not the arm's",
+        f"nearest DH table, with those axes parallel: poekin dh {where} --nearest; its FK is "
+        f"within {_size(*_residual(nearest, chain))} of the chain's ({over})",
+    ]
 
 
 def _cmd_dh(args: argparse.Namespace, out: TextIO) -> int:
-    table_ = _dh_table(args)
+    table_, chain = _dh_table(args)
+    extra = _conditioning(table_, chain, args) if chain is not None else []
     if args.json:
-        print(json.dumps(table_.describe()), file=out)
+        print(json.dumps({**table_.describe(), "notes": [*table_.notes, *extra]}), file=out)
         return 0
     std = table_.convention == "standard"
     form = (
@@ -110,7 +175,7 @@ def _cmd_dh(args: argparse.Namespace, out: TextIO) -> int:
     print("\n".join(matrix_lines(table_.base, p)), file=out)
     print(f"tool = T_frame{table_.n_joints}_{table_.frame}:", file=out)
     print("\n".join(matrix_lines(table_.tool, p)), file=out)
-    for text in table_.notes:
+    for text in [*table_.notes, *extra]:
         print(f"note: {text}", file=out)
     return 0
 
@@ -139,7 +204,8 @@ def register(sub: Any, fmt: type[argparse.HelpFormatter]) -> None:
         "choices (parallel axes, prismatic joints) are printed as notes.",
         epilog="examples:\n  poekin dh universal_robots_ur5e\n"
         "  poekin dh franka_fr3 --convention modified --json > fr3_dh.json\n"
-        "  poekin dh --params lynch-park-ur5",
+        "  poekin dh --params lynch-park-ur5\n"
+        "  poekin dh --params my_calibrated_ur5e.json --nearest",
         formatter_class=fmt,
     )
     add_source(d)
@@ -156,6 +222,12 @@ def register(sub: Any, fmt: type[argparse.HelpFormatter]) -> None:
         default=1e-8,
         metavar="SIN",
         help="treat axes within this sine of parallel as parallel (1e-8: float rounding only)",
+    )
+    d.add_argument(
+        "--nearest",
+        action="store_true",
+        help="the nearest table with nearly parallel axes (within 0.05 sine) made parallel: "
+        "fitted to the chain's FK, for a calibrated arm (its exact table has d of metres)",
     )
     d.add_argument("--json", action="store_true", help="print one JSON object")
     add_precision(d)

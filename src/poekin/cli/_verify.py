@@ -14,8 +14,10 @@ from poekin.cli._args import (
     add_params,
     add_sampling,
     add_source,
+    add_ur_yaml_order,
     model_source,
     params,
+    params_spec,
 )
 from poekin.cli._text import sig, table
 from poekin.errors import InputError
@@ -85,7 +87,7 @@ def _cmd_verify(args: argparse.Namespace, out: TextIO) -> int:
             loaded,
             args.frame,
             all_frames=args.all_frames,
-            params=args.params,
+            params=params_spec(args),
             **common,  # type: ignore[arg-type]
         )
     if args.json:
@@ -154,12 +156,19 @@ def _print_report(report: Any, args: argparse.Namespace, out: TextIO) -> None:
 
 
 def _cmd_diagnose(args: argparse.Namespace, out: TextIO) -> int:
-    from poekin.verification.diagnose import diagnose
+    from poekin.chain import Chain
+    from poekin.dh import DHTable
+    from poekin.verification.diagnose import _is_param_set, diagnose
 
     _check_run_options(args)
+    source = model_source(args)
+    against: str | Chain = source
+    if args.ur_yaml_order != "description" and _is_param_set(source):
+        read = params(source, args)  # a UR calibration read in the controller's order
+        against = read.to_chain() if isinstance(read, DHTable) else read
     d = diagnose(
-        params(args.params),
-        model_source(args),
+        params(args.params, args),
+        against,
         frame=args.frame,
         samples=args.samples,
         seed=args.seed,
@@ -272,6 +281,7 @@ def register(sub: Any, fmt: type[argparse.HelpFormatter]) -> None:
         help=f"Menagerie robot name, MJCF or URDF path (default: {DEFAULT_ROBOT}), or another "
         "parameter set (a named set or .json/.yaml file), e.g. ur5e-dh, UR's nominal UR5e",
     )
+    add_ur_yaml_order(g)
     g.add_argument(
         "--frame", metavar="F", help="end frame: site or body name (default: the only site)"
     )

@@ -14,6 +14,7 @@ from poekin.cli._args import (
     add_q,
     add_source,
     model_source,
+    params_spec,
     read_joint_values,
 )
 from poekin.errors import InputError
@@ -39,7 +40,7 @@ def _cmd_view(args: argparse.Namespace, out: TextIO) -> int:
     viewer = view(
         source,
         frame=args.frame,
-        params=args.params,
+        params=params_spec(args),
         port=args.port,
         host=args.host,
         open_browser=not args.no_browser,
@@ -80,7 +81,7 @@ def _cmd_draw(args: argparse.Namespace, out: TextIO) -> int:
         qpos,
         path=args.out,
         frame=args.frame,
-        params=args.params,
+        params=params_spec(args),
         aligned=args.aligned,
         all_frames=args.all_frames,
         form=args.form,

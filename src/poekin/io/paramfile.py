@@ -12,9 +12,9 @@ Accepted shapes (JSON shown; YAML holds the same structure)::
     {"screws": [[0, 0, 1, 0, 0, 0], ...], "home": [[1, 0, 0, 0.8], ...],
      "joint_names": [...], "joint_types": [...], "frame": "ee", "robot": ""}
 
-    # exactly what Chain.describe() writes ("body_screw" and "limits" ignored)
+    # exactly what Chain.describe() writes ("body_screw" ignored; "limits" optional)
     {"robot": "", "frame": "ee", "joints": [{"name": "j1", "type": "revolute",
-     "screw": [0, 0, 1, 0, 0, 0]}, ...], "home": [[1, 0, 0, 0.8], ...]}
+     "screw": [0, 0, 1, 0, 0, 0], "limits": [-3.14, 3.14]}, ...], "home": [[1, 0, 0, 0.8], ...]}
 
     # a Universal Robots calibration, as ur_calibration writes it (see poekin.io.ur_kinematics):
     # the chain from UR's base frame to tool0
@@ -30,13 +30,25 @@ Optional keys: ``theta_offset`` (0), ``joint_type`` (``"revolute"``), ``joint`` 
 ``base``/``tool`` (identity), ``joint_names`` (``jointN``), ``joint_types`` (revolute),
 ``frame`` (``"ee"``), ``robot`` (``""``). Units are metres and radians.
 
-This module only reads; nothing here writes a file. Every malformed input raises
+A PoE set's joint limits: ``joints[i].limits`` or, beside ``screws``, ``limits`` (one
+``[lower, upper]`` per joint; ``null`` for no limit). A lower limit above the upper is refused,
+naming the joint. A PoE set may also carry ``registration``, the pose of its base frame in the
+frame that measured it (what ``poekin calibrate`` writes beside the robot in its own base frame):
+``{"T_meas_base": 4x4, "std_m": [3] or null, "std_rad": [3] or null}``. The chain does not
+apply it: :func:`load_registration` reads it.
+
+Lengths no arm has are refused: a chain whose end frame is more than 20 m from one of its
+revolute axes (no arm reaches that far: the longest, the ISS's Canadarm2, reaches 17.6 m; a file
+in millimetres lands 1000 times too far).
+
+This module only reads; :mod:`poekin.io.exporters` writes. Every malformed input raises
 :class:`~poekin.errors.InputError` whose one-line message names the source, the place in it and
 what to do.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import os
 import warnings
 from collections.abc import Callable, Mapping, Sequence
@@ -47,13 +59,27 @@ import numpy as np
 from numpy.typing import NDArray
 
 from poekin import lie
-from poekin.chain import Chain, JointType
+from poekin.chain import Chain, JointType, check_pose
 from poekin.dh import Convention, DHTable
 from poekin.errors import InputError, UnitWarning, UnknownParamsError, did_you_mean, nearest
 from poekin.io.params import PARAM_SETS, named_params
-from poekin.io.ur_kinematics import UR_ORIGIN_KEYS, UR_SEGMENTS, nominal_model, ur_chain
+from poekin.io.ur_kinematics import (
+    UR_ORIGIN_KEYS,
+    UR_SEGMENTS,
+    URYamlOrder,
+    check_order,
+    nominal_model,
+    ur_chain,
+)
 
-__all__ = ["FILE_SUFFIXES", "load_params", "params_from_dict"]
+__all__ = [
+    "FILE_SUFFIXES",
+    "MAX_REACH_M",
+    "Registration",
+    "load_params",
+    "load_registration",
+    "params_from_dict",
+]
 
 #: File name endings :func:`load_params` reads (case-insensitive).
 FILE_SUFFIXES = (".json", ".yaml", ".yml")
@@ -66,6 +92,10 @@ _ROW_KEYS = ("a", "alpha", "d", "theta_offset", "joint_type", "joint")
 _DEGREES_LIKELY = 2 * np.pi + 1e-9
 _ROW_HINT = "each row needs a, alpha, d (theta_offset and joint_type are optional)"
 _SCREW_HINT = "each screw is [w1, w2, w3, v1, v2, v3] (angular part first)"
+#: The farthest (m) a parameter file's end frame may be from one of its revolute axes. No arm
+#: reaches farther: industrial arms reach at most about 4.7 m, the ISS's Canadarm2 17.6 m. A file
+#: in millimetres puts any arm of more than 20 mm beyond it.
+MAX_REACH_M = 20.0
 _NEITHER = (
     "neither a DH table (needs 'rows'), a PoE set (needs 'screws' or 'body_screws' with 'home') "
     "nor a UR calibration (needs 'kinematics')"
@@ -262,23 +292,61 @@ def _note_degrees(source: str, alpha: Sequence[float], theta: Sequence[float]) -
             return
 
 
-def _joints_form(obj: Mapping[str, Any], source: str) -> tuple[list[Any], list[Any], list[Any]]:
-    """Screws, names and types from ``Chain.describe()``'s ``joints`` list."""
+def _joints_form(
+    obj: Mapping[str, Any], source: str
+) -> tuple[list[Any], list[Any], list[Any], list[Any]]:
+    """Screws, names, types and limits (None where absent) from ``Chain.describe()``'s
+    ``joints`` list."""
     joints = _list(obj["joints"], f"{source}: 'joints'", "joints {name, type, screw}")
-    screws, names, types = [], [], []
+    screws, names, types, limits = [], [], [], []
     for i, joint in enumerate(joints):
         at = f"{source}: joints[{i}]"
-        joint = _mapping(joint, at, "'screw' (name and type are optional)")
+        joint = _mapping(joint, at, "'screw' (name, type and limits are optional)")
         if "screw" not in joint:
             raise InputError(f"{at} has no 'screw'; {_SCREW_HINT}")
         screws.append(joint["screw"])
         names.append(joint.get("name", f"joint{i + 1}"))
         types.append(joint.get("type", "revolute"))
-    return screws, names, types
+        limits.append(joint.get("limits"))
+    return screws, names, types, limits
+
+
+def _bound(x: object, where: str, infinite: float) -> float:
+    """One joint limit: a number, or null (or JSON's Infinity) for none."""
+    if x is None:
+        return infinite
+    if isinstance(x, float) and x == infinite:  # JSON's Infinity, -Infinity
+        return infinite
+    return _number(x, where)
+
+
+def _limits(raw: Sequence[Any], names: Sequence[str], where: str, source: str) -> FloatArray | None:
+    """``(n, 2)`` joint limits from ``[lower, upper]`` pairs (None: the joint has none), or None
+    when no joint has any. A lower limit above the upper is refused, naming the joint."""
+    if all(x is None for x in raw):
+        return None
+    out = np.tile([-np.inf, np.inf], (len(raw), 1))
+    hint = "write [lower, upper] (rad, or m for a prismatic joint), null for no limit"
+    for i, pair in enumerate(raw):
+        if pair is None:
+            continue
+        at = f"{source}: {where.format(i=i)}"
+        items = _items(pair)
+        if items is None or len(items) != 2:
+            raise InputError(f"{at} must be [lower, upper], got {_kind(pair)}; {hint}")
+        lower = _bound(items[0], f"{at}[0]", -np.inf)
+        upper = _bound(items[1], f"{at}[1]", np.inf)
+        if lower > upper:
+            raise InputError(
+                f"{source}: joint {names[i]!r} has limits [{lower:g}, {upper:g}]: the lower "
+                f"limit is above the upper ({where.format(i=i)}); {hint}"
+            )
+        out[i] = lower, upper
+    return out
 
 
 def _per_joint(
-    obj: Mapping[str, Any], field: str, default: list[str], key: str, source: str
+    obj: Mapping[str, Any], field: str, default: list[Any], key: str, source: str
 ) -> list[Any]:
     """``obj[field]`` (one entry per screw in ``obj[key]``), or ``default`` if it is absent."""
     if field not in obj:
@@ -308,15 +376,16 @@ def _poe_chain(obj: Mapping[str, Any], source: str) -> Chain:
         )
     if "joints" in obj and "screws" not in obj and "body_screws" not in obj:
         key = "joints"
-        raw, raw_names, raw_types = _joints_form(obj, source)
-        name_at, type_at = "joints[{i}].name", "joints[{i}].type"
+        raw, raw_names, raw_types, raw_limits = _joints_form(obj, source)
+        name_at, type_at, limits_at = "joints[{i}].name", "joints[{i}].type", "joints[{i}].limits"
     else:
         key = "screws" if "screws" in obj else "body_screws"
         raw = _list(obj[key], f"{source}: {key!r}", "screws [w1, w2, w3, v1, v2, v3]")
         n = len(raw)
         raw_names = _per_joint(obj, "joint_names", [f"joint{i + 1}" for i in range(n)], key, source)
         raw_types = _per_joint(obj, "joint_types", ["revolute"] * n, key, source)
-        name_at, type_at = "joint_names[{i}]", "joint_types[{i}]"
+        raw_limits = _per_joint(obj, "limits", [None] * n, key, source)
+        name_at, type_at, limits_at = "joint_names[{i}]", "joint_types[{i}]", "limits[{i}]"
     at = "joints[{i}].screw" if key == "joints" else key + "[{i}]"
     screws = np.array(
         [_vector(s, f"{source}: {at.format(i=i)}", 6, _SCREW_HINT) for i, s in enumerate(raw)]
@@ -324,6 +393,7 @@ def _poe_chain(obj: Mapping[str, Any], source: str) -> Chain:
     names = [_string(x, f"{source}: {name_at.format(i=i)}") for i, x in enumerate(raw_names)]
     types = [_string(x, f"{source}: {type_at.format(i=i)}") for i, x in enumerate(raw_types)]
     _unique_names(names, source)
+    limits = _limits(raw_limits, names, limits_at, source)
     home = _matrix4(obj["home"], f"{source}: 'home'")
     if key == "body_screws":
         # Check M first (a chain of no joints checks only M), then S_i = Ad(M) B_i.
@@ -332,13 +402,56 @@ def _poe_chain(obj: Mapping[str, Any], source: str) -> Chain:
     frame = _string(obj.get("frame", "ee"), f"{source}: 'frame'")
     robot = _string(obj.get("robot", ""), f"{source}: 'robot'")
     joint_types = cast("tuple[JointType, ...]", tuple(types))  # Chain checks them
+    if "registration" in obj:
+        _registration(obj["registration"], source)
     return _build(
         source,
-        lambda: Chain(tuple(names), joint_types, screws, home, frame=frame, robot=robot),
+        lambda: Chain(
+            tuple(names), joint_types, screws, home, limits=limits, frame=frame, robot=robot
+        ),
     )
 
 
-def _ur_calibration(obj: Mapping[str, Any], source: str) -> Chain:
+@dataclasses.dataclass(frozen=True)
+class Registration:
+    """Where a parameter file's base frame is in the frame that measured it: what ``poekin
+    calibrate`` writes beside the robot in its own base frame (the file's ``registration``).
+
+    Attributes:
+        T_meas_base: ``(4, 4)`` the base frame's pose in the measuring frame (a tracker's):
+            ``T_meas_frame(q) = T_meas_base @ chain.fk(q)``.
+        std_m, std_rad: ``(3,)`` standard errors of its position (m) and of small turns (rad)
+            about the measuring frame's axes; None where the calibration gave none.
+    """
+
+    T_meas_base: FloatArray
+    std_m: FloatArray | None
+    std_rad: FloatArray | None
+
+
+def _registration(x: object, source: str) -> Registration:
+    at = f"{source}: registration"
+    reg = _mapping(x, at, "T_meas_base (4x4), std_m and std_rad")
+    if "T_meas_base" not in reg:
+        raise InputError(
+            f"{at} has no 'T_meas_base', the base frame's 4x4 pose in the measuring frame"
+        )
+    T = _matrix4(reg["T_meas_base"], f"{at}.T_meas_base")
+    _build(source, lambda: check_pose(T, "registration.T_meas_base"))
+    std: list[FloatArray | None] = []
+    for key in ("std_m", "std_rad"):
+        value = reg.get(key)
+        if value is None:
+            std.append(None)
+            continue
+        v = np.array(_vector(value, f"{at}.{key}", 3, "one per axis of the measuring frame"))
+        if np.any(v < 0):
+            raise InputError(f"{at}.{key} holds a negative standard error")
+        std.append(v)
+    return Registration(T, std[0], std[1])
+
+
+def _ur_calibration(obj: Mapping[str, Any], source: str, order: URYamlOrder) -> Chain:
     """The chain a ``kinematics:`` document (UR's calibration, ur_calibration's file) gives."""
     segments = ", ".join(UR_SEGMENTS)
     what = f"the segments {segments} (each with {' '.join(UR_ORIGIN_KEYS)}) and a hash"
@@ -369,17 +482,64 @@ def _ur_calibration(obj: Mapping[str, Any], source: str) -> Chain:
                 )
         origins.append([_number(segment[key], f"{at}.{key}") for key in UR_ORIGIN_KEYS])
     calibration = _string(kin["hash"], f"{source}: kinematics.hash") if "hash" in kin else ""
+    _ur_millimetres(origins, source)
     model = nominal_model(origins) or "UR arm"
     robot = f"{model}, UR calibration {calibration}" if calibration else model
-    return ur_chain(origins, robot=robot)
+    return ur_chain(origins, robot=robot, order=order)
 
 
-def params_from_dict(obj: object, source: str) -> Chain | DHTable:
+# A UR segment's lengths: the longest of any model is the UR20's forearm, 0.862 m.
+_UR_LONGEST_M = 2.0
+
+
+def _ur_millimetres(origins: Sequence[Sequence[float]], source: str) -> None:
+    """Refuse a UR file whose lengths no UR arm has (the file in millimetres, most likely)."""
+    lengths = np.abs(np.asarray(origins)[:, :3])
+    if lengths.max() <= _UR_LONGEST_M:
+        return
+    i, k = np.unravel_index(int(np.argmax(lengths)), lengths.shape)
+    value = float(np.asarray(origins)[i][k])
+    model = nominal_model(np.hstack([np.asarray(origins)[:, :3] / 1e3, np.asarray(origins)[:, 3:]]))
+    match = f" (divided by 1000 they are a {model}'s)" if model else ""
+    raise InputError(
+        f"{source}: kinematics.{UR_SEGMENTS[i]}.{UR_ORIGIN_KEYS[k]} is {value:g}, longer than "
+        f"any UR arm's segment (the longest, a UR20's forearm, is 0.862 m): the file's lengths "
+        f"look like millimetres{match}; write x, y, z in metres"
+    )
+
+
+def _check_reach(chain: Chain, source: str) -> None:
+    """Refuse a chain whose end frame is farther from one of its revolute axes than any arm
+    reaches (:data:`MAX_REACH_M`)."""
+    revolute = [i for i, t in enumerate(chain.joint_types) if t == "revolute"]
+    if not revolute:
+        return
+    S = chain.screws[revolute]
+    w = S[:, :3] / np.linalg.norm(S[:, :3], axis=1)[:, None]
+    points = np.cross(w, S[:, 3:])
+    reach = np.linalg.norm(np.cross(chain.home[:3, 3] - points, w), axis=1)
+    k = int(np.argmax(reach))
+    if reach[k] <= MAX_REACH_M:
+        return
+    name = chain.joint_names[revolute[k]]
+    raise InputError(
+        f"{source}: the end frame is {reach[k]:.4g} m from joint {name!r}'s axis, farther than "
+        f"any arm reaches ({MAX_REACH_M:g} m; the longest, the ISS's Canadarm2, reaches 17.6 m): "
+        f"the file's lengths look like millimetres; write them in metres"
+    )
+
+
+def params_from_dict(
+    obj: object, source: str, *, ur_yaml_order: URYamlOrder = "description"
+) -> Chain | DHTable:
     """A DH table or a PoE chain from parsed JSON/YAML (dicts, lists, numbers). No I/O.
 
     Args:
         obj: the parsed document; see the module docstring for the accepted shapes.
         source: where ``obj`` came from (a file name), put at the start of every error message.
+        ur_yaml_order: how a UR calibration's angles compose
+            (:data:`~poekin.io.ur_kinematics.UR_YAML_ORDERS`): ``"description"`` as ur_description
+            reads them (the default), ``"controller"`` as ur_calibration wrote them.
 
     Returns:
         A :class:`~poekin.dh.DHTable` (the document has ``rows``) or a :class:`Chain` (it has
@@ -388,8 +548,17 @@ def params_from_dict(obj: object, source: str) -> Chain | DHTable:
         :mod:`poekin.io.ur_kinematics`). ``describe()`` of either reads back to the same kinematics.
 
     Raises:
-        InputError: the document is malformed; the message names the source and the place.
+        InputError: the document is malformed, a joint's lower limit is above its upper, or its
+            lengths are beyond any arm's (millimetres?); the message names the source and the
+            place.
     """
+    check_order(ur_yaml_order)
+    result = _params(obj, source, ur_yaml_order)
+    _check_reach(result.to_chain() if isinstance(result, DHTable) else result, source)
+    return result
+
+
+def _params(obj: object, source: str, ur_yaml_order: URYamlOrder) -> Chain | DHTable:
     if not isinstance(obj, Mapping):
         raise InputError(f"{source}: the top level is {_kind(obj)}, expected an object: {_NEITHER}")
     is_dh = "rows" in obj
@@ -404,7 +573,7 @@ def params_from_dict(obj: object, source: str) -> Chain | DHTable:
                 f"{source}: has both 'kinematics' (a UR calibration) and "
                 f"{'rows' if is_dh else 'PoE screws'}; keep one of the two"
             )
-        return _ur_calibration(obj, source)
+        return _ur_calibration(obj, source, ur_yaml_order)
     if is_dh:
         return _dh_table(obj, source)
     if is_poe:
@@ -480,7 +649,9 @@ def _read_text(path: Path, source: str) -> str:
     return text
 
 
-def load_params(spec: str | os.PathLike[str]) -> Chain | DHTable:
+def load_params(
+    spec: str | os.PathLike[str], *, ur_yaml_order: URYamlOrder = "description"
+) -> Chain | DHTable:
     """A named parameter set, or a DH table / PoE set read from a ``.json``/``.yaml`` file.
 
     Args:
@@ -488,6 +659,9 @@ def load_params(spec: str | os.PathLike[str]) -> Chain | DHTable:
             a ``.json``, ``.yaml`` or ``.yml`` file in a shape :func:`params_from_dict` accepts,
             UR's calibration file (``kinematics:``, from ``ur_calibration``) included. YAML needs
             PyYAML (the extra ``poekin[yaml]``).
+        ur_yaml_order: how a UR calibration file's angles compose: ``"description"`` (the
+            default) as ur_description reads them, ``"controller"`` as ur_calibration wrote
+            them (see :mod:`poekin.io.ur_kinematics`).
 
     Returns:
         A :class:`Chain` or a :class:`~poekin.dh.DHTable`.
@@ -497,9 +671,37 @@ def load_params(spec: str | os.PathLike[str]) -> Chain | DHTable:
         InputError: no such file, a folder, a suffix other than .json/.yaml/.yml, an empty or
             unreadable file, a syntax error, or a malformed document.
     """
+    check_order(ur_yaml_order)
     text = os.fspath(spec)
     if text in PARAM_SETS:
         return named_params(text)
+    return params_from_dict(_document(text), text, ur_yaml_order=ur_yaml_order)
+
+
+def load_registration(spec: str | os.PathLike[str]) -> Registration:
+    """The ``registration`` of a parameter file that ``poekin calibrate`` wrote: where the
+    robot's base frame is in the measuring frame (the tracker's).
+
+    >>> chain = poekin.load_params("my_robot.json")             # the robot in its base frame
+    >>> reg = poekin.load_registration("my_robot.json")
+    >>> T_meas_frame = reg.T_meas_base @ chain.fk(q)            # as the tracker sees it
+
+    Raises:
+        InputError: the file cannot be read, or has no ``registration`` (only calibrations
+            carry one), or a malformed one.
+    """
+    text = os.fspath(spec)
+    obj = None if text in PARAM_SETS else _document(text)
+    if not isinstance(obj, Mapping) or "registration" not in obj:
+        raise InputError(
+            f"{text} has no 'registration' (the base frame in the measuring frame): only the "
+            "parameter files that poekin calibrate writes carry one"
+        )
+    return _registration(obj["registration"], text)
+
+
+def _document(text: str) -> object:
+    """The parsed document of the parameter file ``text`` (not a named set)."""
     path = Path(text)
     suffixes = ".json or .yaml (.yml)"
     if path.is_dir():
@@ -528,4 +730,4 @@ def load_params(spec: str | os.PathLike[str]) -> Chain | DHTable:
     obj = _parse_json(content, text) if suffix == ".json" else _parse_yaml(content, text)
     if obj is None:
         raise InputError(f"{text} is empty; write a DH table ('rows') or a PoE set ('screws')")
-    return params_from_dict(obj, text)
+    return obj
