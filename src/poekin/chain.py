@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import dataclasses
 import functools
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from typing import TYPE_CHECKING, Any, Literal
 
 import numpy as np
@@ -29,6 +29,7 @@ from poekin._poe import (
     _Model,
     _Screw,
     _ScrewTerms,
+    _shown,
     _traced_screws,
     as_joint_values,
     check_shape,
@@ -48,7 +49,9 @@ if TYPE_CHECKING:
     from poekin.ik.numerical import IKResult
 
 __all__ = [
+    "IDENTITY",
     "JACOBIAN_CONVENTIONS",
+    "QUAT_TOL",
     "Chain",
     "ChainParams",
     "JacobianConvention",
@@ -58,13 +61,19 @@ __all__ = [
     "check_pose",
     "jacobian_from_world",
     "poe",
+    "pos_quat_poses",
     "readonly_array",
     "real_array",
     "relative_jacobian",
+    "rigid_transform",
 ]
 
 JointType = Literal["revolute", "prismatic"]
 FloatArray = NDArray[np.float64]
+
+#: The ``(4, 4)`` identity, read-only: the base and tool of a chain that has none.
+IDENTITY = np.eye(4)
+IDENTITY.flags.writeable = False
 
 # A user-given screw axis must be unit length to this tolerance. Screws derived from MuJoCo are
 # unit to ~1e-16 (the compiler normalises axes); hand-typed tables are usually good to ~1e-6.
@@ -88,6 +97,73 @@ def check_pose(T: FloatArray, name: str) -> None:
         raise InputError(f"{name}: the rotation block is not orthonormal with det +1")
     if not np.allclose(T[3], [0.0, 0.0, 0.0, 1.0]):
         raise InputError(f"{name}: the last row must be [0, 0, 0, 1]")
+
+
+#: A quaternion given with a position (``x y z qw qx qy qz``) must have a norm within this of 1;
+#: it is then scaled to unit length, which does not change the rotation it stands for. Any
+#: other, zero included, is refused, never normalised: it is most likely a typo.
+QUAT_TOL = 1e-6
+_QUAT_TOL_TEXT = f"{QUAT_TOL:.0e}".replace("e-0", "e-")  # 1e-6
+
+
+def pos_quat_poses(rows: FloatArray, where: Callable[[int], str]) -> FloatArray:
+    """``(N, 7)`` finite rows ``x y z qw qx qy qz`` (m, quaternion w first) as ``(N, 4, 4)``
+    poses. ``where(k)`` names row ``k`` in a message.
+
+    Raises:
+        InputError: a quaternion whose norm is not within :data:`QUAT_TOL` of 1 (zero
+            included); the message offers the unit quaternion it may stand for.
+    """
+    T = np.tile(np.eye(4), (len(rows), 1, 1))
+    T[:, :3, 3] = rows[:, :3]
+    quat = rows[:, 3:]
+    norm = np.linalg.norm(quat, axis=-1)
+    bad = np.flatnonzero(np.abs(norm - 1.0) > QUAT_TOL)
+    if bad.size:
+        k = int(bad[0])
+        shown = " ".join(f"{x:g}" for x in quat[k])
+        if norm[k] == 0:
+            raise InputError(
+                f"{where(k)}: the quaternion is zero ({shown}); give a unit quaternion "
+                "QW QX QY QZ, such as 1 0 0 0 for the world's orientation"
+            )
+        unit = " ".join(f"{x:.9g}" for x in quat[k] / norm[k])
+        raise InputError(
+            f"{where(k)}: the quaternion QW QX QY QZ = {shown} has norm {norm[k]:.9g}, not 1 "
+            f"(|q| must be within {_QUAT_TOL_TEXT} of 1; poekin does not normalise it): give a "
+            f"unit quaternion, such as {unit}"
+        )
+    T[:, :3, :3] = lie.quat_to_rotation(quat / norm[:, None])
+    return T
+
+
+def rigid_transform(T: Any, name: str) -> FloatArray:
+    """``T`` as a new ``(4, 4)`` float64 rigid transform.
+
+    ``T`` is a ``(4, 4)`` matrix (its rotation orthonormal with det +1 to 1e-6, used as given;
+    its last row ``[0, 0, 0, 1]``) or seven numbers ``x y z qw qx qy qz`` (m, and a quaternion
+    w first whose norm is within :data:`QUAT_TOL` of 1, scaled to unit length).
+
+    Raises:
+        InputError: anything else (another shape, not numbers, NaN or inf, a reflection, a
+            zero quaternion...); the message starts with ``name``.
+    """
+    try:
+        shape: tuple[int, ...] | None = np.shape(T)
+    except ValueError:  # ragged nested lists
+        shape = None
+    if shape not in ((4, 4), (7,)):
+        got = f"an array of shape {shape}" if shape else _shown(T)
+        raise InputError(
+            f"{name} must be a (4, 4) rigid transform or 7 numbers x y z qw qx qy qz (m, unit "
+            f"quaternion w first), got {got}"
+        )
+    arr = as_joint_values(T, shape[-1], what=f"{name} entries")
+    if shape == (7,):
+        pose: FloatArray = pos_quat_poses(arr[None], lambda _: name)[0]
+        return pose
+    check_pose(arr, name)
+    return np.array(arr, dtype=np.float64)
 
 
 JacobianConvention = Literal["space", "body", "world"]
@@ -225,6 +301,10 @@ class Chain:
         qpos_indices: for a chain imported from MuJoCo, the index of each joint in ``qpos``, so
             ``chain.fk(data.qpos[list(chain.qpos_indices)])`` is the frame's pose; else None.
         body_screws: ``(n, 6)`` body-frame screws ``B_i = Ad(M^-1) S_i`` (derived).
+
+    :meth:`with_base` and :meth:`with_tool` place the robot in a cell: the new chain's screws
+    and home pose include the base and the tool, and its :attr:`base` and :attr:`tool` say which
+    (:attr:`base` and :attr:`tool` record them; they do not act again on ``fk``).
     """
 
     joint_names: tuple[str, ...]
@@ -246,6 +326,9 @@ class Chain:
     _jacobian_world_kernel: Any = dataclasses.field(init=False, repr=False)
     # what inverse kinematics derives from the chain, at first use (poekin.ik.numerical)
     _ik_cache: dict[Any, Any] = dataclasses.field(init=False, repr=False, compare=False)
+    # T_world_base and T_flange_tool that with_base and with_tool folded into screws and home
+    _base: FloatArray | None = dataclasses.field(default=None, repr=False, kw_only=True)
+    _tool: FloatArray | None = dataclasses.field(default=None, repr=False, kw_only=True)
 
     def __post_init__(self) -> None:
         n = len(self.joint_names)
@@ -264,6 +347,11 @@ class Chain:
         set_(self, "limits", lim)
         if self.qpos_indices is not None:
             set_(self, "qpos_indices", tuple(int(i) for i in self.qpos_indices))
+        for placed in ("_base", "_tool"):
+            if getattr(self, placed) is not None:
+                value = rigid_transform(getattr(self, placed), placed[1:])
+                value.flags.writeable = False
+                set_(self, placed, value)
         self._check_screws()
         check_pose(self.home, "home pose M")
         body = lie.adjoint(lie.inverse(self.home)) @ self.screws.T
@@ -308,6 +396,91 @@ class Chain:
     def n_joints(self) -> int:
         """Number of joints ``n``."""
         return len(self.joint_names)
+
+    @property
+    def base(self) -> FloatArray:
+        """``(4, 4)`` ``T_world_base``: where :meth:`with_base` placed the robot (the product of
+        every placement, the identity if none). The screws and home pose include it."""
+        return IDENTITY if self._base is None else self._base
+
+    @property
+    def tool(self) -> FloatArray:
+        """``(4, 4)`` ``T_flange_tool``: the tool :meth:`with_tool` mounted (the product of
+        every tool, the identity if none), in the frame it was mounted on. The home pose
+        includes it."""
+        return IDENTITY if self._tool is None else self._tool
+
+    def with_tool(self, T_flange_tool: ArrayLike, *, frame: str = "tool") -> Chain:
+        """This chain with a tool mounted on its end frame (the flange):
+        ``T_world_tool(q) = T_world_flange(q) T_flange_tool``.
+
+        Everything then describes the tool frame: :meth:`fk` and :meth:`fk_body`, the
+        Jacobians, :meth:`ik` and :meth:`ik_all` (targets are the tool's poses), and
+        :func:`~poekin.dh.dh_from_chain` (the robot's own rows, the tool in the table's
+        ``tool``). The home pose becomes ``M T_flange_tool``; the space screws do not change.
+
+        Tools compose: ``chain.with_tool(A).with_tool(B)`` is ``chain.with_tool(A @ B)``
+        (``B`` is given in ``A``'s frame), and :attr:`tool` is their product.
+
+        Args:
+            T_flange_tool: the tool frame in the end frame: a ``(4, 4)`` rigid transform, or
+                seven numbers ``x y z qw qx qy qz`` (m, unit quaternion w first).
+            frame: the new end frame's name.
+
+        Raises:
+            InputError: ``T_flange_tool`` is not a rigid transform (:func:`rigid_transform`),
+                or ``frame`` is not a non-empty string.
+
+        Example:
+            >>> chain = poekin.load("universal_robots_ur5e")
+            >>> gripper = chain.with_tool([0, 0, 0.15, 1, 0, 0, 0])  # 15 cm along the flange's z
+            >>> gripper.frame, float(gripper.tool[2, 3])
+            ('tool', 0.15)
+        """
+        T = rigid_transform(T_flange_tool, "tool")
+        if not isinstance(frame, str) or not frame:
+            raise InputError(f"frame must be a non-empty name, got {frame!r:.40}")
+        return dataclasses.replace(self, home=self.home @ T, frame=frame, _tool=self.tool @ T)
+
+    def with_base(self, T_world_base: ArrayLike) -> Chain:
+        """This chain with its base placed in a new world frame:
+        ``T_world_frame(q) = T_world_base T_base_frame(q)``, where ``T_base_frame`` is this
+        chain's :meth:`fk`.
+
+        Everything then works in the new world: :meth:`fk`, the Jacobians (space: twists in
+        the new world; world: its coordinates), :meth:`ik` and :meth:`ik_all` (targets in the
+        new world) and :func:`~poekin.dh.dh_from_chain` (the robot's own rows, the base in the
+        table's ``base``). The screws become ``Ad(T_world_base) S_i``, the home pose
+        ``T_world_base M``; the body screws do not change.
+
+        Bases compose: ``chain.with_base(A).with_base(B)`` is ``chain.with_base(B @ A)`` (the
+        world of ``A`` placed at ``B``), and :attr:`base` is their product.
+
+        Args:
+            T_world_base: the robot's base frame in the new world: a ``(4, 4)`` rigid
+                transform, or seven numbers ``x y z qw qx qy qz`` (m, unit quaternion w first).
+
+        Raises:
+            InputError: ``T_world_base`` is not a rigid transform (:func:`rigid_transform`).
+        """
+        B = rigid_transform(T_world_base, "base")
+        screws = self.screws @ np.asarray(lie.adjoint(B), dtype=np.float64).T
+        return dataclasses.replace(self, screws=screws, home=B @ self.home, _base=B @ self.base)
+
+    def _unplaced(self) -> Chain:
+        """The robot alone: this chain without its :attr:`base` and :attr:`tool` (its
+        screws in the robot's base frame, its home pose the flange's)."""
+        if self._base is None and self._tool is None:
+            return self
+        to_base = np.asarray(lie.inverse(self.base), dtype=np.float64)
+        from_tool = np.asarray(lie.inverse(self.tool), dtype=np.float64)
+        return dataclasses.replace(
+            self,
+            screws=self.screws @ np.asarray(lie.adjoint(to_base), dtype=np.float64).T,
+            home=to_base @ self.home @ from_tool,
+            _base=None,
+            _tool=None,
+        )
 
     @_fast.fast_method("_space_kernel")
     def fk(
@@ -429,7 +602,8 @@ class Chain:
 
     def with_parameters(self, params: ChainParams) -> Chain:
         """A new chain with the screws and home pose of ``params`` (arrays of any library,
-        copied to NumPy float64), the rest (names, types, limits, frame) this chain's. It is
+        copied to NumPy float64), the rest (names, types, limits, frame, the record of
+        :attr:`base` and :attr:`tool`) this chain's. It is
         validated as any chain is: unit screw axes, a rigid home pose.
 
         Raises:
@@ -666,7 +840,9 @@ class Chain:
             for n, t in zip(self.joint_names, self.joint_types, strict=True)
         )
         source = f"{self.robot!r}, " if self.robot else ""
-        return f"Chain({source}frame={self.frame!r}, joints=[{joints}])"
+        placed = " and ".join(k for k in ("base", "tool") if getattr(self, f"_{k}") is not None)
+        placed = f", with {placed}" if placed else ""
+        return f"Chain({source}frame={self.frame!r}, joints=[{joints}]{placed})"
 
     def describe(self) -> dict[str, Any]:
         """A JSON-ready summary: joints, screws, body screws, home, limits."""

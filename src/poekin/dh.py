@@ -367,7 +367,10 @@ def dh_from_chain(
     * coincident axes: ``a = d = 0`` and the previous x axis is kept;
     * a prismatic axis is placed through the previous joint's axis point;
     * the last frame sits at the end frame's origin where the row allows it; ``tool`` holds the
-      rest.
+      rest;
+    * a chain placed with :meth:`~poekin.chain.Chain.with_base` or given a tool with
+      :meth:`~poekin.chain.Chain.with_tool` keeps the robot's own rows: its base is put
+      before the table's ``base`` and its tool after the table's ``tool``.
 
     Args:
         chain: any serial chain (revolute and prismatic joints).
@@ -382,6 +385,21 @@ def dh_from_chain(
         raise InputError(
             f"unknown DH convention {convention!r}; use 'standard' (Denavit-Hartenberg) or "
             "'modified' (Craig)"
+        )
+    robot = chain._unplaced()
+    if robot is not chain:
+        table = dh_from_chain(robot, convention, parallel_tol=parallel_tol)
+        where = [
+            f"its {k} in the table's {k}"
+            for k in ("base", "tool")
+            if getattr(chain, f"_{k}") is not None
+        ]
+        note = f"the chain is placed: {' and '.join(where)}; the rows are the robot's own"
+        return dataclasses.replace(
+            table,
+            base=chain.base @ table.base,
+            tool=table.tool @ chain.tool,
+            notes=(*table.notes, note),
         )
     n = chain.n_joints
     dirs, points = joint_lines(chain)

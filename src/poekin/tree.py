@@ -33,6 +33,7 @@ from numpy.typing import ArrayLike, NDArray
 from poekin import _levels, _pose, arrays, lie
 from poekin._poe import Column, as_joint_values, check_shape
 from poekin.chain import (
+    IDENTITY,
     Chain,
     JacobianConvention,
     JointType,
@@ -42,6 +43,7 @@ from poekin.chain import (
     jacobian_from_world,
     readonly_array,
     relative_jacobian,
+    rigid_transform,
     zeros_like_batch,
 )
 from poekin.errors import InputError, ModelError, UnknownFrameError, did_you_mean
@@ -203,6 +205,8 @@ class Tree:
     _layout_text: str = dataclasses.field(init=False, repr=False, compare=False)
     _plan: _levels.Plan = dataclasses.field(init=False, repr=False, compare=False)
     _static: _TreeLayout = dataclasses.field(init=False, repr=False, compare=False)
+    # T_world_base that with_base folded into the top-level bodies and the world's sites
+    _base: FloatArray | None = dataclasses.field(default=None, repr=False, kw_only=True)
 
     def __post_init__(self) -> None:
         set_ = object.__setattr__
@@ -230,6 +234,10 @@ class Tree:
         set_(self, "site_bodies", _index_array(self.site_bodies, ns, "site_bodies"))
         set_(self, "site_pos", readonly_array(self.site_pos, (ns, 3), "site_pos"))
         set_(self, "site_rot", readonly_array(self.site_rot, (ns, 3, 3), "site_rot"))
+        if self._base is not None:
+            base = rigid_transform(self._base, "base")
+            base.flags.writeable = False
+            set_(self, "_base", base)
         self._check_topology()
         _rotations(self.body_rot, "body_rot", self.body_names)
         _rotations(self.site_rot, "site_rot", self.site_names)
@@ -642,6 +650,53 @@ class Tree:
             },
         )
 
+    @property
+    def base(self) -> FloatArray:
+        """``(4, 4)`` ``T_world_base``: where :meth:`with_base` placed the model (the product
+        of every placement, the identity if none). The top-level bodies' poses include it."""
+        return IDENTITY if self._base is None else self._base
+
+    def with_base(self, T_world_base: ArrayLike) -> Tree:
+        """This tree placed in a new world frame: every body and site pose becomes
+        ``T_world_base T_base_frame(qpos)``, where ``T_base_frame`` is this tree's
+        (:meth:`fk`, the Jacobians, :meth:`ik` and :meth:`chain` follow; a chain from the
+        world records the base, as :meth:`Chain.with_base <poekin.chain.Chain.with_base>`
+        does). The top-level bodies and the sites fixed to the world move; nothing else.
+        Bases compose as :meth:`Chain.with_base <poekin.chain.Chain.with_base>`'s do.
+
+        Args:
+            T_world_base: the model's world frame in the new world: a ``(4, 4)`` rigid
+                transform, or seven numbers ``x y z qw qx qy qz`` (m, unit quaternion w first).
+
+        Raises:
+            InputError: ``T_world_base`` is not a rigid transform; or the model has a free
+                joint, whose ``qpos`` places its body in the world already (set it there).
+        """
+        B = rigid_transform(T_world_base, "base")
+        free = [k for k, t in enumerate(self.joint_types) if t == "free"]
+        if free:
+            k = free[0]
+            raise InputError(
+                f"the model has a free joint, {self.joint_names[k]!r}: its qpos (x y z qw qx "
+                f"qy qz) places {self.body_names[self.joint_bodies[k]]!r} in the world already, "
+                "so a base would not move it; pose the robot there instead"
+            )
+        R, p = B[:3, :3], B[:3, 3]
+        top = self.body_parents == -1
+        body_pos, body_rot = self.body_pos.copy(), self.body_rot.copy()
+        body_pos[top], body_rot[top] = self.body_pos[top] @ R.T + p, R @ self.body_rot[top]
+        world = self.site_bodies == -1
+        site_pos, site_rot = self.site_pos.copy(), self.site_rot.copy()
+        site_pos[world], site_rot[world] = self.site_pos[world] @ R.T + p, R @ self.site_rot[world]
+        return dataclasses.replace(
+            self,
+            body_pos=body_pos,
+            body_rot=body_rot,
+            site_pos=site_pos,
+            site_rot=site_rot,
+            _base=B @ self.base,
+        )
+
     # --- Jacobians ------------------------------------------------------------------------
 
     def jacobian(
@@ -880,6 +935,7 @@ class Tree:
             frame=frame,
             robot=self.robot,
             qpos_indices=tuple(int(self.qpos_adr[k]) for k in joints) if independent else None,
+            _base=self._base if start < 0 else None,
         )
 
     def ik(

@@ -363,6 +363,31 @@ BAD_INPUTS = [
         ["export", "ur5e-dh", "--frame", "flange", "--to", "urdf", "--output", "{tmp}/u.urdf"],
         "--frame names a model's frame",
     ),
+    # the robot cell (issue 26): --base and --tool that are no rigid transforms, or misplaced
+    (["fk", "--q", *"000000", "--tool", *"000", *"0000"], "--tool: the quaternion is zero"),
+    (
+        ["fk", "--q", *"000000", "--base", *"000", "0.7071", "0.7071", "0", "0"],
+        "--base: the quaternion QW QX QY QZ = 0.7071 0.7071 0 0 has norm 0.99999041, not 1",
+    ),
+    (["jacobian", "--q", *"000000", "--tool", "nan", *"00", *"1000"], "--tool entries contain NaN"),
+    (["ik", "--pose", *POSE, "--all", "--base", *"000", "2", *"000"], "--base: the quaternion"),
+    (["screws", "--tool", *"000", *"0000"], "--tool: the quaternion is zero"),
+    (["dh", "--params", "ur5e-dh", "--base", "inf", *"00", *"1000"], "--base entries contain"),
+    (["draw", "--out", "{tmp}/a.png", "--tool", *"000", *"0000"], "--tool: the quaternion"),
+    (["view", "--no-browser", "--base", *"000", *"0000"], "--base: the quaternion is zero"),
+    (
+        ["fk", "--tree", "--q", *"000000", "--tool", *"000", *"1000"],
+        "--tool mounts a tool on the end frame of a chain; --tree, --all-frames and "
+        "--relative-to pose the model's own bodies and sites",
+    ),
+    (
+        ["ik", "aloha", "--tree", "--frame", "left/gripper", "--pose", *POSE, "--tool", *"0001000"],
+        "--tool mounts a tool on the end frame of a chain",
+    ),
+    (
+        ["fk", "unitree_go2", "--tree", "--q", "0", "--base", *"000", *"1000"],
+        "its qpos (x y z qw qx qy qz) places 'base' in the world already, so a base would not",
+    ),
     # poekin ik (issue 21): targets that are no poses, files, options that do not go together
     (["ik", "universal_robots_ur5e", "--pose", *POSE[:3], *"0000"], "the quaternion is zero"),
     (

@@ -592,3 +592,34 @@ def test_dir_lists_the_lazily_imported_names() -> None:
         "[] True",
         "True",
     ]
+
+
+def test_a_base_and_a_tool() -> None:
+    """The robot on the base, the end frame the tool's (labelled so), the IK handle the tool;
+    the tool stays on its frame when the dropdown shows another and comes back with it."""
+    base = [0.4, -0.2, 0.8, 0.965925826289068, 0.0, 0.0, 0.258819045102521]
+    tool = [0.01, 0.02, 0.15, 1.0, 0.0, 0.0, 0.0]
+    loaded = load_quiet("universal_robots_ur5e")
+    chain = poekin.load(loaded, base=base, tool=tool)
+    with view(loaded, base=base, tool=tool, port=0, open_browser=False) as v:
+        q = np.array([0.3, -1.2, 1.4, -0.5, 1.1, 0.2])
+        v.q = q
+        tree = v.subject.tree
+        assert tree is not None
+        T_all = tree.fk(q)
+        placed = poekin.load_tree(loaded, base=base).fk(q)
+        assert_close("bodies on the base", T_all, placed, 0.0)
+        for b in range(len(tree.body_names)):
+            assert_close(f"body {b}", v.node_poses("body")[f"/robot/b{b}"], T_all[b], TOL)
+        assert_close("the end frame is the tool", v.node_poses("end")["/end"], chain.fk(q), TOL)
+        assert v.node("/end/label").text == "T(q): tool on attachment_site"
+        assert "T_world_tool" in v.texts()["pose"]
+        v.set_option("IK target", True)
+        T = chain.fk(np.array([0.45, -1.05, 1.3, -0.7, 1.2, 0.5]))
+        assert v.set_target(T).success
+        assert_close("the tool at the target", v.node_poses("end")["/end"], T, 1e-10)
+        v.set_option("IK target", False)
+        v.set_option("end frame", "wrist_2_link")
+        assert v.subject.tool is None and v.node("/end/label").text == "T(q): wrist_2_link"
+        v.set_option("end frame", "attachment_site")
+        assert_close("the tool again", v.node_poses("end")["/end"], chain.fk(v.q), TOL)

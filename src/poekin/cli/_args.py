@@ -36,6 +36,7 @@ __all__ = [
     "add_floating_base",
     "add_joint_values",
     "add_params",
+    "add_placement",
     "add_precision",
     "add_q",
     "add_sampling",
@@ -46,6 +47,8 @@ __all__ = [
     "note",
     "params",
     "params_spec",
+    "place",
+    "placement",
     "read_joint_values",
 ]
 
@@ -101,6 +104,59 @@ def add_floating_base(p: argparse.ArgumentParser) -> None:
         action="store_true",
         help="URDF: give the root link a free joint (qpos then starts with x y z qw qx qy qz)",
     )
+
+
+_POSE7 = ("X", "Y", "Z", "QW", "QX", "QY", "QZ")
+
+
+def add_placement(p: argparse.ArgumentParser) -> None:
+    """``--base`` (where the robot stands in the world) and ``--tool`` (what the end frame
+    carries), each ``x y z qw qx qy qz``: :func:`placement` reads them."""
+    p.add_argument(
+        "--base",
+        type=float,
+        nargs=7,
+        metavar=_POSE7,
+        help="the robot's base in your world, T_world_base: x y z (m) and a unit quaternion "
+        "w x y z; poses, Jacobians and targets are then in your world",
+    )
+    p.add_argument(
+        "--tool",
+        type=float,
+        nargs=7,
+        metavar=_POSE7,
+        help="a tool on the end frame, T_flange_tool: x y z (m) and a unit quaternion "
+        "w x y z in the end frame; poses, Jacobians and targets are then the tool's",
+    )
+
+
+def placement(args: argparse.Namespace) -> tuple[NDArray[np.float64] | None, ...]:
+    """``--base`` and ``--tool`` as ``(4, 4)`` rigid transforms, None where not given (or
+    where the command has no such options).
+
+    Raises:
+        InputError: a quaternion whose norm is not 1, NaN or inf (one line naming the option).
+    """
+    from poekin.chain import rigid_transform
+
+    given = [getattr(args, name, None) for name in ("base", "tool")]
+    return tuple(
+        None if value is None else rigid_transform(np.asarray(value), f"--{name}")
+        for name, value in zip(("base", "tool"), given, strict=True)
+    )
+
+
+def place(chain: Chain | DHTable, args: argparse.Namespace) -> Chain | DHTable:
+    """``chain`` on ``--base`` with ``--tool`` (a DH table becomes its chain first), or as it
+    is without them."""
+    base, tool = placement(args)
+    if base is None and tool is None:
+        return chain
+    from poekin.chain import Chain
+
+    placed = chain if isinstance(chain, Chain) else chain.to_chain()
+    placed = placed if base is None else placed.with_base(base)
+    return placed if tool is None else placed.with_tool(tool)
 
 
 def add_params(p: argparse.ArgumentParser, what: str) -> None:

@@ -10,10 +10,13 @@ import numpy as np
 
 from poekin.cli._args import (
     add_params,
+    add_placement,
     add_precision,
     add_source,
     model_source,
     params,
+    place,
+    placement,
 )
 from poekin.cli._text import fixed, matrix_lines, table
 from poekin.errors import InputError
@@ -45,7 +48,8 @@ def params_or_chain(args: argparse.Namespace) -> Chain | DHTable:
 def _cmd_screws(args: argparse.Namespace, out: TextIO) -> int:
     from poekin.io.loading import load
 
-    chain = load(model_source(args, None), args.frame)
+    base, tool = placement(args)  # checked before the model is read
+    chain = load(model_source(args, None), args.frame, base=base, tool=tool)
     if args.json:
         print(json.dumps(finite_json(chain.describe())), file=out)
         return 0
@@ -74,18 +78,22 @@ def _cmd_screws(args: argparse.Namespace, out: TextIO) -> int:
 
 def _dh_table(args: argparse.Namespace) -> tuple[DHTable, Chain | None]:
     """The table to print, and the chain it was extracted from (None: a table given as is)."""
+    from poekin.chain import Chain
     from poekin.dh import DHTable, dh_from_chain, nearest_dh
 
     if args.parallel_tol <= 0:
         raise InputError(f"--parallel-tol must be positive, got {args.parallel_tol}")
+    placed = any(x is not None for x in placement(args))  # checked before the model is read
     obj = params_or_chain(args)
     if isinstance(obj, DHTable):
-        if obj.convention == args.convention and not args.nearest:
+        if obj.convention == args.convention and not args.nearest and not placed:
             return obj, None
         obj = obj.to_chain()
+    chain = place(obj, args)
+    assert isinstance(chain, Chain)  # a table became its chain above
     if args.nearest:
-        return nearest_dh(obj, args.convention), obj
-    return dh_from_chain(obj, args.convention, parallel_tol=args.parallel_tol), obj
+        return nearest_dh(chain, args.convention), chain
+    return dh_from_chain(chain, args.convention, parallel_tol=args.parallel_tol), chain
 
 
 # The residual of an approximate table: its FK against the chain's on this many random q.
@@ -185,12 +193,14 @@ def register(sub: Any, fmt: type[argparse.HelpFormatter]) -> None:
         "screws",
         help="print the screw axes and home pose M",
         description="Print the screw axes S_i = [w; v] (space frame, or body frame with --body) "
-        "and the home pose M, all derived from the model.",
+        "and the home pose M, all derived from the model: with --base, in your world; with "
+        "--tool, M is the tool's.",
         epilog="examples:\n  poekin screws universal_robots_ur5e\n"
         "  poekin screws franka_emika_panda --frame hand --body --json",
         formatter_class=fmt,
     )
     add_source(s)
+    add_placement(s)
     s.add_argument("--body", action="store_true", help="body-frame screws B_i = Ad(M^-1) S_i")
     s.add_argument("--json", action="store_true", help="print one JSON object")
     add_precision(s)
@@ -201,7 +211,9 @@ def register(sub: Any, fmt: type[argparse.HelpFormatter]) -> None:
         help="print a Denavit-Hartenberg table of a model or parameter set",
         description="Extract a DH table (standard or modified convention) from a model's chain, "
         "or convert a parameter set. Its FK equals the chain's to float precision; the free "
-        "choices (parallel axes, prismatic joints) are printed as notes.",
+        "choices (parallel axes, prismatic joints) are printed as notes. With --base and "
+        "--tool the rows stay the robot's own: the base goes before the table's base, the tool "
+        "after its tool.",
         epilog="examples:\n  poekin dh universal_robots_ur5e\n"
         "  poekin dh franka_fr3 --convention modified --json > fr3_dh.json\n"
         "  poekin dh --params lynch-park-ur5\n"
@@ -210,6 +222,7 @@ def register(sub: Any, fmt: type[argparse.HelpFormatter]) -> None:
     )
     add_source(d)
     add_params(d, "convert these parameters instead of a model")
+    add_placement(d)
     d.add_argument(
         "--convention",
         choices=["standard", "modified"],

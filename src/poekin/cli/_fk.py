@@ -29,8 +29,11 @@ from poekin.cli._args import (
     add_floating_base,
     add_joint_values,
     add_params,
+    add_placement,
     add_source,
     model_source,
+    place,
+    placement,
     read_joint_values,
 )
 from poekin.cli._describe import params_or_chain
@@ -40,7 +43,7 @@ from poekin.errors import InputError
 if TYPE_CHECKING:
     from poekin.tree import Tree
 
-__all__ = ["end_chain", "register"]
+__all__ = ["end_chain", "register", "tree_base"]
 
 FloatArray = NDArray[np.float64]
 _ROWS = ("wx", "wy", "wz", "vx", "vy", "vz")
@@ -73,7 +76,19 @@ def _load_tree(args: argparse.Namespace) -> Tree:
         raise InputError(
             "--tree, --all-frames and --relative-to take the whole model from SOURCE, not --params"
         )
-    return load_tree(model_source(args, None), floating_base=args.floating_base)
+    base = tree_base(args)  # said before the model is read
+    return load_tree(model_source(args, None), floating_base=args.floating_base, base=base)
+
+
+def tree_base(args: argparse.Namespace) -> FloatArray | None:
+    """``--base`` for a whole model; ``--tool`` has no place there (it rides on one chain)."""
+    base, tool = placement(args)
+    if tool is not None:
+        raise InputError(
+            "--tool mounts a tool on the end frame of a chain; --tree, --all-frames and "
+            "--relative-to pose the model's own bodies and sites: drop --tool, or drop those"
+        )
+    return base
 
 
 def end_chain(args: argparse.Namespace) -> Any:
@@ -81,8 +96,9 @@ def end_chain(args: argparse.Namespace) -> Any:
     the way to pose it (``--tree``); ``poekin ik`` solves it too."""
     if getattr(args, "floating_base", False):
         raise InputError("--floating-base gives a whole model's qpos: pass --tree too")
+    placement(args)  # a bad --base or --tool is said before the model is read
     if args.params:
-        return params_or_chain(args)
+        return place(params_or_chain(args), args)
     from poekin.io.loading import default_frame, load_tree
 
     tree = load_tree(model_source(args, None))
@@ -95,7 +111,7 @@ def end_chain(args: argparse.Namespace) -> Any:
                 f"of hinges and slides cannot hold: pass --tree, with which q is the whole qpos "
                 f"({tree.nq} values: {tree.qpos_layout()})"
             )
-    return tree.chain(frame)
+    return place(tree.chain(frame), args)
 
 
 def _fk_target(args: argparse.Namespace) -> _Target:
@@ -347,11 +363,15 @@ def register(sub: Any, fmt: type[argparse.HelpFormatter]) -> None:
         "T_A_frame; both imply --tree. --form pos_quat writes each pose as x y z (m) and its "
         "quaternion w x y z, (N, 7); --form xyz_rpy as x y z (m) and roll pitch yaw (rad) in "
         "URDF's fixed-axis convention, R = Rz(yaw) Ry(pitch) Rx(roll) (roll about the fixed x "
-        "axis first, then pitch about y, then yaw about z; pitch in [-pi/2, pi/2]), (N, 6).",
+        "axis first, then pitch about y, then yaw about z; pitch in [-pi/2, pi/2]), (N, 6). "
+        "--tool gives the pose of a tool on the end frame, T_world_tool = T_world_frame "
+        "T_frame_tool; --base places the robot's base in your world, T_world_base.",
         epilog="examples:\n  poekin fk universal_robots_ur5e --q 0 -1.57 1.57 0 0 0\n"
         "  poekin fk universal_robots_ur5e --q 0 -90 90 0 0 0 --deg\n"
         "  poekin fk universal_robots_ur5e --q 0 -90 90 0 0 0 --deg --form xyz_rpy\n"
         "  poekin fk universal_robots_ur5e --input q.npy --output T.csv\n"
+        "  poekin fk universal_robots_ur5e --q 0 -90 90 0 0 0 --deg --base 0 0 0.8 1 0 0 0 "
+        "--tool 0 0 0.15 1 0 0 0\n"
         "  poekin fk --params lynch-park-ur5 --q 0 -1.5708 0 0 1.5708 0\n"
         "  poekin fk unitree_go2 --all-frames --input qpos.npy --output T_all.npy\n"
         "  poekin fk unitree_go2 --frame FL_calf --relative-to base --form pos_quat --q 0 0 0.3 "
@@ -361,6 +381,7 @@ def register(sub: Any, fmt: type[argparse.HelpFormatter]) -> None:
     add_source(f)
     add_params(f, "use these parameters instead of a model")
     add_joint_values(f, "FILE", "poses ((N, 4, 4), or as --form says)")
+    add_placement(f)
     _frame_options(f, "pose")
     f.add_argument(
         "--form",
@@ -382,7 +403,8 @@ def register(sub: Any, fmt: type[argparse.HelpFormatter]) -> None:
         "and the columns are MuJoCo's qvel (6 x nv): frames behind ball and free joints too. "
         "--all-frames gives the Jacobian of every body and site, (N, frames, 6, nv); "
         "--relative-to A the Jacobian of T_A_frame, A in the world's role (space: the twist in "
-        "A; world: rows in A's coordinates); both imply --tree.",
+        "A; world: rows in A's coordinates); both imply --tree. --tool gives the Jacobian of "
+        "a tool on the end frame; --base puts the twists in your world.",
         epilog="examples:\n  poekin jacobian universal_robots_ur5e --q 0 -1.57 1.57 0 0 0\n"
         "  poekin jacobian universal_robots_ur5e --q 0 0 0 0 0 0 --convention body --json\n"
         "  poekin jacobian universal_robots_ur5e --input q.npy --output J.npy\n"
@@ -395,6 +417,7 @@ def register(sub: Any, fmt: type[argparse.HelpFormatter]) -> None:
     add_source(j)
     add_params(j, "use these parameters instead of a model")
     add_joint_values(j, "FILE", "(N, 6, n) Jacobians")
+    add_placement(j)
     j.add_argument(
         "--convention",
         choices=["space", "body", "world"],

@@ -5,9 +5,10 @@ first) for one, or ``--input FILE`` for a batch, whose answers go to ``--output 
 file holds ``(N, 4, 4)`` matrices, ``(N, 16)`` rows of them (as ``poekin fk --output T.csv``
 writes them) or ``(N, 7)`` rows ``x y z qw qx qy qz`` (``poekin fk --form pos_quat``); with
 ``--position-only`` also ``(N, 3)`` points, and ``--pose X Y Z``. A quaternion's norm must be
-within :data:`QUAT_TOL` of 1 (it is then scaled to unit length, which does not change the
-rotation it stands for); any other, zero included, is refused, never normalised: it is most
-likely a typo. A matrix must be a rigid transform (:func:`poekin.ik.numerical.check_targets`).
+within :data:`~poekin.chain.QUAT_TOL` of 1 (it is then scaled to unit length, which does not
+change the rotation it stands for); any other, zero included, is refused, never normalised: it
+is most likely a typo. A matrix must be a rigid transform
+(:func:`poekin.ik.numerical.check_targets`).
 
 Solvers: :meth:`poekin.Chain.ik` (numerical, from seeded random starts or ``--q0``);
 :meth:`poekin.Chain.ik_all` with ``--all`` (every closed-form solution, for the six-joint arms
@@ -33,28 +34,29 @@ from typing import Any, TextIO
 import numpy as np
 from numpy.typing import NDArray
 
+from poekin.chain import QUAT_TOL, pos_quat_poses
 from poekin.cli._args import (
     EXIT_FAIL,
     JointSpace,
     add_params,
+    add_placement,
     add_precision,
     add_source,
     model_source,
     note,
     read_joint_values,
 )
-from poekin.cli._fk import end_chain
+from poekin.cli._fk import end_chain, tree_base
 from poekin.cli._text import fixed, sig, table
 from poekin.errors import AnalyticIKError, InputError, JointLimitsWarning
 
 __all__ = ["QUAT_TOL", "register"]
 
+_QUAT_TOL_TEXT = f"{QUAT_TOL:.0e}".replace("e-0", "e-")  # 1e-6
+
 FloatArray = NDArray[np.float64]
 Fields = dict[str, NDArray[Any]]
 
-#: A target quaternion's norm must be within this of 1.
-QUAT_TOL = 1e-6
-_QUAT_TOL_TEXT = f"{QUAT_TOL:.0e}".replace("e-0", "e-")  # 1e-6
 #: Targets per call when a progress bar shows (the answers do not depend on the split).
 CHUNK = 10_000
 _SHOWN_ROWS = 10  # unsolved rows named in the summary
@@ -142,30 +144,10 @@ def _pose_rows(rows: FloatArray, where: Callable[[int], str]) -> FloatArray:
     bad = np.flatnonzero(~np.all(np.isfinite(rows), axis=-1))
     if bad.size:
         raise InputError(f"{where(int(bad[0]))} holds NaN or inf; every value must be finite")
+    if rows.shape[-1] == 7:
+        return pos_quat_poses(rows, where)
     T = np.tile(np.eye(4), (len(rows), 1, 1))
     T[:, :3, 3] = rows[:, :3]
-    if rows.shape[-1] == 3:
-        return T
-    from poekin import lie
-
-    quat = rows[:, 3:]
-    norm = np.linalg.norm(quat, axis=-1)
-    bad = np.flatnonzero(np.abs(norm - 1.0) > QUAT_TOL)
-    if bad.size:
-        k = int(bad[0])
-        shown = " ".join(f"{x:g}" for x in quat[k])
-        if norm[k] == 0:
-            raise InputError(
-                f"{where(k)}: the quaternion is zero ({shown}); give a unit quaternion "
-                "QW QX QY QZ, such as 1 0 0 0 for the world's orientation"
-            )
-        unit = " ".join(f"{x:.9g}" for x in quat[k] / norm[k])
-        raise InputError(
-            f"{where(k)}: the quaternion QW QX QY QZ = {shown} has norm {norm[k]:.9g}, not 1 "
-            f"(|q| must be within {_QUAT_TOL_TEXT} of 1; poekin does not normalise it): give a "
-            f"unit quaternion, such as {unit}"
-        )
-    T[:, :3, :3] = lie.quat_to_rotation(quat / norm[:, None])
     return T
 
 
@@ -293,7 +275,8 @@ def _tree_problem(args: argparse.Namespace) -> _Problem:
 
     if args.params:
         raise InputError("--tree takes the whole model from SOURCE, not --params")
-    tree = load_tree(model_source(args, None))
+    base = tree_base(args)  # said before the model is read
+    tree = load_tree(model_source(args, None), base=base)
     frame = args.frame if args.frame is not None else default_frame(tree)
     how = plan(tree, frame)
     space = JointSpace.of_tree(tree)
@@ -578,7 +561,9 @@ def register(sub: Any, fmt: type[argparse.HelpFormatter]) -> None:
         "(every Universal Robots arm), or a spherical wrist (axes 4, 5, 6 meeting: PUMA, most "
         "ABB, KUKA, Fanuc arms, the Lite6); any other arm gets an error that names the "
         "condition that fails. --tree solves for any body or site of a model, the joints off "
-        "its path held at qpos0 or --qpos. Exit 0 when every target is solved, 1 when some "
+        "its path held at qpos0 or --qpos. With --tool the targets are the tool's poses; "
+        "with --base they are in your world, where the robot's base stands. Exit 0 when every "
+        "target is solved, 1 when some "
         "are not (the answers are written all the same: a .npz output keeps success, pos_err, "
         "ori_err, iterations and attempts per target), 2 on bad input.",
         epilog="examples:\n"
@@ -588,6 +573,8 @@ def register(sub: Any, fmt: type[argparse.HelpFormatter]) -> None:
         "  poekin ik universal_robots_ur5e --pose -0.492 -0.134 0.438 0 0.707106781 0.707106781 "
         "0 --q0 0 -90 90 -90 -90 0 --deg\n"
         "  poekin ik universal_robots_ur5e --input T.npy --output q_ik.npz\n"
+        "  poekin ik universal_robots_ur5e --pose 0.6 0.1 0.9 0 1 0 0 --all --base 0 0 0.8 1 0 0 "
+        "0 --tool 0 0 0.15 1 0 0 0\n"
         "  poekin ik franka_emika_panda --frame hand --pose 0.5 0 0.4 0 1 0 0\n"
         "  poekin ik trs_so_arm100 --frame Fixed_Jaw --pose 0.2 0 0.15 --position-only --deg\n"
         "  poekin ik aloha --tree --frame left/gripper --pose -0.1 0.05 0.25 1 0 0 0 --json",
@@ -595,6 +582,7 @@ def register(sub: Any, fmt: type[argparse.HelpFormatter]) -> None:
     )
     add_source(p)
     add_params(p, "solve these parameters instead of a model")
+    add_placement(p)
     p.add_argument(
         "--pose",
         type=float,

@@ -11,10 +11,12 @@ from poekin.cli._args import (
     DEFAULT_ROBOT,
     JointSpace,
     add_params,
+    add_placement,
     add_q,
     add_source,
     model_source,
     params_spec,
+    placement,
     read_joint_values,
 )
 from poekin.errors import InputError
@@ -31,6 +33,7 @@ def _cmd_view(args: argparse.Namespace, out: TextIO) -> int:
     require_view("'poekin view'")
     from poekin.viewer.app import is_loopback, view
 
+    base, tool = placement(args)  # checked before the model is read
     source = model_source(args)
     if not is_loopback(args.host):
         print(
@@ -44,6 +47,8 @@ def _cmd_view(args: argparse.Namespace, out: TextIO) -> int:
         port=args.port,
         host=args.host,
         open_browser=not args.no_browser,
+        base=base,
+        tool=tool,
     )
     try:
         print(
@@ -72,6 +77,7 @@ def _cmd_draw(args: argparse.Namespace, out: TextIO) -> int:
         )
     figure_format(args.out, "--out")
     check_new_file(args.out, "drawing", force=args.force)
+    base, tool = placement(args)
     source = model_source(args)
     qpos = None
     if args.q is not None:
@@ -85,6 +91,8 @@ def _cmd_draw(args: argparse.Namespace, out: TextIO) -> int:
         aligned=args.aligned,
         all_frames=args.all_frames,
         form=args.form,
+        base=base,
+        tool=tool,
     )
     print(f"drawing written to {args.out}", file=out)
     return 0
@@ -100,11 +108,13 @@ def register(sub: Any, fmt: type[argparse.HelpFormatter]) -> None:
         "with --params, your parameters as a ghost arm with diagnose's findings. Needs the "
         "extra poekin[view]. Ctrl-C stops it.",
         epilog="examples:\n  poekin view\n  poekin view unitree_go2 --no-browser --port 8081\n"
-        "  poekin view --params lynch-park-ur5",
+        "  poekin view --params lynch-park-ur5\n"
+        "  poekin view --base 0 0 0.8 1 0 0 0 --tool 0 0 0.15 1 0 0 0",
         formatter_class=fmt,
     )
     add_source(w, DEFAULT_ROBOT)
     add_params(w, "draw these parameters as a ghost beside the model")
+    add_placement(w)
     w.add_argument(
         "--port", type=int, default=None, help="port (default: 8080, or the next free one)"
     )
@@ -125,11 +135,13 @@ def register(sub: Any, fmt: type[argparse.HelpFormatter]) -> None:
         epilog="examples:\n"
         "  poekin draw universal_robots_ur5e --q 0 -1.57 1.57 0 0 0 --out arm.png\n"
         "  poekin draw --params lynch-park-ur5 --q 0 -90 90 0 0 0 --deg --out ghost.pdf\n"
-        "  poekin draw unitree_go2 --all-frames --out go2.svg",
+        "  poekin draw unitree_go2 --all-frames --out go2.svg\n"
+        "  poekin draw --q 0 -90 90 0 0 0 --deg --tool 0 0 0.15 1 0 0 0 --out tool.png",
         formatter_class=fmt,
     )
     add_source(a, DEFAULT_ROBOT)
     add_params(a, "draw these parameters beside the model")
+    add_placement(a)
     add_q(a, "qpos (rad, m; see --deg); default qpos0")
     a.add_argument("--out", metavar="PATH", required=True, help="image file: .png .pdf .svg .jpg")
     a.add_argument("--force", action="store_true", help="replace an existing --out file")

@@ -147,6 +147,7 @@ class Viewer:
     ) -> None:
         self.subject = subject
         self.comparison = comparison
+        self._tool_on = (subject.frame, subject.tool)  # the tool rides on this frame only
         self._geometry_fn = geometry
         self._lock = threading.RLock()
         self._nodes: dict[str, _Node] = {}
@@ -591,7 +592,7 @@ class Viewer:
                 visible=False,
             ),
         )
-        self._triad("/end", "end", scale=1.25, label=f"T(q): {subject.frame}")
+        self._triad("/end", "end", scale=1.25, label=f"T(q): {subject.end_name}")
         for k in range(subject.n_joints + 1):
             self._triad(f"/poe/t{k}", "partial", scale=0.7, visible=False, index=k)
         self._add(
@@ -761,7 +762,7 @@ class Viewer:
     def _build_gui(self) -> None:
         gui, subject = self.server.gui, self.subject
         gui.configure_theme(control_width="large", show_share_button=False)
-        title = f"**{subject.name}**, end frame `{subject.frame}`, {subject.n_joints} joints"
+        title = f"**{subject.name}**, end frame `{subject.end_name}`, {subject.n_joints} joints"
         if subject.base_body is not None and subject.tree is not None:
             title += f" from the floating body `{subject.tree.body_names[subject.base_body]}`"
         self._title = gui.add_markdown(title)
@@ -1134,8 +1135,13 @@ class Viewer:
             subject = self.subject
             assert subject.tree is not None
             try:
+                tool_frame, tool = self._tool_on
                 new = make_subject(
-                    subject.tree, frame, keyframes=subject.keyframes, name=subject.name
+                    subject.tree,
+                    frame,
+                    keyframes=subject.keyframes,
+                    name=subject.name,
+                    tool=tool if frame == tool_frame else None,
                 )  # type: ignore[arg-type]
             except Exception as exc:
                 self._q_note.content = f"**cannot show {frame!r}:** {exc}"
@@ -1161,7 +1167,7 @@ class Viewer:
                 finally:
                     self._syncing = False
                 self._show_ik_availability()
-                title = f"**{new.name}**, end frame `{new.frame}`, {new.n_joints} joints"
+                title = f"**{new.name}**, end frame `{new.end_name}`, {new.n_joints} joints"
                 if new.base_body is not None and new.tree is not None:
                     title += f" from the floating body `{new.tree.body_names[new.base_body]}`"
                 self._title.content = title
@@ -1238,7 +1244,7 @@ class Viewer:
             self._refresh_dh()
             J, columns = jacobian(subject, snap.qpos, self._convention)
             sigma, w = manipulability(J)
-            self._set_text("pose", self._pose_text, panel.pose_text(snap.T, subject.frame))
+            self._set_text("pose", self._pose_text, panel.pose_text(snap.T, subject.chain.frame))
             self._set_text(
                 "jacobian",
                 self._jacobian_text,
@@ -1557,6 +1563,8 @@ def view(
     port: int | None = None,
     host: str = "127.0.0.1",
     open_browser: bool | None = None,
+    base: ArrayLike | None = None,
+    tool: ArrayLike | None = None,
 ) -> Viewer:
     """Show a robot in the browser: sliders for its joints, its screw axes, ``T(q)``, its
     Jacobian, the PoE step by step, DH frames, and a parameter set beside it.
@@ -1573,6 +1581,12 @@ def view(
         host: the interface to serve on; the default is reachable from this machine only.
         open_browser: open the page in the web browser; None: yes, except in a Jupyter kernel,
             where the handle shows the page inline.
+        base: ``T_world_base``, where the robot stands in your world (a ``(4, 4)`` rigid
+            transform or ``x y z qw qx qy qz``): the whole model is drawn there
+            (:meth:`Tree.with_base`).
+        tool: ``T_frame_tool``, a tool on the end frame, given as ``base`` is: the end frame
+            drawn (and dragged in the IK mode) is the tool's, the tool a capsule from the frame
+            that carries it (:meth:`Chain.with_tool`).
 
     Returns:
         The :class:`Viewer`; ``viewer.q = ...`` poses the robot, ``viewer.close()`` stops it.
@@ -1580,7 +1594,7 @@ def view(
     Raises:
         PoekinError: an unknown robot, frame or parameter set, a port in use, and the like.
     """
-    shown = load_shown(model, frame)
+    shown = load_shown(model, frame, base=base, tool=tool)
     subject = shown.subject
     comparison = load_params_comparison(subject, params)
     viewer = Viewer(

@@ -164,7 +164,7 @@ def figure(
     draw_triad(ax, snap.T, 1.3 * triad, width=2.6)
     draw_triad(ax, snap.home, triad, dashed=True, width=1.8)
     frames = [
-        _frame_label(ax, snap.T, f"T(q): {subject.frame}"),
+        _frame_label(ax, snap.T, f"T(q): {subject.end_name}"),
         _frame_label(ax, snap.home, "M", color="0.3"),
         _frame_label(ax, np.eye(4), "world", color="0.3", fontsize=8),
     ]
@@ -210,7 +210,7 @@ def figure(
     ax.set_zlabel("z [m]")
     ax.tick_params(labelsize=7)
     q = ", ".join(f"{x:.4g}" for x in snap.qpos)
-    head = title or f"{subject.name} / {subject.frame}"
+    head = title or f"{subject.name} / {subject.end_name}"
     words = (
         "S_i(q): space form, world coordinates"
         if form == "space"
@@ -232,12 +232,14 @@ def draw(
     aligned: bool = False,
     all_frames: bool = False,
     form: Form = "space",
+    base: ArrayLike | None = None,
+    tool: ArrayLike | None = None,
 ) -> Figure:
     """Draw a robot at ``qpos`` (default: its ``qpos0``) with its screw axes; save it to
     ``path`` if given (the suffix decides: :data:`poekin.io.fileio.FIGURE_FORMATS`).
 
-    ``model`` and ``params`` are what :func:`poekin.view` takes. An existing file at ``path`` is
-    replaced.
+    ``model``, ``params``, ``base`` and ``tool`` are what :func:`poekin.view` takes. An
+    existing file at ``path`` is replaced.
 
     Raises:
         InputError: an unknown suffix or a path that cannot be written (both before any work:
@@ -254,7 +256,7 @@ def draw(
     if path is not None:
         figure_format(path, "drawing")
         check_writable(path, "the drawing")
-    shown = load_shown(model, frame)
+    shown = load_shown(model, frame, base=base, tool=tool)
     subject = shown.subject
     comparison = load_params_comparison(subject, params)
     tips = _geom_tips(shown.loaded.model, subject) if shown.loaded is not None else None

@@ -180,6 +180,8 @@ def _solve(
         return subject.chain.ik(
             target, x, position_only=position_only, max_attempts=attempts, seed=0
         )
+    if subject.tool is not None:  # the tree solves for the frame that carries the tool
+        target = target @ np.asarray(lie.inverse(subject.tool), dtype=np.float64)
     return subject.tree.ik(
         target,
         subject.frame,

@@ -41,24 +41,37 @@ def keyframes(model: Any) -> dict[str, NDArray[np.float64]]:
     return out
 
 
-def load_shown(model: Any, frame: str | None = None) -> Shown:
+def load_shown(
+    model: Any, frame: str | None = None, *, base: Any = None, tool: Any = None
+) -> Shown:
     """The subject for a Menagerie name, an MJCF or URDF path, a loaded model, a tree, a chain
-    or a DH table, with ``frame`` as its end frame (None: the default).
+    or a DH table, with ``frame`` as its end frame (None: the default), placed on ``base``
+    (``T_world_base``: :meth:`Tree.with_base`, :meth:`Chain.with_base`) with ``tool`` on its
+    end frame (``T_frame_tool``), each a ``(4, 4)`` rigid transform or ``x y z qw qx qy qz``.
 
     Raises:
-        PoekinError: an unknown robot or frame, an unreadable file.
+        PoekinError: an unknown robot or frame, an unreadable file, a base or tool that is no
+            rigid transform (said before the model is read), a base for a floating model.
     """
+    from poekin.chain import rigid_transform
     from poekin.io.import_mujoco import tree_from_model
     from poekin.io.loading import is_urdf, load_tree
     from poekin.io.sources import load_model
 
+    B = None if base is None else rigid_transform(base, "base")
+    T = None if tool is None else rigid_transform(tool, "tool")
     if isinstance(model, (Tree, Chain, DHTable)):
-        return Shown(make_subject(model, frame))
+        if B is not None:
+            placed = model.to_chain() if isinstance(model, DHTable) else model
+            model = placed.with_base(B)
+        return Shown(make_subject(model, frame, tool=T))
     if not isinstance(model, LoadedModel) and is_urdf(model):
-        return Shown(make_subject(load_tree(model), frame), urdf=os.fspath(model))
+        return Shown(make_subject(load_tree(model, base=B), frame, tool=T), urdf=os.fspath(model))
     loaded = model if isinstance(model, LoadedModel) else load_model(model)
     tree = tree_from_model(loaded.model, robot=loaded.robot)
-    subject = make_subject(tree, frame, keyframes=keyframes(loaded.model), name=loaded.robot)
+    tree = tree if B is None else tree.with_base(B)
+    keys = keyframes(loaded.model)
+    subject = make_subject(tree, frame, keyframes=keys, name=loaded.robot, tool=T)
     return Shown(subject, loaded=loaded)
 
 

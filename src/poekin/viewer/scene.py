@@ -36,7 +36,13 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from poekin import lie
-from poekin.chain import Chain, JacobianConvention, as_joint_values, check_jacobian_convention
+from poekin.chain import (
+    Chain,
+    JacobianConvention,
+    as_joint_values,
+    check_jacobian_convention,
+    rigid_transform,
+)
 from poekin.dh import Convention, DHTable, dh_from_chain, joint_lines
 from poekin.errors import InputError, ModelError
 from poekin.tree import Tree
@@ -105,6 +111,8 @@ class Subject:
         table: the DH table the parameters were given as (a bare DH parameter set), else None.
         keyframes: the model's named configurations (MJCF ``<keyframe>``), ``{name: qpos}``.
         name: a label: the robot or parameter set.
+        tool: ``T_frame_tool``, a tool the chain carries on ``frame`` (its end frame is then
+            the tool's: :meth:`~poekin.chain.Chain.with_tool`), or None.
     """
 
     chain: Chain
@@ -115,7 +123,13 @@ class Subject:
     table: DHTable | None = None
     keyframes: Mapping[str, FloatArray] = dataclasses.field(default_factory=dict)
     name: str = ""
+    tool: FloatArray | None = None
     _dh: dict[str, DHTable] = dataclasses.field(default_factory=dict, repr=False)
+
+    @property
+    def end_name(self) -> str:
+        """The end frame as labels name it: ``frame``, or the tool and the frame it is on."""
+        return self.frame if self.tool is None else f"{self.chain.frame} on {self.frame}"
 
     @property
     def nq(self) -> int:
@@ -259,6 +273,7 @@ def make_subject(
     *,
     keyframes: Mapping[str, ArrayLike] | None = None,
     name: str = "",
+    tool: ArrayLike | None = None,
 ) -> Subject:
     """What to show for a tree (with an end frame) or a bare parameter set.
 
@@ -268,15 +283,26 @@ def make_subject(
             or table's own end frame is used whatever this says, unless it differs (an error).
         keyframes: named configurations of the tree (``{name: qpos}``).
         name: a label; default the robot's name.
+        tool: ``T_frame_tool``, a tool on the end frame (a ``(4, 4)`` rigid transform or ``x y
+            z qw qx qy qz``): the end frame shown, solved for and compared is then the tool's.
 
     Raises:
         UnknownFrameError: no such frame in the tree.
-        InputError: a frame named for a bare parameter set that is not its own, or a keyframe
-            of the wrong length.
+        InputError: a frame named for a bare parameter set that is not its own, a keyframe
+            of the wrong length, a tool that is no rigid transform or on a frame behind a
+            ball or free joint.
     """
+    T_tool = None if tool is None else rigid_transform(tool, "tool")
     if isinstance(model, Tree):
         end = frame if frame is not None else default_frame(model)
         chain, base = floating_chain(model, end)
+        if T_tool is not None:
+            if base is not None:
+                raise InputError(
+                    f"a tool on {end!r}, which sits behind a ball or free joint: the viewer "
+                    "places a tool on a frame the world's joints move; choose another frame"
+                )
+            chain = chain.with_tool(T_tool)
         path = [k for k in model.path_joints(end) if model.joint_names[k] in chain.joint_names]
         keys = {
             k: as_joint_values(v, model.nq, what=f"qpos values of keyframe {k!r}").copy()
@@ -290,17 +316,22 @@ def make_subject(
             slots=np.array(model.full_qpos_adr[path], dtype=np.intp).reshape(-1),
             keyframes=keys,
             name=name or model.robot,
+            tool=T_tool,
         )
-    table = model if isinstance(model, DHTable) else None
+    table = model if isinstance(model, DHTable) and T_tool is None else None
     chain = model.to_chain() if isinstance(model, DHTable) else model
     if frame is not None and frame != chain.frame:
         raise InputError(f"a parameter set has one end frame, {chain.frame!r}; got frame {frame!r}")
+    end = chain.frame
+    if T_tool is not None:
+        chain = chain.with_tool(T_tool)
     return Subject(
         chain=chain,
-        frame=chain.frame,
+        frame=end,
         slots=np.arange(chain.n_joints, dtype=np.intp),
         table=table,
         name=name or chain.robot or "your parameters",
+        tool=T_tool,
     )
 
 
@@ -545,14 +576,21 @@ class Comparison:
 
 
 def compare(subject: Subject, params: Chain | DHTable, name: str = "") -> Comparison:
-    """Diagnose ``params`` against the subject's chain (same joints, base to tip).
+    """Diagnose ``params`` against the subject's chain (same joints, base to tip), placed on
+    the subject's base with its tool (if it has them).
 
     Raises:
         InputError: a different number of joints.
     """
     yours = params.to_chain() if isinstance(params, DHTable) else params
-    d = diagnose(params, subject.chain)
-    return Comparison(yours, d, name or yours.robot or "your parameters")
+    mine = subject.chain
+    placed = yours  # your arm on the model's base, with its tool: the same cell
+    if not np.array_equal(mine.base, np.eye(4)):
+        placed = placed.with_base(mine.base)
+    if subject.tool is not None:
+        placed = placed.with_tool(subject.tool)
+    d = diagnose(params if placed is yours else placed, mine)
+    return Comparison(placed, d, name or yours.robot or "your parameters")
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
@@ -627,13 +665,15 @@ def skeleton(
     child body's attachment (the child's first anchor, in this body's frame) and each of its
     sites; a body with neither goes to the farthest of its ``tips`` (e.g. its geoms' centres),
     if any. A bare chain's link ``i`` goes from joint ``i``'s axis point to joint ``i+1``'s (the
-    last one to ``M``'s origin), as :func:`~poekin.dh.joint_lines` places them at ``q = 0``.
+    first from its base's origin, the last one to ``M``'s origin), as
+    :func:`~poekin.dh.joint_lines` places them at ``q = 0``. A tool is a capsule from the frame
+    that carries it to the tool frame's origin.
     """
     out: list[Segment | None] = []
     if subject.tree is None:
         chain = subject.chain
         _, points = joint_lines(chain)
-        stops = [np.zeros(3), *points, chain.home[:3, 3]]
+        stops = [chain.base[:3, 3], *points, chain.home[:3, 3]]
         out = [_segment(i, stops[i], stops[i + 1]) for i in range(len(stops) - 1)]
         return [s for s in out if s is not None]
     tree = subject.tree
@@ -656,6 +696,14 @@ def skeleton(
             )
             targets = [far]
         out += [_segment(b, a, t) for t in targets]
+    if subject.tool is not None:  # the tool: from the frame that carries it to its origin
+        f, nb = tree.frame_index(subject.frame), len(tree.body_names)
+        b, R, p = (
+            (f, np.eye(3), np.zeros(3))
+            if f < nb
+            else (int(tree.site_bodies[f - nb]), tree.site_rot[f - nb], tree.site_pos[f - nb])
+        )
+        out.append(_segment(b, p, p + R @ subject.tool[:3, 3]))
     return [s for s in out if s is not None]
 
 
