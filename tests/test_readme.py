@@ -67,7 +67,7 @@ def _fixtures(folder: pathlib.Path) -> None:
     """The files the examples read: joint values for the UR5e and the go2, UR5e poses to solve
     (T.npy, from joint values within the limits), a parameter file, and a calibration's
     measurements (tracker.csv)."""
-    from poekin.calibration.files import write_measurements
+    from poekin.calibration.files import params_document, write_json, write_measurements
 
     write_measurements(folder / "tracker.csv", poekin.load("universal_robots_ur5e"), *_tracker())
     rng = np.random.default_rng(0)
@@ -81,6 +81,10 @@ def _fixtures(folder: pathlib.Path) -> None:
     )
     calibration = db.REPO / "tests" / "data" / "ur" / "ur5e_calibration.yaml"  # synthetic
     (folder / "my_robot_calibration.yaml").write_text(calibration.read_text())
+    # what `poekin calibrate ... --output my_robot.json` writes, under the names the examples use
+    fitted = params_document(poekin.calibrate(ur5e, *_tracker()))
+    for name in ("my_robot.json", "my_calibrated_ur5e.json"):
+        write_json(folder / name, fitted)
 
 
 def test_every_command_has_examples() -> None:
@@ -123,6 +127,9 @@ def _serve_then_stop(example: str, folder: pathlib.Path) -> tuple[int, str]:
 )
 def test_help_example_runs(command: str, example: str, tmp_path: pathlib.Path) -> None:
     _fixtures(tmp_path)
+    words = shlex.split(example)
+    if "--output" in words:  # the example writes this file itself (calibrate's my_robot.json)
+        (tmp_path / words[words.index("--output") + 1]).unlink(missing_ok=True)
     if command == "view":
         pytest.importorskip("viser")
         code, out = _serve_then_stop(example, tmp_path)

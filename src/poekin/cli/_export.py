@@ -60,7 +60,7 @@ def register(sub: Any, fmt: type[argparse.HelpFormatter]) -> None:
         "joint, the joint limits, the end frame a fixed link). Both read back to the same FK. "
         "Exit 0 on success, 2 on bad input (nothing written).",
         epilog="examples:\n"
-        "  poekin export my_robot.json --to ur-yaml --output my_robot_calibration.yaml\n"
+        "  poekin export my_robot.json --to ur-yaml --output my_robot_kinematics.yaml\n"
         "  poekin export my_robot.json --to urdf --output my_robot.urdf\n"
         "  poekin export universal_robots_ur5e --to urdf --output ur5e.urdf",
         formatter_class=fmt,

@@ -1,7 +1,7 @@
 """Write a chain as other tools read it: UR's ``kinematics:`` YAML, or a URDF. ``poekin export``.
 
 >>> chain = poekin.load_params("my_robot.json")   # e.g. what poekin calibrate wrote
->>> poekin.export(chain, "ur-yaml", "my_robot_calibration.yaml")   # for ur_description
+>>> poekin.export(chain, "ur-yaml", "my_robot_kinematics.yaml")   # for ur_description
 >>> poekin.export(chain, "urdf", "my_robot.urdf")                  # for ROS, Pinocchio, MuJoCo
 
 * ``"ur-yaml"``: the six segment origins ``x, y, z, roll, pitch, yaw`` of UR's calibration
