@@ -588,7 +588,7 @@ def test_a_tool_on_a_floating_frame_or_a_base_under_a_free_joint_is_refused() ->
 def test_the_command_line_places_the_arm_and_its_tool(capsys: pytest.CaptureFixture[str]) -> None:
     """``--base`` and ``--tool`` on fk, jacobian, ik (numerical and --all), screws and dh: the
     numbers MuJoCo's cell gives, or the placed chain's where MuJoCo has none (its screws)."""
-    from test_cli import run
+    from helpers import run
 
     robot = "universal_robots_ur5e"
     cell = mujoco_cell(robot, "attachment_site", [BASE], [TOOL])
@@ -627,7 +627,7 @@ def test_the_command_line_places_the_arm_and_its_tool(capsys: pytest.CaptureFixt
 
 
 def test_the_command_lines_tree_modes_take_a_base(capsys: pytest.CaptureFixture[str]) -> None:
-    from test_cli import run
+    from helpers import run
 
     robot = "universal_robots_ur5e"
     cell = mujoco_cell(robot, "attachment_site", [BASE])
@@ -654,7 +654,7 @@ def test_the_command_lines_tree_modes_take_a_base(capsys: pytest.CaptureFixture[
 
 
 def test_draw_shows_the_tool(tmp_path: pathlib.Path, capsys: pytest.CaptureFixture[str]) -> None:
-    from test_cli import run
+    from helpers import run
 
     out = tmp_path / "cell.png"
     code, _, err = run(capsys, "draw", "--q", *"000000", "--base", *_texts(BASE),

@@ -445,7 +445,7 @@ def test_kernel_widths_threads_and_batches_give_the_same_bits(folder: pathlib.Pa
                     poekin.set_threads(t)
                     results.append(arm.chain.ik_all(T).q)
     finally:
-        _fast._kernel.set_width(0)
+        _fast._kernel.set_width(_fast.DEFAULT_WIDTH)
         poekin.set_threads(threads)
     singles = np.stack([arm.chain.ik_all(t).q for t in T[:20]])
     for r in results[1:]:

@@ -5,6 +5,7 @@ the NumPy reference, bit for bit; determinism; branches; unreachable targets; ba
 from __future__ import annotations
 
 import functools
+import math
 import pickle
 import warnings
 from typing import Any
@@ -409,7 +410,7 @@ def test_thread_counts_and_vector_widths_give_the_same_bits() -> None:
             results.append(fields(chain.ik(T[:50], max_attempts=5)))
     finally:
         poekin.set_threads(before)
-        _fast._kernel.set_width(0)
+        _fast._kernel.set_width(_fast.DEFAULT_WIDTH)
     assert_same_bits(results[1], results[0], "two threads")
     for r in results[2:]:
         assert_same_bits(r, tuple(f[:50] for f in results[0]), "another vector width")
@@ -561,3 +562,70 @@ def test_an_empty_batch_gives_empty_answers_without_a_warning(ur5e: Chain) -> No
         for field in (got.success, got.pos_err, got.ori_err, got.iterations, got.attempts):
             assert field.shape == (0,)
     assert every.q.shape == (0, 8, 6) and every.valid.shape == (0, 8)
+
+
+# --- targets of every magnitude (issue 26) ----------------------------------------------------
+
+# positions from 1e-300 m to 1e308 m, signed zeros and subnormals among them (the distance of a
+# target whose entries are near the largest float, 1.8e308, overflows: its error is inf)
+MAGNITUDES = [0.0, -0.0, 5e-324, -2.2e-308, 1e-300, 1e-150, 1e-20, 0.3, 1.0, 1e3, 1e6]
+MAGNITUDES += [1.0000001e6, 1e20, 1e154, 1e155, 1e200, 1e300, -1e300, 1e308]
+
+
+def _magnitude_targets(values: list[float], seed: int) -> np.ndarray:
+    """One target per value: a random rotation, the position (value, -value / 2, value) with
+    one axis zero or signed zero at random."""
+    rng = np.random.default_rng(seed)
+    quat = rng.normal(size=(len(values), 4))
+    T = np.tile(np.eye(4), (len(values), 1, 1))
+    T[:, :3, :3] = poekin.quat_to_rotation(quat / np.linalg.norm(quat, axis=-1, keepdims=True))
+    for k, v in enumerate(values):
+        p = np.array([v, -v / 2, v])
+        p[rng.integers(3)] = rng.choice([0.0, -0.0])
+        T[k, :3, 3] = p
+    return T
+
+
+def _true_distance(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """``|a - b|`` row by row by :func:`math.hypot`, which does not overflow."""
+    return np.array([math.hypot(*(x - y)) for x, y in zip(a, b, strict=True)])
+
+
+@pytest.mark.parametrize("name", ["ur5e", "panda"])
+def test_targets_of_every_magnitude_give_limited_deterministic_answers(name: str) -> None:
+    """A target of any finite position, 1e-300 m to 1e308 m (a cost that squares to inf), gives
+    a finite q inside the limits, the same for identical targets, the same bits in the kernel
+    and the reference, success only within the tolerances by MuJoCo, and its true error."""
+    loaded, chain = arm(name)
+    T = _magnitude_targets(MAGNITUDES, seed=3)
+    k = MAGNITUDES.index(1e300)
+    T = np.concatenate([T, np.repeat(T[k : k + 1], 4, axis=0)])  # four more of the 1e300 one
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", RuntimeWarning)  # no overflow on the way
+        found = chain.ik(T, max_attempts=3)
+        ref = reference(chain, T, max_attempts=3)
+    if poekin.compiled_kernel():
+        assert_same_bits(fields(found), ref, "kernel and reference")
+    assert np.isfinite(found.q).all() and within_limits(found.q, chain.limits).all()
+    assert np.array_equal(found.q[-4:], np.repeat(found.q[k : k + 1], 4, axis=0))
+    far = np.abs(T[:, :3, 3]).max(axis=-1) > 2.0
+    assert not found.success[far].any()
+    T_mj = mj_poses(loaded, chain, found.q)
+    assert np.isfinite(found.pos_err).all()
+    np.testing.assert_allclose(
+        found.pos_err, _true_distance(T[:, :3, 3], T_mj[:, :3, 3]), rtol=1e-9, atol=MJ_TOL
+    )
+
+
+@pytest.mark.parametrize("name", ["ur5e", "lite6"])
+def test_closed_form_of_targets_of_every_magnitude(name: str) -> None:
+    """ik_all: every finite target gives finite, limited branches or none, never a warning."""
+    _, chain = arm(name)
+    T = _magnitude_targets(MAGNITUDES, seed=4)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", RuntimeWarning)
+        every = chain.ik_all(T)
+    far = np.abs(T[:, :3, 3]).max(axis=-1) > 2.0
+    assert not every.valid[far].any()
+    assert np.isfinite(every.q[every.valid]).all()
+    assert within_limits(every.q[every.valid], chain.limits).all()

@@ -203,7 +203,26 @@ def _widths() -> list[int]:
     if not poekin.compiled_kernel():
         return []
     best = _fast._kernel.set_width(0)  # the widest
+    _fast._kernel.set_width(_fast.DEFAULT_WIDTH)
     return [w for w in (2, 4, 8) if w <= best]
+
+
+@pytest.mark.skipif(not poekin.compiled_kernel(), reason="needs the compiled kernel")
+def test_the_environment_chooses_the_kernel_width() -> None:
+    """POEKIN_KERNEL_WIDTH picks a narrower kernel at import (CI runs the kernel's tests so);
+    a width this CPU does not run is a warning that names the ones it does, not an error."""
+    import subprocess
+    import sys
+
+    code = "import poekin.kernel._fast as f; print(f._kernel.get_width(), f.DEFAULT_WIDTH)"
+    for width in (w for w in (2, 4, 8) if w <= max(_widths())):
+        env = {**os.environ, "POEKIN_KERNEL_WIDTH": str(width)}
+        out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True)
+        assert out.stdout.split() == [str(width)] * 2, out.stderr
+    env = {**os.environ, "POEKIN_KERNEL_WIDTH": "16"}
+    out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True)
+    assert "KernelWidthWarning: POEKIN_KERNEL_WIDTH='16' is not a width this CPU runs" in out.stderr
+    assert out.stdout.split() == [str(max(_widths()))] * 2
 
 
 @pytest.mark.parametrize("form", FORMS)
@@ -225,7 +244,7 @@ def test_every_instruction_set_gives_the_same_bits(ur5e: Chain, features: Tree, 
                 features.fk(qpos, form=form),
             )
     finally:
-        _fast._kernel.set_width(0)
+        _fast._kernel.set_width(_fast.DEFAULT_WIDTH)
     for w in widths[1:]:
         for a, b in zip(results[widths[0]], results[w], strict=True):
             assert np.array_equal(a, b), f"width {w} differs from width {widths[0]}"

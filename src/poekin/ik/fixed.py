@@ -64,6 +64,7 @@ from poekin.ik.numerical import (
     Lanes,
     Settings,
     advance,
+    aimed,
     check_seed,
     damped_step,
     damping_floor,
@@ -363,7 +364,7 @@ def _core(
                 drawn = xp.stack(start_entries(terms, key_rows, attempt, xp), axis=-1)
                 return xp.astype(drawn, dtype)
 
-            return pose_of(T_rows), lambda q: problem.evaluate(q, model), draw
+            return aimed(pose_of(T_rows), xp), lambda q: problem.evaluate(q, model), draw
 
         inputs = [flat_T, keys, *rows]
         budget = s.max_total_iterations

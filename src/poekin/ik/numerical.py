@@ -31,6 +31,14 @@ like :func:`poekin._poe.poe`), and repeated operation for operation by the compi
    is solved again for the other joints; an unlimited revolute joint is kept in
    ``(-pi, pi]``. Every iterate is inside the limits.
 
+**Far targets.** A target farther than :data:`FAR` (a million metres, along any axis) from
+the world's origin is aimed at, in steps 2 to 5, as the point at that distance on the line
+from the origin to it (:func:`aimed`): its cost would otherwise overflow (positions of 1e155 m
+square to inf) and leave no least-cost iterate. No arm reaches that far, so such a target
+fails; its answer is the least-cost iterate for the point aimed at, deterministic and inside
+the limits, and its errors are those to the target itself (:func:`errors`, which does not
+overflow short of distances beyond the largest float).
+
 **Attempts.** The first starts at ``q0`` (brought into the limits) if given, else each starts
 at a configuration uniform within the limits, drawn from a counter-based generator keyed by
 the seed and the bits of the target and ``q0`` (:mod:`poekin.ik._rng`); attempts run in turn
@@ -109,6 +117,11 @@ FLOOR = 1e-18
 STEP_MAX = 1.5  # rad (or m): the largest move of one joint in one iteration
 STALL_FACTOR = 0.5  # an attempt stalls when its cost has not fallen below this times ...
 STALL_ITERATIONS = 8  # ... its last such value for this many iterations
+# A target position beyond this along any axis (m) is aimed at from this distance (see "Far
+# targets" above)
+FAR = 1e6
+# Above this (m), squares of a distance's entries could overflow: it is computed scaled
+HUGE = 1e150
 # The stopping test is this much stricter than success (relative, in squared errors), so that
 # an attempt that stops has met the tolerances whatever the last bit of the final errors.
 TOL_MARGIN = 1.0 - 1e-6
@@ -436,14 +449,38 @@ def _clamp(x: Entry, lo: float, hi: float, xp: Any) -> Entry:
     return xp.minimum(xp.maximum(x, arrays.scalar(lo, xp, x)), arrays.scalar(hi, xp, x))
 
 
+def aimed(target: _pose.Pose, xp: Any) -> _pose.Pose:
+    """The target the solve aims at: ``target`` itself, or, if its position ``p_t`` is beyond
+    :data:`FAR` along any axis, the point at distance ``FAR`` on the line from the origin to
+    it, ``(p_t / m) (FAR / |p_t / m|)`` for ``m = max |p_t_i|`` (no square of ``p_t``, so
+    nothing overflows); the rotation is kept."""
+    R_t, p_t = target
+    m = xp.maximum(xp.maximum(xp.abs(p_t[0]), xp.abs(p_t[1])), xp.abs(p_t[2]))
+    far = m > FAR
+    unit = [x / xp.where(far, m, 1.0) for x in p_t]
+    length = xp.sqrt((unit[0] * unit[0] + unit[1] * unit[1]) + unit[2] * unit[2])  # in [1, 2]
+    factor = FAR / xp.where(far, length, 1.0)
+    p = tuple(xp.where(far, u * factor, x) for u, x in zip(unit, p_t, strict=True))
+    return R_t, p  # type: ignore[return-value]
+
+
+def distance(v: Sequence[Entry], xp: Any) -> Entry:
+    """``|v|`` of three entries as :func:`poekin._pose.norm`, or, where an entry exceeds
+    :data:`HUGE` (its square could overflow), ``m |v / m|`` for ``m = max |v_i|``."""
+    m = xp.maximum(xp.maximum(xp.abs(v[0]), xp.abs(v[1])), xp.abs(v[2]))
+    scale = xp.where(m > HUGE, m, 1.0)  # 1: the same bits as _pose.norm
+    return scale * _pose.norm([x / scale for x in v], xp)
+
+
 def errors(pose: _pose.Pose, target: _pose.Pose, xp: Any) -> tuple[Entry, Entry]:
     """Position (m) and geodesic orientation (rad) errors, as :func:`poekin.pose_errors`:
-    ``|p_t - p|`` and ``atan2(|vee(M)|, (tr M - 1) / 2)`` for ``M = R_t R^T``.
+    ``|p_t - p|`` (:func:`distance`, finite for any finite target) and
+    ``atan2(|vee(M)|, (tr M - 1) / 2)`` for ``M = R_t R^T``.
 
     With NumPy, ``atan2`` is the C library's (:func:`math.atan2`), as in the kernel: NumPy's
     own ``arctan2`` (SIMD code on some CPUs) may differ from it in the last bit."""
     (R, p), (R_t, p_t) = pose, target
-    pos = _pose.norm((p_t[0] - p[0], p_t[1] - p[1], p_t[2] - p[2]), xp)
+    pos = distance((p_t[0] - p[0], p_t[1] - p[1], p_t[2] - p[2]), xp)
     M = _pose.mat_mat(R_t, _pose.transpose(R))
     atan2 = _c_atan2 if xp is np else lie._atan2(xp)
     ori = atan2(_pose.norm(lie._vee(M), xp), (lie._trace(M) - 1) / 2)
@@ -669,7 +706,7 @@ def solve_reference(
     def prepare(rows: list[Any]) -> tuple[_pose.Pose, Any, Any]:
         T_rows, keys_rows = rows
         return (
-            chain_pose_entries(T_rows),
+            aimed(chain_pose_entries(T_rows), np),
             lambda q: evaluate(chain, q, np),
             lambda attempt: starts(terms, keys_rows, attempt),
         )

@@ -34,8 +34,10 @@ except ImportError:  # built without a C compiler: the NumPy path serves
     _kernel = None
 
 __all__ = [
+    "DEFAULT_WIDTH",
     "NUMPY_PATH_SLOWDOWN",
     "Form",
+    "KernelWidthWarning",
     "SlowPathWarning",
     "TreeSpec",
     "check_form",
@@ -180,6 +182,39 @@ def _default_threads() -> int:
 _threads = _default_threads()
 if _kernel is not None:
     _kernel.set_threads(_threads)
+
+
+class KernelWidthWarning(UserWarning):
+    """``POEKIN_KERNEL_WIDTH`` names a vector width this CPU does not run."""
+
+
+def _forced_width() -> int:
+    """The kernel's vector width (0 without the kernel), from ``POEKIN_KERNEL_WIDTH`` (2 for
+    SSE2, 4 for AVX2, 8 for AVX-512; unset or empty: the widest this CPU runs), read once at
+    import. Every width gives the same bits; CI runs the kernel's tests again at the narrower
+    widths to keep it so."""
+    env = os.environ.get("POEKIN_KERNEL_WIDTH", "").strip()
+    if _kernel is None:
+        return 0
+    if not env:
+        return int(_kernel.get_width())
+    widest = int(_kernel.get_width())
+    allowed = [w for w in (2, 4, 8) if w <= widest]
+    if env not in {str(w) for w in allowed}:
+        warnings.warn(
+            f"POEKIN_KERNEL_WIDTH={env!r} is not a width this CPU runs; use one of "
+            f"{', '.join(map(str, allowed))} ({', '.join(_VECTOR_UNITS[w] for w in allowed)}), "
+            f"or unset it for the widest: running at {widest}",
+            KernelWidthWarning,
+            stacklevel=2,
+        )
+        return widest
+    return int(_kernel.set_width(int(env)))
+
+
+#: The kernel's vector width at import (``POEKIN_KERNEL_WIDTH``, else the widest); tests that
+#: try other widths come back to it.
+DEFAULT_WIDTH = _forced_width()
 
 
 def set_threads(n: int | None) -> None:

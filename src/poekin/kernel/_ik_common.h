@@ -48,6 +48,34 @@ typedef struct {
     int bad; /* -1: out of memory */
 } IKTask;
 
+/* poekin.ik.numerical.FAR: a target position beyond this along any axis (m) is aimed at from
+ * this distance */
+#define IK_FAR 1e6
+
+/* The position the solve aims at for target T (poekin.ik.numerical.aimed): T's own, or, beyond
+ * IK_FAR along any axis, the point at that distance on the line from the origin to it. */
+static inline void ik_aimed(const double *T, double p[3]) {
+    const double m = fmax(fmax(fabs(T[3]), fabs(T[7])), fabs(T[11]));
+    if (!(m > IK_FAR)) {
+        for (int i = 0; i < 3; ++i) p[i] = T[4 * i + 3];
+        return;
+    }
+    double u[3];
+    for (int i = 0; i < 3; ++i) u[i] = T[4 * i + 3] / m;
+    const double factor = IK_FAR / sqrt((u[0] * u[0] + u[1] * u[1]) + u[2] * u[2]);
+    for (int i = 0; i < 3; ++i) p[i] = u[i] * factor;
+}
+
+/* |e| (poekin.ik.numerical.distance): where an entry exceeds 1e150 (HUGE), m |e / m| for
+ * m = max |e_i|, whose squares cannot overflow. */
+static inline double ik_distance(const double e[3]) {
+    const double m = fmax(fmax(fabs(e[0]), fabs(e[1])), fabs(e[2]));
+    const double scale = m > 1e150 ? m : 1.0;
+    const double u[3] = {e[0] / scale, e[1] / scale, e[2] / scale};
+    const double sq = (u[0] * u[0] + u[1] * u[1]) + u[2] * u[2];
+    return scale * (sq > 0 ? sqrt(sq) : 0.0);
+}
+
 /* SplitMix64's output for state x (poekin.ik._rng.mix). */
 static inline uint64_t ik_mix(uint64_t x) {
     uint64_t z = x + 0x9E3779B97F4A7C15ULL;

@@ -272,9 +272,9 @@ TARGET static void ik_finish(IKState *S, const IKTask *task, const Pose *cur, in
         q[j] = conv ? S->q[j][l] : S->best_q[j][l];
         inside &= q[j] >= m->lo[j] && q[j] <= m->hi[j];
     }
-    for (int i = 0; i < 3; ++i) e[i] = S->pt[i][l] - p[i];
-    double sq = (e[0] * e[0] + e[1] * e[1]) + e[2] * e[2];
-    const double pos = sq > 0 ? sqrt(sq) : 0.0;
+    for (int i = 0; i < 3; ++i) e[i] = task->T[16 * t + 4 * i + 3] - p[i]; /* not the aimed-at */
+    const double pos = ik_distance(e);
+    double sq;
     for (int i = 0; i < 3; ++i)
         for (int j = 0; j < 3; ++j)
             M[3 * i + j] =
@@ -330,9 +330,11 @@ TARGET static int ik_load(IKState *S, IKTask *task, int g) {
     for (int l = g * G; l < g * G + G; ++l) {
         S->target[l] = t;
         S->key[l] = key;
+        double pt[3];
+        ik_aimed(T, pt);
         for (int i = 0; i < 3; ++i) {
             for (int j = 0; j < 3; ++j) S->Rt[3 * i + j][l] = T[4 * i + j];
-            S->pt[i][l] = T[4 * i + 3];
+            S->pt[i][l] = pt[i];
         }
         S->best_cost[l] = INFINITY;
         S->best_attempt[l] = -1;
