@@ -125,6 +125,40 @@ def test_noisy_positions_reach_the_plain_fit() -> None:
     assert result.residual_rms_rad is None and result.heldout_rms_rad is None
 
 
+@pytest.mark.parametrize(("noise_m", "noise_rad"), [(SIGMA, 0.0), (0.0, SIGMA)])
+def test_exact_orientations_or_exact_positions_do_not_drive_the_fit(
+    ur5e: Setup, noise_m: float, noise_rad: float
+) -> None:
+    """One group of numbers noise-free (a simulation's orientations, a rounding-free export):
+    its estimated sigma is floored, not ~0, so it does not weigh the other group out. Every
+    parameter identified, no warning, and the fit as good as the plain ML fit's given the
+    true noise (which a sigma of 1e-15 missed by 6-12 mm, identifying 18 of 30; issue 26)."""
+    measured = ur5e.sim.measure(ur5e.q, noise_m=noise_m, noise_rad=noise_rad, seed=4)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", CalibrationWarning)
+        result = calibrate(ur5e.chain, ur5e.q, measured, folds=0)
+    assert result.identifiable == 30 == result.expected_identifiable
+    pos, ori = ur5e.errors(result.chain.fk)
+    chain = ur5e.chain
+    given = max(noise_m, 1e-6), max(noise_rad, 1e-6)
+    plain = plain_fit(chain.screws, chain.home, chain.joint_types, ur5e.q, measured, *given)
+    pos_ref, ori_ref = ur5e.errors(plain)
+    assert _rms(pos) <= 1.05 * _rms(pos_ref) + 1e-9 and _rms(ori) <= 1.05 * _rms(ori_ref) + 1e-9
+    assert _rms(pos) <= 0.07e-3 and _rms(ori) <= 0.09e-3
+    exact = result.fitted.sigma_ori if noise_rad == 0 else result.fitted.sigma_pos
+    assert exact == 1e-6  # the floor
+
+
+def test_a_singular_condition_number_prints_no_digits_rounding_decides() -> None:
+    from poekin.calibration.identify import quality_text
+
+    assert quality_text(68.43, 3.2812) == "condition number 68.4, O1 3.28"
+    for singular in (7.62e16, 1.67e17, float("inf")):
+        assert quality_text(singular, 0.0289) == (
+            "condition number > 1e12 (singular to rounding), O1 ~0"
+        )
+
+
 def test_a_point_on_the_last_axis_leaves_its_offset_unidentified() -> None:
     """The UR5e's flange centre lies on joint 6's axis: positions cannot see that joint turn.
     The fit says so, keeps those combinations at the model's values, and predicts no worse

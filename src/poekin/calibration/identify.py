@@ -119,6 +119,21 @@ def observability(
     return Observability(np.asarray(s, dtype=np.float64), cond, o1)
 
 
+#: A condition number above this is singular to rounding: its digits, and O1's, depend on the
+#: last bits of the smallest singular value (they differ between vector widths), so the report
+#: prints neither (issue 26).
+SINGULAR_CONDITION = 1e12
+
+
+def quality_text(condition_number: float, o1: float) -> str:
+    """``condition number C, O1 X`` as a report prints them, three significant digits; for a
+    condition number above :data:`SINGULAR_CONDITION` (or inf), ``condition number > 1e12
+    (singular to rounding), O1 ~0``, which no rounding changes."""
+    if not condition_number <= SINGULAR_CONDITION:
+        return "condition number > 1e12 (singular to rounding), O1 ~0"
+    return f"condition number {condition_number:.3g}, O1 {o1:.3g}"
+
+
 def unidentified(
     model: CalibrationModel, fitted: Fit, prior_m: float, prior_rad: float
 ) -> list[Direction]:

@@ -15,6 +15,7 @@ from poekin.calibration.identify import (
     Observability,
     Prediction,
     describe,
+    quality_text,
     undetermined,
 )
 from poekin.calibration.model import CalibrationModel, Measure, State, expected_identifiable, words
@@ -410,7 +411,7 @@ class Calibration:
             f"{n} {'poses' if pose else 'positions'}; identifiable: {self.identifiable} of "
             f"{self.expected_identifiable} parameters (4R + 2P + 6"
             + ("" if pose else " - 3")
-            + f"); condition number {self.condition_number:.3g}, O1 {self.observability.o1:.3g}",
+            + f"); {quality_text(self.condition_number, self.observability.o1)}",
             *(f"{label + ':':{width}} {errs(*values)}" for label, values in rows),
         ]
         noise = f"{self.fitted.sigma_pos * mm:.3g} mm"

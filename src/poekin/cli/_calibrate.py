@@ -65,6 +65,7 @@ def _check_options(args: argparse.Namespace) -> None:
 
 def _plan(args: argparse.Namespace, chain: Any, out: TextIO) -> int:
     from poekin.calibration import plan_poses
+    from poekin.calibration.identify import quality_text
     from poekin.calibration.model import model_of
     from poekin.calibration.plan import quality, sampling_chain
     from poekin.verification.verify import sample_joint_values
@@ -79,9 +80,9 @@ def _plan(args: argparse.Namespace, chain: Any, out: TextIO) -> int:
     o1_random, cond_random = quality(cm, random_q)
     what = "poses (position and orientation)" if measure == "pose" else "positions"
     summary = (
-        f"{args.plan} {what} for {chain.robot or 'the chain'} / {chain.frame!r}: O1 {o1:.3g}, "
-        f"condition number {cond:.3g} (random poses within the limits: O1 {o1_random:.3g}, "
-        f"condition number {cond_random:.3g})"
+        f"{args.plan} {what} for {chain.robot or 'the chain'} / {chain.frame!r}: "
+        f"{quality_text(cond, o1)} (random poses within the limits: "
+        f"{quality_text(cond_random, o1_random)})"
     )
     if args.json:
         print(
