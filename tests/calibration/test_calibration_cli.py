@@ -7,6 +7,7 @@ import functools
 import json
 import pathlib
 import re
+from typing import Any
 
 import numpy as np
 import pytest
@@ -16,6 +17,7 @@ from helpers import assert_one_error_line, run
 import poekin
 from poekin.calibration.files import read_measurements, write_measurements
 from poekin.calibration.simulate import simulate_robot
+from poekin.errors import InputError
 from poekin.io.fileio import read_array
 from poekin.verification.verify import pose_errors
 
@@ -37,7 +39,7 @@ def _tracker(folder: pathlib.Path, name: str = "tracker.csv", **edits: str) -> s
     the second (the first pose), ``rows`` keeps only that many poses."""
     chain, q, measured, _ = _data()
     path = folder / name
-    write_measurements(path, chain, q, measured)
+    write_measurements(path, chain, q, measured, force=True)  # a test may write it again
     lines = path.read_text().splitlines()
     if "header" in edits:
         lines[0] = edits["header"]
@@ -304,3 +306,89 @@ def test_every_loss_is_a_choice() -> None:
     calibrate = sub.choices["calibrate"]  # type: ignore[index]
     (loss,) = [a for a in calibrate._actions if a.dest == "loss"]
     assert tuple(loss.choices) == LOSSES
+
+
+@pytest.mark.parametrize(
+    ("edit", "cause"),
+    [
+        ("degrees", r"the joint readings \(up to 3\d\d\.?\d*\) look like degrees: pass --deg"),
+        ("millimetres", r"the measured positions spread \S+ times as far as the model's: are they"),
+        ("swapped", r"check that the joint columns hold the joints their header names"),
+        ("sigma", r"more than any robot differs from its model \(100 x --sigma-pos\)"),
+    ],
+)
+def test_a_fit_no_robot_explains_is_not_written(
+    tmp_path: pathlib.Path, capsys: pytest.CaptureFixture[str], edit: str, cause: str
+) -> None:
+    """Degrees read as radians, positions in millimetres, two joint columns swapped, or a
+    residual 100 times the noise the user gave: one error line naming the likely cause, exit
+    2, and no parameter file (issue 26; each ran with exit 0 and wrote one)."""
+    chain, q, measured, _ = _data()
+    measured = measured.copy()
+    sigma: list[str] = []
+    if edit == "degrees":
+        q = np.degrees(q)
+    elif edit == "millimetres":
+        measured[:, :3, 3] *= 1000.0
+    elif edit == "swapped":
+        q = q[:, [0, 2, 1, 3, 4, 5]]
+    else:
+        sigma = ["--sigma-pos", "1e-7"]  # 0.1 um, where the data carry 0.1 mm
+    path = tmp_path / "data.csv"
+    write_measurements(path, chain, q, measured)
+    out = tmp_path / "my_robot.json"
+    args = ["calibrate", ROBOT, "--measurements", str(path), "--output", str(out), *sigma]
+    code, _, err = run(capsys, *args)
+    line = [x for x in err.splitlines() if not x.startswith("poekin: note:")]
+    assert code == 2 and len(line) == 1 and line[0].startswith("poekin: error: "), err
+    assert re.search(cause, line[0]) and line[0].endswith(f"{out} not written"), line[0]
+    assert not out.exists()
+
+
+def test_folds_beyond_the_poses_are_refused(
+    tmp_path: pathlib.Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    code, _, err = run(
+        capsys, "calibrate", ROBOT, "--measurements", _tracker(tmp_path), "--folds", "100"
+    )
+    assert code == 2
+    assert_one_error_line(
+        err,
+        "folds=100 with 30 poses: each fold holds out at least one pose, so folds is at most 30 "
+        "(5 is usual; 0 for none)",
+    )
+
+
+def test_write_measurements_refuses_what_it_cannot_write_right(tmp_path: pathlib.Path) -> None:
+    """Issue 26: a 5-column q for a 6-joint chain wrote a 13-column header over 12-value rows,
+    NaN was written, q and T of different lengths were a traceback, and a file was replaced
+    without a word. Each is one InputError now, and nothing is written."""
+    chain, q, measured, _ = _data()
+    path = tmp_path / "m.csv"
+    nan = q.copy()
+    nan[3, 1] = np.nan
+    cases = [
+        ((q[:, :5], measured), r"expected 6 joint readings \(shape \(\.\.\., 6\)\)"),
+        ((nan, measured), "NaN or inf"),
+        ((q[:5], measured), "expected 5 measured poses"),
+        ((q, measured[:, :2, :2]), "expected 30 measured poses"),
+    ]
+    for (qq, mm), message in cases:
+        with pytest.raises(InputError, match=message):
+            write_measurements(path, chain, qq, mm)
+        assert not path.exists()
+    write_measurements(path, chain, q, measured)
+    before = path.read_text()
+    with pytest.raises(InputError, match="already exists; pass force=True to replace it"):
+        write_measurements(path, chain, q[:10], measured[:10])
+    assert path.read_text() == before
+    write_measurements(path, chain, q[:10], measured[:10], force=True)
+    assert np.array_equal(read_measurements(path, chain)[0], q[:10])
+
+
+@pytest.mark.parametrize("noise", [-1.0, float("nan"), "0.1", True])
+def test_simulated_noise_must_be_a_standard_deviation(noise: Any) -> None:
+    sim = simulate_robot(ROBOT, seed=2)
+    for name in ("noise_m", "noise_rad"):
+        with pytest.raises(InputError, match=f"{name} must be a number >= 0"):
+            sim.measure(np.zeros((3, 6)), **{name: noise})

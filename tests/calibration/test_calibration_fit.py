@@ -380,11 +380,18 @@ def test_changes_use_diagnose_words(ur5e: Setup) -> None:
         ({"loss": "tukey"}, "unknown loss"),
         ({"sigma_pos": -1.0}, "sigma_pos must be a positive number"),
         ({"prior_m": 0.0}, "prior_m must be a positive number"),
+        # issue 26: each was a traceback or was ignored
+        ({"n": 0}, r"no poses to fit \(0 joint readings\)"),
+        ({"model": None}, "model must be a Chain, or what poekin.load takes .*got NoneType"),
+        ({"model": np.eye(4)}, "model must be a Chain.*got ndarray"),
+        ({"frame": "nope"}, "frame='nope', but the chain given ends at 'attachment_site'"),
+        ({"folds": 51}, "folds=51 with 50 poses: .* folds is at most 50"),
     ],
 )
 def test_bad_input_raises(ur5e: Setup, kwargs: dict[str, Any], message: str) -> None:
     q, measured = ur5e.q, ur5e.sim.poses(ur5e.q)
     options = dict(kwargs)
+    model = options.pop("model", ur5e.chain)
     if options.pop("collinear", False):
         measured = measured.copy()
         measured[:, :3, 3] = np.outer(np.arange(50), [0.01, 0.02, 0.0])
@@ -397,7 +404,14 @@ def test_bad_input_raises(ur5e: Setup, kwargs: dict[str, Any], message: str) -> 
     q = options.pop("q", q)
     measured = options.pop("measured", measured)
     with pytest.raises(InputError, match=message):
-        calibrate(ur5e.chain, q, measured, **options)
+        calibrate(model, q, measured, **options)
+
+
+def test_a_chains_own_frame_may_be_named(ur5e: Setup) -> None:
+    measured = ur5e.sim.poses(ur5e.q)
+    named = calibrate(ur5e.chain, ur5e.q, measured, frame="attachment_site", folds=0)
+    plain = calibrate(ur5e.chain, ur5e.q, measured, folds=0)
+    assert np.array_equal(named.chain.fk(ur5e.q), plain.chain.fk(ur5e.q))
 
 
 def test_too_few_poses_warn_with_how_many_more(ur5e: Setup) -> None:

@@ -222,6 +222,11 @@ def _calibrate(
     q_arr = as_joint_values(q, n, what="joint readings")
     if q_arr.ndim != 2:
         raise InputError(f"joint readings must be (N, {n}), got shape {q_arr.shape}")
+    if len(q_arr) == 0:
+        raise InputError(
+            "no poses to fit (0 joint readings): give the joint readings and measured poses of "
+            "the poses you measured (poekin calibrate --plan N proposes them)"
+        )
     meas = check_measurements(measured, len(q_arr))
     measure: Measure = "pose" if meas.ndim == 3 else "position"
     cm = model_of(chain, measure)
@@ -241,6 +246,11 @@ def _calibrate(
             raise InputError(f"{name} must be a positive number, got {value}")
     if isinstance(folds, bool) or not isinstance(folds, int) or folds < 0 or folds == 1:
         raise InputError(f"folds must be 0 (none) or a whole number from 2, got {folds!r}")
+    if folds > len(q_arr):
+        raise InputError(
+            f"folds={folds} with {len(q_arr)} poses: each fold holds out at least one pose, so "
+            f"folds is at most {len(q_arr)} (5 is usual; 0 for none)"
+        )
     options = {
         "sigma_pos": sigma_pos,
         "sigma_ori": sigma_ori,

@@ -22,7 +22,7 @@ from collections.abc import Sequence
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
 
 from poekin import lie
 from poekin.errors import InputError, did_you_mean
@@ -187,17 +187,39 @@ def _read_csv(p: pathlib.Path, where: str, joints: Sequence[str]) -> tuple[Float
 
 
 def write_measurements(
-    path: str | os.PathLike[str], chain: Chain, q: FloatArray, measured: FloatArray
+    path: str | os.PathLike[str],
+    chain: Chain,
+    q: ArrayLike,
+    measured: ArrayLike,
+    *,
+    force: bool = False,
 ) -> pathlib.Path:
     """Write joint readings ``(N, n)`` and measured poses ``(N, 4, 4)`` or positions ``(N, 3)``
     as the ``.csv`` :func:`read_measurements` reads (17 significant digits: the same float64
-    numbers read back), replacing any file there."""
-    from poekin.io.fileio import write_text
+    numbers read back). An existing file is replaced only with ``force=True``.
 
-    measured = np.asarray(measured, dtype=np.float64)
+    Raises:
+        InputError: ``q`` not ``(N, n)`` for the chain's ``n`` joints, measurements that are not
+            ``N`` finite rigid poses or positions, NaN or inf anywhere, or ``path`` taken.
+    """
+    from poekin._poe import as_joint_values
+    from poekin.calibration import check_measurements
+    from poekin.io.fileio import check_writable, write_text
+
+    q_arr = as_joint_values(q, chain.n_joints, what="joint readings")
+    if q_arr.ndim != 2:
+        raise InputError(f"joint readings must be (N, {chain.n_joints}), got shape {q_arr.shape}")
+    _finite(q_arr, "write_measurements", "the joint readings")
+    measured = check_measurements(measured, len(q_arr))
+    target = pathlib.Path(path)
+    if target.exists() and not force:
+        raise InputError(
+            f"{target} already exists; pass force=True to replace it, or choose another path"
+        )
+    check_writable(target, "the measurements")
     pose = measured.ndim == 3
     columns = [*chain.joint_names, *POSITION, *(QUATERNION if pose else ())]
-    values = [np.asarray(q, dtype=np.float64), measured[:, :3, 3] if pose else measured]
+    values = [q_arr, measured[:, :3, 3] if pose else measured]
     if pose:
         values.append(np.asarray(lie.rotation_to_quat(measured[:, :3, :3]), dtype=np.float64))
     rows = np.concatenate(values, axis=1)

@@ -48,6 +48,7 @@ from numpy.typing import NDArray
 from poekin._poe import _ScrewTerms
 from poekin.chain import Chain
 from poekin.dh import joint_lines
+from poekin.errors import InputError
 from poekin.lie import _one_minus_cos_over_t2, _sin_over_t, _t_minus_sin_over_t3
 
 if TYPE_CHECKING:
@@ -659,11 +660,27 @@ def words(model: CalibrationModel, keys: Sequence[int]) -> str:
 
 
 def as_chain(model: Chain | str | os.PathLike[str] | LoadedModel, frame: str | None) -> Chain:
-    """``model`` if it is a chain, else :func:`poekin.load` of it (with ``frame``)."""
+    """``model`` if it is a chain, else :func:`poekin.load` of it (with ``frame``).
+
+    Raises:
+        InputError: ``model`` is none of those (None, an array...), or a chain with a
+            ``frame`` other than its own (a chain's end frame is chosen when it is loaded).
+    """
     if isinstance(model, Chain):
+        if frame is not None and frame != model.frame:
+            raise InputError(
+                f"frame={frame!r}, but the chain given ends at {model.frame!r}: a chain's end "
+                f"frame is chosen when it is loaded: poekin.load(source, {frame!r}), or drop frame"
+            )
         return model
     from poekin.io.loading import load
+    from poekin.io.sources import LoadedModel
 
+    if not isinstance(model, str | os.PathLike | LoadedModel):
+        raise InputError(
+            f"model must be a Chain, or what poekin.load takes (a Menagerie name, an MJCF or URDF "
+            f"path), got {type(model).__name__}"
+        )
     return load(model, frame)
 
 

@@ -83,6 +83,15 @@ class SimulatedRobot:
         """Measured poses ``(N, 4, 4)`` (or positions ``(N, 3)``) for encoder readings ``q``:
         :meth:`poses` with Gaussian noise of ``noise_m`` per axis on the position and a turn of
         ``noise_rad`` per axis (in the measuring frame) on the orientation."""
+        for name, value in (("noise_m", noise_m), ("noise_rad", noise_rad)):
+            if isinstance(value, bool) or not (
+                isinstance(value, int | float | np.integer | np.floating)
+                and np.isfinite(value)
+                and value >= 0
+            ):
+                raise InputError(
+                    f"{name} must be a number >= 0 (a standard deviation), got {value!r}"
+                )
         T = self.poses(q)
         rng = random_generator(seed)
         T[:, :3, 3] += rng.normal(scale=noise_m, size=(len(T), 3))

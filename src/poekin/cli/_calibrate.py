@@ -148,6 +148,7 @@ def _cmd_calibrate(args: argparse.Namespace, out: TextIO) -> int:
     )
     result = _named(result, source)
     if args.output:
+        _check_plausible(result, chain, q, measured, args)
         write_json(pathlib.Path(args.output), params_document(result))
     if args.plot:
         from poekin.calibration.plot import plot_calibration
@@ -171,6 +172,54 @@ def _cmd_calibrate(args: argparse.Namespace, out: TextIO) -> int:
     if args.plot:
         print(f"plot written to {args.plot}", file=out)
     return 0
+
+
+# A calibrated chain that misses its measurements by more than this (m RMS) was fitted to wrong
+# data: a robot differs from its model by millimetres, and the fit takes those out
+_IMPLAUSIBLE_M = 0.01
+_IMPLAUSIBLE_SIGMAS = 100  # or by this many times the noise the user gave (--sigma-pos)
+
+
+def _check_plausible(
+    result: Any, chain: Any, q: Any, measured: Any, args: argparse.Namespace
+) -> None:
+    """Refuse to write a calibration whose residual no difference between a robot and its model
+    explains (issue 26: degrees read as radians, millimetres, swapped joint columns), naming the
+    likely cause. Raises InputError: nothing is written."""
+    limit = _IMPLAUSIBLE_M
+    if args.sigma_pos is not None:
+        limit = min(limit, _IMPLAUSIBLE_SIGMAS * args.sigma_pos)
+    miss = result.residual_rms_m
+    if miss <= limit:
+        return
+    revolute = np.array([t == "revolute" for t in chain.joint_types])
+    p_meas = measured[:, :3, 3] if measured.ndim == 3 else measured
+    p_model = chain.fk(q)[:, :3, 3]
+
+    def spread(p: Any) -> float:
+        return float(np.sqrt(np.mean(np.sum((p - p.mean(axis=0)) ** 2, axis=1))))
+
+    ratio = spread(p_meas) / max(spread(p_model), 1e-12)
+    if not args.deg and np.any(np.abs(q[:, revolute]) > 2 * np.pi + 1e-9):
+        cause = (
+            f"the joint readings (up to {np.max(np.abs(q[:, revolute])):.4g}) look like degrees: "
+            "pass --deg"
+        )
+    elif ratio > 10:
+        cause = (
+            f"the measured positions spread {ratio:.3g} times as far as the model's: are they "
+            "in millimetres? give metres"
+        )
+    else:
+        cause = (
+            "check that the joint columns hold the joints their header names (in radians and "
+            "metres), and the frame that was measured (--frame)"
+        )
+    bound = "1 cm" if limit == _IMPLAUSIBLE_M else f"{_IMPLAUSIBLE_SIGMAS} x --sigma-pos"
+    raise InputError(
+        f"the calibrated chain still misses the measurements by {miss * 1e3:.3g} mm RMS, more "
+        f"than any robot differs from its model ({bound}): {cause}; {args.output} not written"
+    )
 
 
 def _named(result: Any, source: str) -> Any:
