@@ -166,14 +166,20 @@ HEADER_LINE = (
     ("name", "content", "message"),
     [
         ("dup.csv", HEADER_LINE.replace(",x,", ",x,x,") + "\n", "column 'x' appears twice"),
-        ("short.csv", HEADER_LINE + "\n1,2,3\n", "row 1 has 3 values, the header 13"),
+        ("short.csv", HEADER_LINE + "\n1,2,3\n", "line 2 has 3 values, the header 13"),
+        # issue 26: the file's own line, comments and blank lines counted
+        ("note.csv", HEADER_LINE + "\n# pose 1\n\n1,2,3\n", "line 4 has 3 values, the header 13"),
         ("empty.csv", "# nothing\n", "is empty"),
         ("header.csv", HEADER_LINE + "\n", "has a header but no rows"),
         ("latin.csv", b"\xff\xfe\x00", "not a text file"),
         ("text.npz", "not an archive", "not a readable .npz"),
         ("strings.npz", {"q": np.array([["a"] * 6] * 8), "p": np.zeros((8, 3))}, "not real"),
         ("shape.npz", {"q": np.zeros((8, 5)), "p": np.zeros((8, 3))}, "'q' must be (N, 6)"),
-        ("nan.npz", {"q": np.zeros((8, 6)), "T": np.full((8, 4, 4), np.nan)}, "'T' of row 1"),
+        (
+            "nan.npz",
+            {"q": np.zeros((8, 6)), "T": np.full((8, 4, 4), np.nan)},
+            "'T' of row 0 (from 0)",
+        ),
         (
             "both.npz",
             {"q": np.zeros((8, 6)), "T": np.zeros((8, 4, 4)), "p": np.zeros((8, 3))},

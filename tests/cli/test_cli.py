@@ -401,7 +401,7 @@ BAD_INPUTS = [
     (["ik", "universal_robots_ur5e"], "give a target with --pose X Y Z QW QX QY QZ"),
     (["ik", "universal_robots_ur5e", "--pose", *POSE, "--input", "{poses}"], "give one"),
     (["ik", "universal_robots_ur5e", "--input", "{poses}"], "--input needs --output"),
-    (["ik", "universal_robots_ur5e", "--pose", *POSE, "--output", "{tmp}/q.npy"], "goes with"),
+    (["ik", "universal_robots_ur5e", "--pose", *POSE, "--output", "{tmp}/q_ik.npy"], "goes with"),
     (
         ["ik", "universal_robots_ur5e", "--input", "{poses}", "--output", "{tmp}/q.npy", "--json"],
         "--json prints the answer for one --pose",
@@ -412,7 +412,26 @@ BAD_INPUTS = [
     ),
     (
         ["ik", "universal_robots_ur5e", "--input", "{bad_quat_csv}", "--output", "{tmp}/q_ik.npy"],
-        "bad_quat.csv row 1: the quaternion QW QX QY QZ = 1 1 0 0 has norm 1.41421356",
+        "bad_quat.csv line 2: the quaternion QW QX QY QZ = 1 1 0 0 has norm 1.41421356",
+    ),
+    # issue 26: a target file's header is read by name, and a message names the file's line
+    (
+        ["ik", "universal_robots_ur5e", "--input", "{quat_first}", "--output", "{tmp}/q_ik.npy"],
+        "quat_first.csv line 3: the quaternion QW QX QY QZ = 0.4 0.2 0.3 1 has norm 1.1",
+    ),
+    (
+        ["ik", "universal_robots_ur5e", "--input", "{abc_csv}", "--output", "{tmp}/q_ik.npy"],
+        "abc.csv: unknown column 'a' in the header; name the columns of one layout, in any "
+        "order: poses x,y,z,qw,qx,qy,qz; 4x4 matrices T00,T01,...,T33; points (with "
+        "--position-only) x,y,z",
+    ),
+    (
+        ["ik", "universal_robots_ur5e", "--input", "{typo_csv}", "--output", "{tmp}/q_ik.npy"],
+        "typo.csv: unknown column 'qzz' in the header (did you mean 'qz'?)",
+    ),
+    (
+        ["ik", "universal_robots_ur5e", "--input", "{points_csv}", "--output", "{tmp}/q_ik.npy"],
+        "points.csv: the header x,y,z names no layout of targets",
     ),
     (
         ["ik", "universal_robots_ur5e", "--input", "{nan_poses}", "--output", "{tmp}/q_ik.npy"],
@@ -594,6 +613,14 @@ def test_bad_input_gives_one_line_and_exit_2(
         "bad_quat_csv": _write(
             tmp_path, "bad_quat.csv", "0.4,0.2,0.3,1,0,0,0\n0.4,0.2,0.3,1,1,0,0\n"
         ),
+        "quat_first": _write(
+            tmp_path,
+            "quat_first.csv",
+            "qw,qx,qy,qz,x,y,z\n# x y z first, by mistake\n0.4,0.2,0.3,1,0,0,0\n",
+        ),
+        "abc_csv": _write(tmp_path, "abc.csv", "a,b,c,d,e,f,g\n0.4,0.2,0.3,1,0,0,0\n"),
+        "typo_csv": _write(tmp_path, "typo.csv", "x,y,z,qw,qx,qy,qzz\n0.4,0.2,0.3,1,0,0,0\n"),
+        "points_csv": _write(tmp_path, "points.csv", "x,y,z\n0.4,0.2,0.3\n"),
         "empty_poses": _npy(tmp_path / "empty_poses.npy", np.zeros((0, 4, 4))),
         "empty_q": _npy(tmp_path / "empty_q.npy", np.zeros((0, 6))),
         "complex_poses": _npy(tmp_path / "complex_poses.npy", np.tile(np.eye(4), (2, 1, 1)) + 0j),

@@ -193,6 +193,39 @@ def test_a_batch_with_an_unreachable_row_exits_1(
     np.testing.assert_array_equal(np.load(tmp_path / "q.npy"), q)
 
 
+@pytest.mark.parametrize(
+    "header", ["x,y,z,qw,qx,qy,qz", "qw,qx,qy,qz,x,y,z", "y,x,z,qz,qy,qx,qw", "T"]
+)
+def test_a_target_files_columns_are_read_by_their_header(
+    tmp_path: pathlib.Path, capsys: pytest.CaptureFixture[str], header: str
+) -> None:
+    """Issue 26: columns were read by position whatever the header said (``y,x,z,...``
+    solved the wrong targets). In any order the header gives, the solutions reach the poses
+    MuJoCo computes, row for row; a 4x4 file's T00..T33 likewise, shuffled."""
+    loaded, chain = arm("ur5e")
+    q_true = np.random.default_rng(6).uniform(chain.limits[:, 0], chain.limits[:, 1], (8, 6))
+    T = mj_poses(loaded, chain, q_true)
+    if header == "T":
+        names = [f"T{i}{j}" for i in range(4) for j in range(4)]
+        values = {n: T[:, int(n[1]), int(n[2])] for n in names}
+        names = names[::-1]
+    else:
+        quat = poekin.rotation_to_quat(T[:, :3, :3])
+        values = dict(zip("xyz", T[:, :3, 3].T, strict=True))
+        values |= dict(zip(["qw", "qx", "qy", "qz"], quat.T, strict=True))
+        names = header.split(",")
+    rows = np.stack([values[n] for n in names], axis=1)
+    path = tmp_path / "targets.csv"
+    lines = [",".join(names), "# a comment line", *(",".join(f"{x:.17g}" for x in r) for r in rows)]
+    path.write_text("\n".join(lines) + "\n")
+    code, _, err = run(capsys, "ik", "universal_robots_ur5e", "--input", str(path), "--output",
+                       str(tmp_path / "q.npy"))  # fmt: skip
+    assert code == 0 and only_notes(err), err
+    q = np.load(tmp_path / "q.npy")
+    pos, ori = poekin.pose_errors(T, mj_poses(loaded, chain, q))
+    assert pos.max() <= 1e-10 + MJ_TOL and ori.max() <= 1e-10 + MJ_TOL
+
+
 @pytest.mark.parametrize("form", ["matrix", "pos_quat"])
 def test_what_fk_writes_ik_reads(
     form: str, tmp_path: pathlib.Path, capsys: pytest.CaptureFixture[str]

@@ -73,7 +73,7 @@ def test_read_csv_with_a_header_comments_and_one_row(tmp_path: pathlib.Path) -> 
         ("q.npz", b"0 0 0\n", "is not a NumPy .npz archive"),
         ("q.csv", b"0,zero,0\n0,1,2\n", "could not convert"),
         ("q.csv", b"# nothing\n\n", "holds no numbers"),
-        ("q.txt", b"0 1 2\n3 4\n", "one row each"),
+        ("q.txt", b"0 1 2\n3 4\n", "line 2 holds 2 values, line 1 3: every row needs as many"),
         ("q.txt", b"\xff\xfe\x00garbage", "not UTF-8"),
         ("q.dat", b"0 0 0\n", "its suffix '.dat' names no format poekin knows"),
         ("q", b"0 0 0\n", "it has no suffix"),

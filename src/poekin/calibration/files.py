@@ -80,7 +80,7 @@ def _finite(a: FloatArray, where: str, what: str) -> None:
     bad = ~np.isfinite(a)
     if bad.any():
         row = int(np.argwhere(bad)[0][0])
-        raise InputError(f"{where}: {what} of row {row + 1} contains NaN or inf")
+        raise InputError(f"{where}: {what} of row {row} (from 0) contains NaN or inf")
 
 
 def _read_npz(p: pathlib.Path, where: str, n: int) -> tuple[FloatArray, FloatArray]:
@@ -116,10 +116,15 @@ def _read_csv(p: pathlib.Path, where: str, joints: Sequence[str]) -> tuple[Float
         text = p.read_text(encoding="utf-8-sig")
     except UnicodeDecodeError:
         raise InputError(f"{where} is not a text file (it is not UTF-8)") from None
-    lines = [ln for ln in text.splitlines() if ln.strip() and not ln.lstrip().startswith("#")]
-    if not lines:
+    numbered = [
+        (k + 1, ln)
+        for k, ln in enumerate(text.splitlines())
+        if ln.strip() and not ln.lstrip().startswith("#")
+    ]
+    if not numbered:
         raise InputError(f"{where} is empty; write a header and one row per pose")
-    table = list(csv.reader(io.StringIO("\n".join(lines))))
+    line = [k for k, _ in numbered[1:]]  # each row's line in the file, as messages name it
+    table = list(csv.reader(io.StringIO("\n".join(ln for _, ln in numbered))))
     header = [h.strip() for h in table[0]]
     known = [*joints, *POSITION, *QUATERNION]
     for h in header:
@@ -149,14 +154,15 @@ def _read_csv(p: pathlib.Path, where: str, joints: Sequence[str]) -> tuple[Float
     for r, row in enumerate(table[1:]):
         if len(row) != len(header):
             raise InputError(
-                f"{where}: row {r + 1} has {len(row)} values, the header {len(header)} columns"
+                f"{where}: line {line[r]} has {len(row)} values, the header {len(header)} columns"
             )
         for c, cell in enumerate(row):
             try:
                 values[r, c] = float(cell)
             except ValueError:
                 raise InputError(
-                    f"{where}: row {r + 1}, column {header[c]!r}: {cell.strip()!r} is not a number"
+                    f"{where}: line {line[r]}, column {header[c]!r}: {cell.strip()!r} is not "
+                    "a number"
                 ) from None
     if not len(values):
         raise InputError(f"{where} has a header but no rows")
@@ -165,7 +171,7 @@ def _read_csv(p: pathlib.Path, where: str, joints: Sequence[str]) -> tuple[Float
         bad = ~np.isfinite(values[:, col[name]])
         if bad.any():
             k = int(np.flatnonzero(bad)[0])
-            raise InputError(f"{where}: row {k + 1}, column {name!r} is NaN or inf")
+            raise InputError(f"{where}: line {line[k]}, column {name!r} is NaN or inf")
     q = values[:, [col[j] for j in joints]]
     pos = values[:, [col[k] for k in POSITION]]
     if not quats:
@@ -176,7 +182,7 @@ def _read_csv(p: pathlib.Path, where: str, joints: Sequence[str]) -> tuple[Float
     if (off > _QUAT_TOL).any():
         k = int(np.flatnonzero(off > _QUAT_TOL)[0])
         raise InputError(
-            f"{where}: row {k + 1}: the quaternion (qw, qx, qy, qz) has norm {norm[k]:.6g}, "
+            f"{where}: line {line[k]}: the quaternion (qw, qx, qy, qz) has norm {norm[k]:.6g}, "
             "not 1; give a unit quaternion, w first"
         )
     T = np.zeros((len(q), 4, 4))

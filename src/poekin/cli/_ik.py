@@ -24,12 +24,13 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import difflib
 import json
 import math
 import sys
 import warnings
 from collections.abc import Callable, Sequence
-from typing import Any, TextIO
+from typing import TYPE_CHECKING, Any, TextIO
 
 import numpy as np
 from numpy.typing import NDArray
@@ -49,6 +50,9 @@ from poekin.cli._args import (
 from poekin.cli._fk import end_chain, tree_base
 from poekin.cli._text import fixed, sig, table
 from poekin.errors import AnalyticIKError, InputError, JointLimitsWarning
+
+if TYPE_CHECKING:
+    from poekin.io.fileio import Table
 
 __all__ = ["QUAT_TOL", "register"]
 
@@ -172,9 +176,16 @@ def _targets(args: argparse.Namespace) -> tuple[FloatArray, str]:
             return T, f"target xyz {xyz} m (position only)"
         quat = " ".join(f"{x:g}" for x in pose[3:])
         return T, f"target xyz {xyz} m, quat wxyz {quat}"
-    from poekin.io.fileio import read_array
+    from poekin.io.fileio import array_format, read_array, read_table
 
-    arr = read_array(args.input, name="T")
+    def where(k: int) -> str:  # a row of an array file, by its index
+        return f"--input {args.input} row {k}"
+
+    if array_format(args.input, "--input") in (".csv", ".txt"):
+        text = read_table(args.input)
+        arr, where = _by_name(text, args.position_only), text.at  # type: ignore[assignment]
+    else:
+        arr = read_array(args.input, name="T")
     shape = arr.shape
     one = arr.ndim == 1 or shape == (4, 4)
     rows = arr.reshape(1, *shape) if one else arr
@@ -183,8 +194,7 @@ def _targets(args: argparse.Namespace) -> tuple[FloatArray, str]:
     elif rows.ndim == 2 and rows.shape[1] == 16:
         T = _rigid(rows.reshape(-1, 4, 4), f"--input {args.input}")
     elif rows.ndim == 2 and (rows.shape[1] == 7 or (rows.shape[1] == 3 and args.position_only)):
-        row_name = "the pose" if one else "row {}"
-        T = _pose_rows(rows, lambda k: f"--input {args.input} {row_name.format(k)}")
+        T = _pose_rows(rows, (lambda _: f"--input {args.input} the pose") if one else where)
     else:
         points = "(N, 3) points" + ("" if args.position_only else " with --position-only")
         raise InputError(
@@ -193,6 +203,45 @@ def _targets(args: argparse.Namespace) -> tuple[FloatArray, str]:
         )
     count = "1 target" if one else f"{len(T)} targets"
     return (T[0] if one else T), f"{count} from {args.input}"
+
+
+#: The columns a target file's header may name, each layout in the order it is read (what
+#: ``poekin fk --output`` writes: ``--form pos_quat``, the 4x4 matrices, and points).
+TARGET_COLUMNS: dict[str, tuple[str, ...]] = {
+    "poses": ("x", "y", "z", "qw", "qx", "qy", "qz"),
+    "4x4 matrices": tuple(f"T{i}{j}" for i in range(4) for j in range(4)),
+    "points (with --position-only)": ("x", "y", "z"),
+}
+
+
+def _by_name(text: Table, position_only: bool) -> FloatArray:
+    """A text file's targets, its columns read by the names its header gives (in any order),
+    else by position. Raises InputError for a header that names none of the layouts of
+    :data:`TARGET_COLUMNS` (an unknown name, one missing or given twice)."""
+    values: FloatArray = text.values
+    if text.header is None:
+        return values
+    header = list(text.header)
+    known = sorted({c for cols in TARGET_COLUMNS.values() for c in cols})
+    shown = {
+        k: ",".join(c if len(c) < 16 else (*c[:2], "...", c[-1])) for k, c in TARGET_COLUMNS.items()
+    }
+    layouts = "; ".join(f"{name} {cols}" for name, cols in shown.items())
+    for name in header:
+        if name not in known:
+            close = difflib.get_close_matches(name, known, n=1)
+            hint = f" (did you mean {close[0]!r}?)" if close else ""
+            raise InputError(
+                f"{text.where}: unknown column {name!r} in the header{hint}; name the columns "
+                f"of one layout, in any order: {layouts}"
+            )
+    for cols in TARGET_COLUMNS.values():
+        if sorted(header) == sorted(cols) and (len(cols) != 3 or position_only):
+            return values[:, [header.index(c) for c in cols]]
+    raise InputError(
+        f"{text.where}: the header {','.join(header)} names no layout of targets; name the "
+        f"columns of one, in any order: {layouts}"
+    )
 
 
 # --- the problem: a chain, its --all, or a tree's frame ---------------------------------------
@@ -593,7 +642,8 @@ def register(sub: Any, fmt: type[argparse.HelpFormatter]) -> None:
     p.add_argument(
         "--input",
         metavar="FILE",
-        help="a batch of targets: (N, 4, 4), (N, 16) or (N, 7) (.npy, .npz, .csv or .txt)",
+        help="a batch of targets: (N, 4, 4), (N, 16) or (N, 7) (.npy, .npz, .csv or .txt; a "
+        "text file's header is read by name: x,y,z,qw,qx,qy,qz or T00..T33)",
     )
     p.add_argument(
         "--output",

@@ -31,6 +31,7 @@ from __future__ import annotations
 
 import contextlib
 import csv
+import dataclasses
 import errno
 import functools
 import io
@@ -48,6 +49,7 @@ from poekin.errors import InputError, PoekinError
 __all__ = [
     "ARRAY_FORMATS",
     "FIGURE_FORMATS",
+    "Table",
     "array_format",
     "cannot_write",
     "check_new_file",
@@ -56,6 +58,7 @@ __all__ = [
     "finite_json",
     "is_number",
     "read_array",
+    "read_table",
     "save_figure",
     "write_array",
     "write_text",
@@ -250,24 +253,72 @@ def is_number(text: str) -> bool:
     return True
 
 
-def _read_text(p: pathlib.Path, where: str, delimiter: str | None) -> NDArray[Any]:
+@dataclasses.dataclass(frozen=True)
+class Table:
+    """A text file's numbers: ``values`` ``(rows, columns)``, the ``header`` naming the columns
+    if its first line names them (None if it holds numbers), and ``lines``, each row's line in
+    the file (from 1, blank lines and ``#`` comments counted), by which messages name a row."""
+
+    header: tuple[str, ...] | None
+    values: NDArray[np.float64]
+    lines: tuple[int, ...]
+    where: str
+
+    def at(self, row: int) -> str:
+        """``where`` and the file line of ``row``: ``--input poses.csv line 7``."""
+        return f"{self.where} line {self.lines[row]}"
+
+
+def read_table(path: str | os.PathLike[str], what: str = "--input") -> Table:
+    """The ``.csv`` or ``.txt`` file at ``path`` as a :class:`Table`; see :func:`read_array`
+    for what is refused."""
+    suffix = array_format(path, what)
+    if suffix not in (".csv", ".txt"):
+        raise InputError(f"{what} {os.fspath(path)}: a table is a .csv or .txt file")
+    p = pathlib.Path(path)
+    where = f"{what} {os.fspath(path)}"
+    if not p.is_file():
+        raise InputError(f"{where}: no such file")
+    return _read_text(p, where, "," if suffix == ".csv" else None)
+
+
+def _read_text(p: pathlib.Path, where: str, delimiter: str | None) -> Table:
     try:
         text = p.read_text(encoding="utf-8-sig")
     except UnicodeDecodeError:
         raise InputError(f"{where} is not a text file (it is not UTF-8)") from None
-    lines = [ln for ln in text.splitlines() if ln.split("#", 1)[0].strip()]
-    if lines and not any(map(is_number, lines[0].split("#", 1)[0].replace(",", " ").split())):
-        lines = lines[1:]  # a first line of column names only
-    if not lines:
+    numbered = [
+        (k + 1, ln.split("#", 1)[0])
+        for k, ln in enumerate(text.splitlines())
+        if ln.split("#", 1)[0].strip()
+    ]
+    header = None
+    if numbered and not any(map(is_number, numbered[0][1].replace(",", " ").split())):
+        cells = numbered[0][1].split(delimiter) if delimiter else numbered[0][1].split()
+        header = tuple(c.strip() for c in cells)
+        numbered = numbered[1:]  # a first line of column names only
+    if not numbered:
         raise InputError(f"{where} holds no numbers")
-    try:
-        arr: NDArray[Any] = np.loadtxt(
-            io.StringIO("\n".join(lines)), delimiter=delimiter, comments="#", ndmin=2
+    rows: list[NDArray[np.float64]] = []
+    for line, content in numbered:
+        try:
+            row = np.loadtxt(io.StringIO(content), delimiter=delimiter, ndmin=1)
+        except ValueError as e:
+            sep = "commas" if delimiter else "whitespace"
+            raise InputError(f"{where} line {line}: {e} (values separated by {sep})") from None
+        if rows and len(row) != len(rows[0]):
+            raise InputError(
+                f"{where} line {line} holds {len(row)} values, line {numbered[0][0]} "
+                f"{len(rows[0])}: every row needs as many"
+            )
+        rows.append(row)
+    if header is not None and len(header) != len(rows[0]):
+        raise InputError(
+            f"{where}: the header names {len(header)} columns, line {numbered[0][0]} holds "
+            f"{len(rows[0])} values"
         )
-    except ValueError as e:
-        sep = "commas" if delimiter else "whitespace"
-        raise InputError(f"{where}: {e} (values separated by {sep}, one row each)") from None
-    return arr
+    values = np.asarray(np.stack(rows), dtype=np.float64)
+    return Table(header, values, tuple(line for line, _ in numbered), where)
 
 
 def read_array(
@@ -292,7 +343,7 @@ def read_array(
     elif suffix == ".npz":
         arr = _read_npz(p, where, name)
     else:
-        arr = _read_text(p, where, "," if suffix == ".csv" else None)
+        arr = _read_text(p, where, "," if suffix == ".csv" else None).values
     if arr.size == 0:  # as an empty text file: no rows to compute, nothing to write
         raise InputError(f"{where} holds no numbers (an array of shape {arr.shape})")
     return _numbers(arr, where)
