@@ -469,3 +469,17 @@ def test_a_prismatic_joint_counts_two(tmp_path: Any) -> None:
     positions = calibrate(chain, q, sim.poses(q)[:, :3, 3], folds=0)
     assert positions.expected_identifiable == 17
     assert [c.encoder_unit for c in result.changes()[:4]] == ["mrad", "mm", "mrad", "mrad"]
+
+
+def test_a_noise_given_far_too_large_is_named_as_the_cause(ur5e: Setup) -> None:
+    """Issue 26: sigma_pos=0.1 (10 cm, for data of 0.1 mm) left combinations unidentified and
+    advised planning more poses; the note names the noise given instead, and nothing else."""
+    measured = ur5e.sim.measure(ur5e.q, noise_m=SIGMA, noise_rad=SIGMA, seed=5)
+    with pytest.warns(CalibrationWarning) as record:
+        calibrate(ur5e.chain, ur5e.q, measured, sigma_pos=0.1, folds=0)
+    (note,) = [str(w.message) for w in record]
+    assert note.startswith("--sigma-pos (sigma_pos) 100 mm is ") and "--plan" not in note
+    assert "give your instrument's noise" in note
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", CalibrationWarning)  # the true noise: no note
+        calibrate(ur5e.chain, ur5e.q, measured, sigma_pos=SIGMA, sigma_ori=SIGMA, folds=0)

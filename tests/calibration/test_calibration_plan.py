@@ -105,3 +105,31 @@ def test_bad_plans_raise(kwargs: dict[str, object], message: str) -> None:
         n = 9
     with pytest.raises(InputError, match=message):
         plan_poses("universal_robots_ur5e", n, **kwargs)  # type: ignore[arg-type]
+
+
+def test_a_plan_is_bounded_and_reports_its_progress(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Issue 26: --plan 100000 ran for minutes with no output. A plan holds at most
+    MAX_POSES (one line says why), and its steps report to a progress callback, which the
+    command line draws as a bar on a terminal, without changing the plan."""
+    import io
+
+    from poekin.cli import _calibrate
+
+    chain = poekin.load("universal_robots_ur5e")
+    with pytest.raises(InputError, match=r"100000 poses: plan at most 1000 \(a tracker"):
+        plan_poses(chain, 100_000)
+    seen: list[int] = []
+    planned = plan_poses(chain, 12, candidates=300, progress=seen.append)
+    assert seen == list(range(1, 13))
+    assert np.array_equal(planned, plan_poses(chain, 12, candidates=300))
+
+    class Terminal(io.StringIO):
+        def isatty(self) -> bool:
+            return True
+
+    monkeypatch.setattr("sys.stderr", Terminal())
+    with _calibrate._bar(500, "plan", "pose") as step:
+        assert step is not None
+        step(250)
+    with _calibrate._bar(50, "plan", "pose") as step:
+        assert step is None  # a short plan takes well under 2 s: no bar

@@ -274,6 +274,7 @@ def _calibrate(
         state=state,
         residual_rms_m=float(np.sqrt(np.mean(after[0] ** 2))),
         prediction=prediction,
+        overstated=_overstated(fitted.residuals, sigma_pos, sigma_ori),
     )
     heldout = None
     if folds:
@@ -344,6 +345,39 @@ def _source_name(model: object, chain: Chain) -> str:
     if isinstance(model, str | os.PathLike):
         return os.fspath(model)
     return chain.robot or "MODEL"
+
+
+# A noise given this many times the residuals' own spread is overstated: the fit weighs the
+# data as that noisy and leaves what they determine well unidentified
+_OVERSTATED = 10.0
+
+
+def _overstated(
+    residuals: FloatArray, sigma_pos: float | None, sigma_ori: float | None
+) -> str | None:
+    """Words for a given noise far above the residuals' spread (``(N, m)`` raw, rad then m),
+    or None."""
+    said = []
+    pos = float(np.sqrt(np.mean(residuals[:, -3:] ** 2)))
+    if sigma_pos is not None and sigma_pos > _OVERSTATED * pos:
+        said.append(
+            f"--sigma-pos (sigma_pos) {sigma_pos * 1e3:.3g} mm is {sigma_pos / pos:.2g} times the "
+            f"residuals' spread ({pos * 1e3:.2g} mm per axis)"
+        )
+    if sigma_ori is not None and residuals.shape[1] == 6:
+        ori = float(np.sqrt(np.mean(residuals[:, :3] ** 2)))
+        if sigma_ori > _OVERSTATED * ori:
+            said.append(
+                f"--sigma-ori (sigma_ori) {sigma_ori * 1e3:.3g} mrad is {sigma_ori / ori:.2g} "
+                f"times the residuals' spread ({ori * 1e3:.2g} mrad per axis)"
+            )
+    if not said:
+        return None
+    return (
+        f"{' and '.join(said)}: the fit weighs the data as that noisy, so it leaves unidentified "
+        "what they determine well; give your instrument's noise (in metres and radians), or "
+        "leave it out to have it estimated from the residuals"
+    )
 
 
 def _heldout(

@@ -336,10 +336,12 @@ def advice(
     state: State,
     residual_rms_m: float,
     prediction: Prediction,
+    overstated: str | None = None,
 ) -> list[str]:
     """Warnings for too few or too similar poses, with how many more, which joints to move:
-    too few poses; data the model cannot fit (wrong units, joint order or frame: then nothing
-    else is said); combinations left unidentified (the joints that barely moved, or a point on
+    too few poses; a given noise far above the residuals' (``overstated``, its words: then
+    nothing else is said); data the model cannot fit (wrong units, joint order or frame:
+    likewise); combinations left unidentified (the joints that barely moved, or a point on
     the last joint's axis); poses that cover the workspace poorly (the joints whose range they
     leave out). ``source`` names the model in the suggested planning command; ``state``,
     ``residual_rms_m`` and ``prediction`` are the fit's."""
@@ -356,6 +358,9 @@ def advice(
             f"more ({recommended} give twice as many measured numbers as parameters), better "
             f"{good} or more: {plan} proposes the ones that tell the parameters apart best"
         )
+    if overstated is not None:  # the noise given, not the poses, is what went wrong
+        out.append(overstated)
+        return out
     if residual_rms_m > _MISMATCH_M:
         out.append(
             f"the calibrated chain still misses the measurements by {residual_rms_m * 1e3:.3g} mm "

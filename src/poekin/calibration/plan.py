@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import dataclasses
 import os
+from collections.abc import Callable
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -40,6 +41,10 @@ FloatArray = NDArray[np.float64]
 _PRIOR_M, _PRIOR_RAD = 1e-3, 1e-2  # the units of the corrections (as calibrate's defaults)
 _CANDIDATES_PER_POSE = 40
 _MIN_CANDIDATES = 2000
+_MAX_CANDIDATES = 8000  # the default's bound: each pose picked costs a pass over the candidates
+#: The most poses a plan holds: a tracker session measures tens to hundreds; a plan this long
+#: takes some 30 s (greedy: one pass over the candidates per pose; UR5e, 2 cores)
+MAX_POSES = 1000
 _RIDGE = 1e-9  # the information starts at this times a typical pose's (so that A inverts)
 
 
@@ -77,6 +82,7 @@ def plan_poses(
     measure: Measure = "pose",
     candidates: int | None = None,
     seed: int = 0,
+    progress: Callable[[int], None] | None = None,
 ) -> FloatArray:
     """``(n, dof)`` configurations within the joint limits to measure for a calibration.
 
@@ -85,13 +91,16 @@ def plan_poses(
         n: how many poses (at least as many as the parameters need).
         measure: ``"pose"`` (the tracker measures position and orientation) or
             ``"position"`` (a point only).
-        candidates: random configurations to choose from (default ``max(2000, 40 n)``).
+        candidates: random configurations to choose from (default 40 per pose, from 2,000 to
+            8,000, and at least ``n``).
         seed: the candidates' random draw.
+        progress: called with the number of poses picked so far, after each (a progress bar).
 
     Raises:
-        InputError: ``n`` too small to identify the parameters, or ``candidates`` below ``n``.
+        InputError: ``n`` too small to identify the parameters or above :data:`MAX_POSES`, or
+            ``candidates`` below ``n``.
     """
-    from poekin.calibration.identify import minimum_poses
+    from poekin.calibration.identify import minimum_poses, recommended_poses
 
     with one_thread():  # small matrices: see poekin.calibration._blas
         chain = as_chain(model, frame)
@@ -105,7 +114,14 @@ def plan_poses(
                 f"{n} poses give {n * cm.rows_per_pose} measured numbers for {len(cm.free)} "
                 f"parameters: plan at least {need}"
             )
-        count = max(_MIN_CANDIDATES, _CANDIDATES_PER_POSE * n) if candidates is None else candidates
+        if n > MAX_POSES:
+            raise InputError(
+                f"{n} poses: plan at most {MAX_POSES} (a tracker session measures tens to "
+                f"hundreds; from {2 * recommended_poses(cm)} on, more poses only average the noise "
+                "down)"
+            )
+        default = min(max(_MIN_CANDIDATES, _CANDIDATES_PER_POSE * n), max(_MAX_CANDIDATES, n))
+        count = default if candidates is None else candidates
         count = whole_number(count, "candidates", n)
         pool = sample_joint_values(sampling_chain(chain), count, seed=seed, within_limits=True)
         m = cm.rows_per_pose
@@ -127,4 +143,6 @@ def plan_poses(
             K = Y[best * m : (best + 1) * m]
             update = np.linalg.solve(np.eye(m) + blocks[best] @ K.T, K)
             Y = Y - (J @ K.T) @ update
+            if progress is not None:
+                progress(len(picked))
         return np.asarray(pool[picked], dtype=np.float64)

@@ -3,9 +3,12 @@
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import math
 import pathlib
+import sys
+from collections.abc import Callable, Iterator
 from typing import TYPE_CHECKING, Any, TextIO
 
 import numpy as np
@@ -71,7 +74,15 @@ def _plan(args: argparse.Namespace, chain: Any, out: TextIO) -> int:
     from poekin.verification.verify import sample_joint_values
 
     measure: Measure = "position" if args.positions else "pose"
-    q = plan_poses(chain, args.plan, measure=measure, candidates=args.candidates, seed=args.seed)
+    with _bar(args.plan, "plan", "pose") as step:
+        q = plan_poses(
+            chain,
+            args.plan,
+            measure=measure,
+            candidates=args.candidates,
+            seed=args.seed,
+            progress=step,
+        )
     cm = model_of(chain, measure)
     o1, cond = quality(cm, q)
     random_q = sample_joint_values(
@@ -114,6 +125,20 @@ def _plan(args: argparse.Namespace, chain: Any, out: TextIO) -> int:
             print(summary, file=out)
             print(f"planned poses written to {args.output}", file=out)
     return 0
+
+
+@contextlib.contextmanager
+def _bar(total: int, desc: str, unit: str) -> Iterator[Callable[[int], None] | None]:
+    """A progress callback (the count done so far) for a tqdm bar on stderr when it is a
+    terminal and ``total`` is large enough to take seconds, else None (tqdm is imported only
+    then)."""
+    if total < 200 or not (hasattr(sys.stderr, "isatty") and sys.stderr.isatty()):
+        yield None
+        return
+    from tqdm import tqdm
+
+    with tqdm(total=total, desc=desc, unit=unit, delay=0.5, leave=False) as bar:
+        yield lambda done: bar.update(done - bar.n)
 
 
 def _cmd_calibrate(args: argparse.Namespace, out: TextIO) -> int:
