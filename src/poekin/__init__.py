@@ -32,6 +32,7 @@ from poekin.errors import (
     UnknownRobotError,
     URDFError,
 )
+from poekin.ik._angles import wrap
 from poekin.io.import_mujoco import chain_from_model, tree_from_model
 from poekin.io.import_urdf import URDFLimitsWarning, tree_from_urdf
 from poekin.io.loading import load, load_tree
@@ -166,6 +167,7 @@ __all__ = [
     "vee_se3",
     "vee_so3",
     "verify",
+    "wrap",
 ]
 
 

@@ -703,6 +703,7 @@ class Chain:
         max_attempts: int = 100,
         max_total_iterations: int | None = None,
         params: ChainParams | None = None,
+        nearest_branch: bool = False,
     ) -> IKResult:
         """Joint values that put the end frame at ``T``: numerical inverse kinematics, inside
         the joint limits, batched (:mod:`poekin.ik.numerical` describes the algorithm).
@@ -743,6 +744,10 @@ class Chain:
             params: the screws and home pose to solve with instead of the chain's own
                 (:meth:`parameters`): JAX arrays or tensors to differentiate the answer with
                 respect to, or NumPy arrays (the NumPy solve of :meth:`with_parameters`).
+            nearest_branch: with ``q0``, for a chain with a closed form (:meth:`ik_all`, a
+                calibrated arm's refined one too): the valid branch nearest ``q0``, its
+                angles the equivalents nearest ``q0`` (:func:`poekin.wrap`), where a target
+                has one (``iterations`` 0 there), else the numerical solve from ``q0``. NumPy.
 
         Returns:
             An :class:`~poekin.ik.IKResult`: ``q`` ``(..., n)`` (always within the joint
@@ -770,6 +775,26 @@ class Chain:
         """
         from poekin.ik.numerical import settings, solve
 
+        if nearest_branch is not False:
+            from poekin.ik.analytic import nearest_branch as nearest
+
+            if nearest_branch is not True:
+                raise InputError(f"nearest_branch must be True or False, got {nearest_branch!r}")
+            if q0 is None or position_only or params is not None or max_total_iterations:
+                raise InputError(
+                    "nearest_branch chooses among the closed-form solutions of whole poses by "
+                    "their distance to q0: give q0, and leave out position_only, params and "
+                    "max_total_iterations"
+                )
+            options = settings(
+                pos_tol=pos_tol,
+                ori_tol=ori_tol,
+                position_only=False,
+                orientation_weight=orientation_weight,
+                max_iterations=max_iterations,
+                max_attempts=max_attempts,
+            )
+            return nearest(self, T, q0, lambda: solve(self, T, q0, seed=seed, options=options))
         numpy = params is None and arrays.kind_of(T) is None
         budget = max_total_iterations
         kernel = numpy and budget is None and (q0 is None or arrays.kind_of(q0) is None)
@@ -808,17 +833,25 @@ class Chain:
         chain = self if params is None else self.with_parameters(params)
         return solve(chain, T, q0, seed=seed, options=settings(**given))
 
-    def ik_all(self, T: ArrayLike) -> IKSolutions:
+    def ik_all(
+        self, T: ArrayLike, *, near: ArrayLike | None = None, refine: bool = True
+    ) -> IKSolutions:
         """Every closed-form inverse kinematics solution: the joint values that put the end
         frame at ``T``, all branches at once (:mod:`poekin.ik.analytic`).
 
         For six revolute joints whose axes admit a closed form: three parallel axes (2, 3, 4)
         with axes 5 and 6 meeting (the UR arms), or a spherical wrist (axes 4, 5, 6 meeting)
         with axes 2 and 3 parallel, axes 1 and 2 meeting, or axes 2 and 3 meeting. The
-        geometry is read from the screws (:func:`poekin.ik.analytic.geometry`).
+        geometry is read from the screws (:func:`poekin.ik.analytic.geometry`). A calibrated
+        arm, whose axes are only nearly so, gets the nearest ideal geometry's closed form with
+        each branch refined on the arm itself (``result.geometry.nearest`` says how near).
 
         Args:
             T: ``(..., 4, 4)`` target poses ``T_world_frame`` of :attr:`frame`.
+            near: ``(..., 6)`` joint values (the robot's current ones): the angles as their
+                equivalents nearest them (:func:`poekin.wrap`), the branches ordered by their
+                distance to them, valid ones first.
+            refine: False refuses a chain only near a supported geometry instead of refining.
 
         Returns:
             :class:`~poekin.ik.analytic.IKSolutions`: ``q`` ``(..., k, 6)`` (``k = 8``),
@@ -832,7 +865,7 @@ class Chain:
         """
         from poekin.ik.analytic import ik_all
 
-        return ik_all(self, T)
+        return ik_all(self, T, near=near, refine=refine)
 
     def __repr__(self) -> str:
         joints = ", ".join(

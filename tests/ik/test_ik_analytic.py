@@ -12,6 +12,7 @@ from __future__ import annotations
 import pathlib
 
 import ik_arms
+import mujoco
 import numpy as np
 import pytest
 from ik_arms import Arm
@@ -310,11 +311,13 @@ def test_seven_joints_are_refused() -> None:
 def test_a_tilted_ur_axis_is_named(folder: pathlib.Path) -> None:
     ur = arm_named("ur5e", folder).chain
     with pytest.raises(AnalyticIKError, match=r"axes 2 and 3 are not parallel: 0\.3 deg") as e:
-        _tilted(ur, 2, 0.3).ik_all(np.eye(4))
+        _tilted(ur, 2, 0.3).ik_all(np.eye(4), refine=False)
     assert isinstance(e.value, ModelError)
     assert "spherical wrist" in str(e.value) and "chain.ik" in str(e.value)
     with pytest.raises(AnalyticIKError, match=r"axes 2 and 4 are not parallel: 0\.3 deg"):
-        _tilted(ur, 3, 0.3).ik_all(np.eye(4))
+        _tilted(ur, 3, 0.3).ik_all(np.eye(4), refine=False)
+    with pytest.raises(AnalyticIKError, match=r"not parallel: 1 deg.*nor within 0\.01 of one"):
+        _tilted(ur, 3, 1.0).ik_all(np.eye(4))  # too far for the refined nearest geometry
 
 
 def test_a_fourth_parallel_axis_is_named(folder: pathlib.Path) -> None:
@@ -476,3 +479,118 @@ def test_kernel_rejects_what_the_reference_rejects(folder: pathlib.Path) -> None
 
 
 # --- the page -----------------------------------------------------------------------------------
+
+
+# --- a calibrated arm: the nearest ideal geometry, refined (issue 26) ---------------------------
+
+CALIBRATED = pathlib.Path(__file__).resolve().parents[1] / "data" / "ur" / "ur5e_calibration.yaml"
+
+
+def _calibrated() -> tuple[poekin.Chain, mujoco.MjModel]:
+    """The synthetic calibrated UR5e (tests/data/ur: axes 0.07 and 0.12 deg from parallel, 5
+    and 6 0.022 mm apart), and MuJoCo's compile of it, written as a URDF."""
+    import tempfile
+
+    chain = poekin.load_params(CALIBRATED)
+    with tempfile.TemporaryDirectory() as folder:
+        path = pathlib.Path(folder) / "calibrated.urdf"
+        poekin.export(chain, "urdf", path)
+        model = mujoco.MjModel.from_xml_path(str(path))
+    return chain, model
+
+
+def _mj_fk(model: mujoco.MjModel, frame: str, q: np.ndarray) -> np.ndarray:
+    data = mujoco.MjData(model)
+    body = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, frame)
+    out = np.tile(np.eye(4), (len(q), 1, 1))
+    for n, x in enumerate(q):
+        data.qpos[:] = x
+        mujoco.mj_forward(model, data)
+        out[n, :3, :3], out[n, :3, 3] = data.xmat[body].reshape(3, 3), data.xpos[body]
+    return out
+
+
+def test_a_calibrated_ur_gets_every_branch_refined_on_itself() -> None:
+    """A real UR's axes are never exactly parallel, so the exact closed form refuses it; the
+    nearest ideal geometry's branches, refined on the arm, are exact by MuJoCo's FK of the
+    arm (1e-10), distinct, within the limits, and hold the configuration each target came
+    from for >= 99% of targets (the rest: pairs of solutions that merge near a singularity)."""
+    chain, model = _calibrated()
+    with pytest.raises(AnalyticIKError, match=r"axes 2 and 3 are not parallel: 0\.07 deg"):
+        chain.ik_all(np.eye(4), refine=False)
+    q = poekin.sample_joint_values(chain, 1000, seed=3, within_limits=True)
+    T = _mj_fk(model, chain.frame, q)
+    found = chain.ik_all(T)
+    assert found.geometry.nearest == (
+        "axes 2 and 3 are not parallel: 0.07 deg; axes 2 and 4 are not parallel: 0.12 deg; "
+        "axes 5 and 6 do not meet: 0.022 mm apart"
+    )
+    ok = found.valid
+    assert ok.sum(axis=-1).mean() > 6.9  # the nominal UR5e: 7.07 per target on such q
+    reached = _mj_fk(model, chain.frame, found.q[ok])
+    pos, ori = poekin.pose_errors(np.broadcast_to(T[:, None], (*ok.shape, 4, 4))[ok], reached)
+    assert pos.max() <= 1e-10 + 1e-13 and ori.max() <= 1e-10 + 1e-13
+    assert within_limits(found.q[ok], chain.limits).all()
+    for t in range(len(q)):
+        sols = found.q[t][ok[t]]
+        gaps = np.abs(sols[:, None] - sols[None]).max(axis=-1) + np.eye(len(sols))
+        assert (gaps > 1e-8).all(), t  # no branch twice
+    own = (np.abs(poekin.wrap(found.q, chain, q[:, None]) - q[:, None]).max(axis=-1) < 1e-7) & ok
+    assert own.any(axis=-1).mean() >= 0.99
+
+
+def test_refined_branches_are_the_solutions_a_search_finds() -> None:
+    """On 40 targets, 2,000 random starts each of the numerical solver find at most 1% of
+    solutions that the refined closed form does not list (where a straight wrist moves the
+    calibrated arm's solutions far from the ideal geometry's). Solutions count as one within
+    1e-4 rad: near a fold two converged answers of one solution differ by that much."""
+    chain, _ = _calibrated()
+    q = poekin.sample_joint_values(chain, 40, seed=4, within_limits=True)
+    found = chain.ik_all(chain.fk(q))
+    rng = np.random.default_rng(5)
+    distinct, missing = 0, 0
+    for t in range(len(q)):
+        starts = rng.uniform(-np.pi, np.pi, (2000, 6))
+        search = chain.ik(np.broadcast_to(chain.fk(q[t]), (2000, 4, 4)), starts, max_attempts=1)
+        seen: list[np.ndarray] = []
+        for s in poekin.wrap(search.q[search.success], chain):
+            if not any(np.abs(s - u).max() < 1e-4 for u in seen):
+                seen.append(s)
+        listed = found.q[t][found.valid[t]]
+        distinct += len(seen)
+        missing += sum(
+            not (np.abs(poekin.wrap(listed, chain, s) - s).max(axis=-1) < 1e-4).any() for s in seen
+        )
+    assert distinct > 250 and missing <= 0.01 * distinct, (missing, distinct)
+
+
+def test_near_orders_the_branches_and_gives_the_nearest_equivalents(folder: pathlib.Path) -> None:
+    """ik_all(T, near=q): the branch of q first, its angles those of q (a +-2 pi joint at
+    q6 = 6.0 comes back at 6.0, not -0.28), the valid branches by distance; the same poses."""
+    ur = arm_named("ur5e", folder).chain
+    q = np.array([[0.3, -1.2, 1.4, -0.5, 1.1, 6.0], [-2.0, -2.2, -1.0, 4.0, -0.4, -5.5]])
+    T = ur.fk(q)
+    plain, near = ur.ik_all(T), ur.ik_all(T, near=q)
+    assert np.allclose(near.q[:, 0], q, atol=1e-9)
+    for t in range(len(q)):
+        d = np.linalg.norm(near.q[t] - q[t], axis=-1)[near.valid[t]]
+        assert (np.diff(d) >= 0).all() and near.valid[t][: len(d)].all()
+        assert near.valid[t].sum() == plain.valid[t].sum()
+    assert np.allclose(ur.fk(near.q[near.valid]), np.repeat(T, near.valid.sum(-1), axis=0))
+    with pytest.raises(InputError, match="near must be"):
+        ur.ik_all(T, near=np.zeros((3, 6)))
+
+
+def test_ik_nearest_branch_is_the_closed_forms_nearest_q0(folder: pathlib.Path) -> None:
+    ur = arm_named("ur5e", folder).chain
+    q = poekin.sample_joint_values(ur, 50, seed=6, within_limits=True)
+    T = ur.fk(q)
+    found = ur.ik(T, q + 0.05, nearest_branch=True)
+    assert found.success.all() and (found.iterations == 0).all()
+    assert np.allclose(found.q, q, atol=1e-9)  # the generating branch is the nearest
+    far = T.copy()
+    far[0, :3, 3] = [3.0, 0.0, 0.0]  # no branch: the numerical best fit from q0
+    missed = ur.ik(far, q, nearest_branch=True)
+    assert not missed.success[0] and missed.iterations[0] > 0 and missed.success[1:].all()
+    with pytest.raises(InputError, match="nearest_branch chooses among"):
+        ur.ik(T, nearest_branch=True)

@@ -400,3 +400,23 @@ def test_a_parameter_set_is_solved(capsys: pytest.CaptureFixture[str]) -> None:
     assert code == 0 and got["success"] and got["robot"] == "ur5e-dh"
     pos, ori = poekin.pose_errors(T, table.fk(np.array(got["q"])))
     assert pos <= TOL + 1e-12 and ori <= TOL + 1e-12
+
+
+def test_all_refines_a_calibrated_arm_and_says_so(capsys: pytest.CaptureFixture[str]) -> None:
+    """Issue 26: --all on a calibrated UR refused (0.07 deg from parallel); it refines the
+    nearest ideal geometry's branches now, with a note, and --no-refine refuses as before."""
+    cal = str(pathlib.Path(__file__).resolve().parents[1] / "data" / "ur" / "ur5e_calibration.yaml")
+    argv = ["ik", "--params", cal, "--pose", "0.4", "0.2", "0.5", "0", "1", "0", "0", "--all"]
+    code, out, err = run(capsys, *argv)
+    assert code == 0 and "is near, not on, the closed form's geometry (axes 2 and 3" in err
+    assert (
+        "SOLVED: nearest three parallel axes (2, 3, 4), axes 5 and 6 meet, refined: 8 of 8" in out
+    )
+    chain = poekin.load_params(cal)
+    rows = [ln.split() for ln in out.splitlines() if ln.strip()[:1].isdigit()]
+    q = np.array([[float(x) for x in r[2:]] for r in rows])
+    target = poekin.homogeneous(np.diag([1.0, -1.0, -1.0]), [0.4, 0.2, 0.5])  # quat 0 1 0 0
+    pos, ori = poekin.pose_errors(chain.fk(q), target)
+    assert pos.max() < 1e-5 and ori.max() < 1e-5  # q as printed, to 6 decimals
+    code, out, err = run(capsys, *argv, "--no-refine")
+    assert code == 2 and "axes 2 and 3 are not parallel: 0.07 deg" in err and out == ""

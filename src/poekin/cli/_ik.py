@@ -293,19 +293,28 @@ def _chain_problem(args: argparse.Namespace) -> _Problem:
     solved = tuple(range(chain.n_joints))
     robot = chain.robot or "chain"
     if args.all:
-        from poekin.ik.analytic import geometry
+        from poekin.ik.analytic import geometry, nearest_geometry
 
+        refine = not args.no_refine
         try:
-            split = geometry(chain)
+            split = nearest_geometry(chain) if refine else geometry(chain)
         except AnalyticIKError as e:
             raise AnalyticIKError(f"{e}; without --all, poekin ik solves it numerically") from None
+        description = split.description
+        if split.nearest:
+            note(
+                f"{robot} is near, not on, the closed form's geometry ({split.nearest}): each "
+                "branch of the nearest ideal geometry is refined numerically on the arm itself "
+                "(--no-refine refuses instead)"
+            )
+            description = f"nearest {description}, refined"
         return _Problem(
             robot,
             chain.frame,
             space,
             solved,
-            lambda T: _fields(chain.ik_all(T), _ALL_FIELDS),
-            split.description,
+            lambda T: _fields(chain.ik_all(T, refine=refine), _ALL_FIELDS),
+            description,
         )
     q0 = None if args.q0 is None else _read_values(args.q0, space, args.deg, "--q0")
     options = _options(args)
@@ -656,7 +665,12 @@ def register(sub: Any, fmt: type[argparse.HelpFormatter]) -> None:
         "--all",
         action="store_true",
         help="every closed-form solution (analytic; six-joint arms with three parallel axes "
-        "or a spherical wrist)",
+        "or a spherical wrist, or near one: a calibrated arm's branches are refined)",
+    )
+    p.add_argument(
+        "--no-refine",
+        action="store_true",
+        help="--all: refuse an arm only near a closed-form geometry instead of refining",
     )
     p.add_argument(
         "--q0",

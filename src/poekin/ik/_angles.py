@@ -9,11 +9,12 @@ from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
 
 from poekin import arrays
+from poekin.errors import InputError
 
-__all__ = ["TWO_PI", "outside_limits", "within_limits", "wrap_into_limits"]
+__all__ = ["TWO_PI", "nearest_turns", "outside_limits", "within_limits", "wrap", "wrap_into_limits"]
 
 FloatArray = NDArray[np.float64]
 BoolArray = NDArray[np.bool_]
@@ -67,6 +68,66 @@ def wrap_into_limits(q: Any, limits: Any, revolute: Any, xp: Any = np) -> Any:
     moved = xp.where(below & (raised <= hi), raised, q)
     moved = xp.where(above & (lowered >= lo), lowered, moved)
     return xp.where(limited & ~inside, moved, q)
+
+
+def nearest_turns(q: Any, reference: Any, limits: FloatArray, revolute: Sequence[bool]) -> Any:
+    """``(..., n)`` ``q`` with each revolute angle moved by whole turns to the equivalent
+    nearest ``reference`` (broadcast against ``q``) among those within ``limits``; an angle
+    that no turn brings within them stays as it is. Prismatic values never move. NumPy."""
+    q = np.array(q, dtype=np.float64)
+    ref = np.broadcast_to(np.asarray(reference, dtype=np.float64), q.shape)
+    lo, hi = limits[:, 0], limits[:, 1]
+    turning = np.asarray(revolute, dtype=np.bool_)
+    near = q + TWO_PI * np.round((ref - q) / TWO_PI)  # the equivalent nearest ref
+    best = np.where((near >= lo) & (near <= hi), near, np.nan)
+    for step in (-TWO_PI, TWO_PI):  # nearest outside the limits: the next turn inside
+        other = near + step
+        ok = (other >= lo) & (other <= hi)
+        closer = ok & (np.isnan(best) | (np.abs(other - ref) < np.abs(best - ref)))
+        best = np.where(closer, other, best)
+    return np.where(turning & ~np.isnan(best), best, q)
+
+
+def wrap(q: ArrayLike, chain: Any, reference: ArrayLike | None = None) -> FloatArray:
+    """Each revolute joint's value of ``q`` as its equivalent (the same angle, whole turns
+    apart) nearest ``reference`` within the joint's limits, or, without a reference, the one
+    nearest 0 (in ``[-pi, pi]`` where the limits allow it). What a controller wants of an IK
+    answer: 6.09 rad on a +-2 pi joint is valid, but it is -0.19 rad.
+
+    Args:
+        q: ``(..., n)`` joint values (rad, m) of ``chain``'s joints.
+        chain: a :class:`~poekin.Chain` (its limits and joint types).
+        reference: ``(..., n)`` joint values to be nearest (the robot's current ones),
+            broadcast against ``q``; None for 0.
+
+    Returns:
+        ``(..., n)`` float64: the same poses (``chain.fk`` agrees to rounding); prismatic
+        values, and angles that no whole turn brings within the limits, unchanged.
+
+    Raises:
+        InputError: ``q`` or ``reference`` not real finite values of the chain's joints.
+    """
+    from poekin._poe import as_joint_values
+
+    values = as_joint_values(q, chain.n_joints, what="joint values")
+    if not np.all(np.isfinite(values)):
+        raise InputError("joint values contain NaN or inf; every value must be finite")
+    if reference is None:
+        ref = np.zeros(chain.n_joints)
+    else:
+        ref = as_joint_values(reference, chain.n_joints, what="reference values")
+        if not np.all(np.isfinite(ref)):
+            raise InputError("reference values contain NaN or inf; every value must be finite")
+        try:
+            np.broadcast_shapes(values.shape, ref.shape)
+        except ValueError:
+            raise InputError(
+                f"reference of shape {ref.shape} does not broadcast against q of shape "
+                f"{values.shape}"
+            ) from None
+    revolute = [t == "revolute" for t in chain.joint_types]
+    out: FloatArray = nearest_turns(values, ref, chain.limits, revolute)
+    return out
 
 
 def _constant(values: list[Any], like: Any, xp: Any) -> Any:

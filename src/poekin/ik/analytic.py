@@ -65,8 +65,18 @@ except ImportError:  # built without a C compiler: the NumPy reference serves
 
 if TYPE_CHECKING:
     from poekin.chain import Chain
+    from poekin.ik.numerical import IKResult
 
-__all__ = ["GEOMETRY_TOL", "Geometry", "IKSolutions", "geometry", "ik_all"]
+__all__ = [
+    "GEOMETRY_TOL",
+    "NEAR_TOL",
+    "Geometry",
+    "IKSolutions",
+    "geometry",
+    "ik_all",
+    "nearest_branch",
+    "nearest_geometry",
+]
 
 FloatArray = NDArray[np.float64]
 BoolArray = NDArray[np.bool_]
@@ -146,6 +156,10 @@ class Geometry:
         size: the arm's size (m), the scale of the tolerances: the largest distance from the
             end frame's home position to a joint axis.
         n_solutions: ``k``, the number of branches returned per target.
+        nearest: ``""`` when the chain has this geometry (to :data:`GEOMETRY_TOL`); else how
+            far it is from it (``"axes 2 and 3 are not parallel: 0.07 deg; ..."``): the
+            closed form is the nearest ideal geometry's, and :func:`ik_all` refines each
+            branch on the chain (:func:`nearest_geometry`).
     """
 
     kind: str
@@ -155,6 +169,7 @@ class Geometry:
     _solve: Callable[[_Target], _Branches] = dataclasses.field(repr=False)
     _kind: int = dataclasses.field(repr=False)  # the compiled twin's split and constants
     _params: FloatArray = dataclasses.field(repr=False)
+    nearest: str = ""
 
 
 # --- the geometry ------------------------------------------------------------------------------
@@ -217,7 +232,8 @@ class _Arm:
     """The chain's axis lines, its size, and the tests of the geometry conditions, each
     returning ``""`` when it holds or what fails, with the number."""
 
-    def __init__(self, chain: Chain) -> None:
+    def __init__(self, chain: Chain, tol: float = GEOMETRY_TOL) -> None:
+        self.tol = tol  # rad, and a fraction of the size
         S = chain.screws
         self.lines = [_Line(np.cross(s[:3], s[3:]), s[:3].copy()) for s in S]
         self.home = chain.home
@@ -229,24 +245,22 @@ class _Arm:
 
     def parallel(self, i: int, j: int) -> str:
         angle = _angle(self.line(i), self.line(j))
-        return "" if angle <= GEOMETRY_TOL else f"axes {i} and {j} are not parallel: {_deg(angle)}"
+        return "" if angle <= self.tol else f"axes {i} and {j} are not parallel: {_deg(angle)}"
 
     def crossing(self, i: int, j: int) -> str:
         """Axes ``i`` and ``j`` not parallel (else the split has a circle that never turns)."""
         return (
             f"axes {i} and {j} are parallel"
-            if _angle(self.line(i), self.line(j)) <= GEOMETRY_TOL
+            if _angle(self.line(i), self.line(j)) <= self.tol
             else ""
         )
 
     def meet(self, i: int, j: int) -> str:
         a, b = self.line(i), self.line(j)
-        if _angle(a, b) <= GEOMETRY_TOL:
+        if _angle(a, b) <= self.tol:
             return f"axes {i} and {j} are parallel, not meeting"
         gap = _gap(a, b)
-        return (
-            "" if gap <= GEOMETRY_TOL * self.size else f"axes {i} and {j} do not meet: {_mm(gap)}"
-        )
+        return "" if gap <= self.tol * self.size else f"axes {i} and {j} do not meet: {_mm(gap)}"
 
     def wrist(self) -> str:
         """Axes 4, 5 and 6 through one point."""
@@ -254,7 +268,7 @@ class _Arm:
         if fails:
             return fails
         gap = _to_line(_meet(self.line(4), self.line(5)), self.line(6))
-        if gap <= GEOMETRY_TOL * self.size:
+        if gap <= self.tol * self.size:
             return ""
         return f"axis 6 misses the point where axes 4 and 5 meet: {_mm(gap)}"
 
@@ -263,8 +277,8 @@ def _describe_failure(chain: Chain, arm: _Arm, tried: list[tuple[str, str]]) -> 
     name = chain.robot or "this chain"
     reasons = "; ".join(f"{geometry} fails: {why}" for geometry, why in tried)
     return (
-        f"ik_all has no closed form for {name}: {reasons} (tolerance {GEOMETRY_TOL:g} rad, "
-        f"{GEOMETRY_TOL:g} x its size {arm.size:.3g} m). Supported: three parallel axes "
+        f"ik_all has no closed form for {name}: {reasons} (tolerance {arm.tol:g} rad, "
+        f"{arm.tol:g} x its size {arm.size:.3g} m). Supported: three parallel axes "
         "(2, 3, 4) with axes 5 and 6 meeting (UR arms), or axes 4, 5, 6 meeting in a point "
         "with axes 2 and 3 parallel, axes 1 and 2 meeting, or axes 2 and 3 meeting; use the "
         "numerical chain.ik for other arms"
@@ -272,6 +286,57 @@ def _describe_failure(chain: Chain, arm: _Arm, tried: list[tuple[str, str]]) -> 
 
 
 _GEOMETRIES: weakref.WeakKeyDictionary[Chain, Geometry] = weakref.WeakKeyDictionary()
+_NEAREST: weakref.WeakKeyDictionary[Chain, Geometry | AnalyticIKError] = weakref.WeakKeyDictionary()
+
+#: How far from a supported geometry a chain may be (rad between axes, a fraction of the arm's
+#: size between axes that should meet) for :func:`ik_all` to solve the nearest ideal geometry
+#: in closed form and refine each branch on the chain itself: a calibrated arm's axes are
+#: never exactly parallel (a real UR's are 0.045 to 0.086 deg off, and 0.007 to 0.038 mm).
+NEAR_TOL = 1e-2
+
+
+def nearest_geometry(chain: Chain) -> Geometry:
+    """The closed-form split of the supported geometry nearest ``chain``: its own
+    (:func:`geometry`) when it has one to :data:`GEOMETRY_TOL`, else the first supported one
+    within :data:`NEAR_TOL`, whose :attr:`Geometry.nearest` says how far the chain is from it.
+
+    Raises:
+        AnalyticIKError: no supported geometry within :data:`NEAR_TOL` either (the message
+            names each condition that fails exactly).
+    """
+    found = _NEAREST.get(chain)  # found once per chain, a refusal too
+    if found is None:
+        try:
+            found = geometry(chain)
+        except AnalyticIKError as exact:
+            try:
+                near = _find(chain, NEAR_TOL)
+                found = dataclasses.replace(
+                    near, nearest=_deviations(_Arm(chain), near.description)
+                )
+            except AnalyticIKError:
+                six = chain.n_joints == 6 and all(t == "revolute" for t in chain.joint_types)
+                beyond = f" (nor within {NEAR_TOL:g} of one, which ik_all would refine)"
+                found = AnalyticIKError(f"{exact}{beyond if six else ''}")
+        _NEAREST[chain] = found
+    if isinstance(found, AnalyticIKError):
+        raise AnalyticIKError(str(found))
+    return found
+
+
+def _deviations(arm: _Arm, description: str) -> str:
+    """How far the chain of ``arm`` is from the geometry ``description`` names, in words."""
+    checks = {
+        "three parallel axes (2, 3, 4), axes 5 and 6 meet": [
+            arm.parallel(2, 3), arm.parallel(2, 4), arm.meet(5, 6)
+        ],
+        "spherical wrist (axes 4, 5, 6 meet), axes 2 and 3 parallel": [
+            arm.wrist(), arm.parallel(2, 3)
+        ],
+        "spherical wrist (axes 4, 5, 6 meet), axes 1 and 2 meet": [arm.wrist(), arm.meet(1, 2)],
+        "spherical wrist (axes 4, 5, 6 meet), axes 2 and 3 meet": [arm.wrist(), arm.meet(2, 3)],
+    }  # fmt: skip
+    return "; ".join(c for c in checks[description] if c)
 
 
 def geometry(chain: Chain) -> Geometry:
@@ -288,7 +353,8 @@ def geometry(chain: Chain) -> Geometry:
     return found
 
 
-def _find(chain: Chain) -> Geometry:
+def _find(chain: Chain, tol: float = GEOMETRY_TOL) -> Geometry:
+    """The split of the first supported geometry ``chain`` has within ``tol``."""
     name = chain.robot or "this chain"
     if chain.n_joints != 6 or any(t != "revolute" for t in chain.joint_types):
         kinds = "".join("R" if t == "revolute" else "P" for t in chain.joint_types)
@@ -296,7 +362,7 @@ def _find(chain: Chain) -> Geometry:
             f"ik_all needs 6 revolute joints; {name} has {chain.n_joints} ({kinds}): "
             "use the numerical chain.ik"
         )
-    arm = _Arm(chain)
+    arm = _Arm(chain, tol)
     three = arm.parallel(2, 3) or arm.parallel(2, 4) or arm.meet(5, 6) or arm.crossing(2, 5)
     if not three:
         return _three_parallel_geometry(arm)
@@ -772,33 +838,202 @@ def _targets(T: ArrayLike) -> FloatArray:
     return arr
 
 
-def ik_all(chain: Chain, T: ArrayLike) -> IKSolutions:
+def ik_all(
+    chain: Chain, T: ArrayLike, *, near: ArrayLike | None = None, refine: bool = True
+) -> IKSolutions:
     """Every closed-form solution of ``chain.fk(q) = T`` (:meth:`poekin.Chain.ik_all`).
 
     Runs in the compiled kernel where it is installed (:func:`solve_kernel`), else on the
-    NumPy reference path (:func:`solve_numpy`); both give the same solutions.
+    NumPy reference path (:func:`solve_numpy`); both give the same solutions. A chain within
+    :data:`NEAR_TOL` of a supported geometry but not on it (a calibrated arm) is solved in the
+    nearest ideal geometry's closed form, and each branch refined on the chain by the
+    numerical solver from there (``chain.ik`` with that start, one attempt): ``valid`` then
+    means it converged to the default tolerances (1e-10 m and rad), within the limits, and is
+    not the solution of an earlier branch (:attr:`Geometry.nearest` says how near the chain is).
 
     Args:
-        chain: six revolute joints in a supported geometry (:func:`geometry`).
+        chain: six revolute joints in a supported geometry, or near one (:func:`geometry`,
+            :func:`nearest_geometry`).
         T: ``(..., 4, 4)`` target poses ``T_world_frame`` of the chain's end frame.
+        near: ``(..., 6)`` joint values (the robot's current ones): each branch's angles are
+            given as their equivalents nearest them (:func:`poekin.wrap`), and the branches
+            are ordered by their distance to them, the valid ones first. None: the geometry's
+            own order.
+        refine: allow the refinement of a near geometry (the default); False solves only a
+            chain that has its geometry exactly, and raises for one near it.
 
     Returns:
         :class:`IKSolutions` with ``q`` ``(..., k, 6)`` and ``valid`` ``(..., k)``.
 
     Raises:
         AnalyticIKError: the chain has no closed form here (:func:`geometry`).
-        InputError: ``T`` is not ``(..., 4, 4)`` finite rigid transforms.
+        InputError: ``T`` is not ``(..., 4, 4)`` finite rigid transforms, or ``near`` not
+            joint values that broadcast against them.
     """
-    geo = geometry(chain)
+    if not isinstance(refine, bool):
+        raise InputError(f"refine must be True or False, got {refine!r}")
+    geo = nearest_geometry(chain) if refine else geometry(chain)
     arr = _as_poses(T)
     batch = arr.shape[:-2]
     k = geo.n_solutions
     found = _solve_kernel(geo, chain, arr)
     if found is None:
-        q, valid = solve_numpy(chain, _targets(arr).reshape(-1, 4, 4))
+        q, valid = _solve_numpy(geo, chain, _targets(arr).reshape(-1, 4, 4))
     else:
         q, valid = found
-    return IKSolutions(q.reshape(*batch, k, 6), valid.reshape(*batch, k), geo, chain, arr)
+    if geo.nearest:
+        q, valid = _refined(chain, arr.reshape(-1, 4, 4), q, valid)
+    q, valid = q.reshape(*batch, k, 6), valid.reshape(*batch, k)
+    if near is not None:
+        q, valid = _ordered(chain, q, valid, near)
+    return IKSolutions(q, valid, geo, chain, arr)
+
+
+def nearest_branch(
+    chain: Chain, T: ArrayLike, q0: ArrayLike, numerical: Callable[[], IKResult]
+) -> IKResult:
+    """:meth:`poekin.Chain.ik` with ``nearest_branch``: each target's valid closed-form
+    branch nearest ``q0`` (as :func:`ik_all` with ``near``), and where a target has none,
+    the numerical solve's answer (``numerical()``, run only then, on every target)."""
+    from poekin.ik.numerical import IKResult
+
+    found = ik_all(chain, T, near=q0)
+    best_q, best = found.q[..., 0, :], found.valid[..., 0]
+    pos, ori = found.pos_err[..., 0], found.ori_err[..., 0]
+    zero, one = np.zeros(best.shape, dtype=np.int64), np.ones(best.shape, dtype=np.int64)
+    if np.all(best):
+        return IKResult(best_q, best, pos, ori, zero, one)
+    other = numerical()
+    pick = best[..., None]
+    return IKResult(
+        np.where(pick, best_q, other.q),
+        np.where(best, True, other.success),
+        np.where(best, pos, other.pos_err),
+        np.where(best, ori, other.ori_err),
+        np.where(best, zero, other.iterations),
+        np.where(best, one, other.attempts),
+    )
+
+
+# Two refined branches this close (rad, every joint) reached the same solution
+_SAME = 1e-8
+
+
+# A lost branch starts again this far (rad) on either side of its start, along the direction
+# in which two solutions meeting at a fold of the arm part
+_FOLD_STEP = 0.05
+
+
+def _refined(
+    chain: Chain, T: FloatArray, q: FloatArray, exists: BoolArray
+) -> tuple[FloatArray, BoolArray]:
+    """Each branch of ``q`` ``(n, k, 6)`` (the nearest ideal geometry's, for targets ``T``
+    ``(n, 4, 4)``; ``exists`` ``(n, k)`` where that geometry reaches the target) refined on
+    ``chain``: ``q`` and ``valid`` (converged, within the limits, and not a solution an
+    earlier branch of its target reached).
+
+    Near a fold of the arm (a stretched or folded elbow, the wrist centre near axis 1, a
+    straight wrist) two solutions of the chain are close, and the ideal geometry may give both
+    one start (its two roots merge there) or none. A branch that reached its twin's solution,
+    or did not converge, starts again: from its start mirrored through the solution its twin
+    reached (the other side of the fold), then a step either side of its start along the
+    right singular vector of the Jacobian's smallest singular value there (the direction in
+    which the two solutions part); it is kept if it reaches a solution of its own."""
+    limits = chain.limits
+    assert limits is not None  # Chain.__post_init__ sets them
+    lo, hi = limits[:, 0], limits[:, 1]
+    start = np.clip(q, lo, hi)  # inside: the solver says nothing of it
+    n, k = q.shape[:2]
+    targets = np.repeat(T, k, axis=0).reshape(n, k, 4, 4)  # contiguous: the kernel's own
+    found = chain.ik(targets, q0=start, max_attempts=1)
+    out = found.q.copy()  # within the limits, and near the start: the closed form's convention
+    valid = _distinct(out, found.success)
+    # lost where a solution may be: a twin (two roots that merged in the ideal geometry reach
+    # one solution), or a branch the ideal geometry reaches; one it does not reach, and that
+    # did not converge, has none
+    lost = (found.success & ~valid) | (exists & ~found.success)
+    t, b = np.nonzero(lost)
+    if not len(t):
+        return out, valid
+    s0 = start[t, b]
+    mirrored = 2.0 * s0 - out[t, b]  # the other side of the fold from where it ended
+    _retry(chain, targets[t, b], mirrored, t, b, out, valid)
+    left = ~valid[t, b]
+    if left.any():  # a step either side along the direction in which the two solutions part
+        t, b, s0 = t[left], b[left], s0[left]
+        fold = np.linalg.svd(chain.jacobian_space(s0))[2][:, -1, :]  # (m, 6), unit
+        for side in (1.0, -1.0):
+            _retry(chain, targets[t, b], s0 + side * _FOLD_STEP * fold, t, b, out, valid)
+    return out, valid
+
+
+def _retry(
+    chain: Chain,
+    T: FloatArray,
+    q0: FloatArray,
+    t: NDArray[np.intp],
+    b: NDArray[np.intp],
+    out: FloatArray,
+    valid: BoolArray,
+) -> None:
+    """Branches ``b`` of targets ``t`` solved again from ``q0`` (``(m, 6)``, for targets
+    ``T`` ``(m, 4, 4)``): where one converges to a solution apart from every valid one of its
+    target, ``out`` and ``valid`` take it (one branch index at a time: two lost branches may
+    find the same solution)."""
+    limits = chain.limits
+    assert limits is not None
+    again = chain.ik(T, q0=np.clip(q0, limits[:, 0], limits[:, 1]), max_attempts=1)
+    for branch in np.unique(b):
+        rows = np.flatnonzero(again.success & (b == branch) & ~valid[t, b])
+        if not len(rows):
+            continue
+        gap = np.max(np.abs(out[t[rows]] - again.q[rows, None, :]), axis=-1)  # (rows, k)
+        new = rows[~np.any(valid[t[rows]] & (gap < _SAME), axis=-1)]
+        out[t[new], branch], valid[t[new], branch] = again.q[new], True
+
+
+_EARLIER: dict[int, BoolArray] = {}  # (k, k): True below the diagonal
+
+
+def _distinct(q: FloatArray, ok: BoolArray) -> BoolArray:
+    """``ok`` ``(n, k)`` less each branch whose solution an earlier one of its target
+    reached: the pairs whose first joints agree (few: the two shoulders differ), then all."""
+    n, k = q.shape[:2]
+    earlier = _EARLIER.get(k)
+    if earlier is None:
+        earlier = _EARLIER[k] = np.tri(k, k, -1, dtype=np.bool_)
+    both = ok[:, :, None] & ok[:, None, :] & earlier
+    if n <= 64:  # few targets: every pair at once
+        gap = np.max(np.abs(q[:, :, None, :] - q[:, None, :, :]), axis=-1)
+        twin_of: BoolArray = np.any(both & (gap < _SAME), axis=-1)
+        return ok & ~twin_of
+    first = q[:, :, 0]
+    t, b, a = np.nonzero(both & (np.abs(first[:, :, None] - first[:, None, :]) < _SAME))
+    twin = np.max(np.abs(q[t, b] - q[t, a]), axis=-1) < _SAME
+    valid: BoolArray = ok.copy()
+    valid[t[twin], b[twin]] = False
+    return valid
+
+
+def _ordered(
+    chain: Chain, q: FloatArray, valid: BoolArray, near: ArrayLike
+) -> tuple[FloatArray, BoolArray]:
+    """``q`` ``(..., k, 6)`` as the equivalents nearest ``near``, the branches sorted by their
+    distance to it (the valid ones first), with ``valid`` in the same order."""
+    from poekin.ik._angles import wrap
+
+    try:
+        ref = np.broadcast_to(real_array(near, "near"), (*q.shape[:-2], 6))
+    except ValueError:
+        raise InputError(
+            f"near must be (..., 6) joint values that broadcast against the targets' batch "
+            f"shape {q.shape[:-2]}, got shape {np.shape(near)}"
+        ) from None
+    moved = wrap(q, chain, ref[..., None, :])
+    distance = np.linalg.norm(moved - ref[..., None, :], axis=-1)
+    order = np.argsort(distance + np.where(valid, 0.0, 1e6), axis=-1, kind="stable")
+    q_sorted = np.take_along_axis(moved, order[..., None], axis=-2)
+    return q_sorted, np.take_along_axis(valid, order, axis=-1)
 
 
 def solve_kernel(chain: Chain, T: FloatArray) -> tuple[FloatArray, BoolArray] | None:
@@ -824,7 +1059,10 @@ def _solve_kernel(
 def solve_numpy(chain: Chain, T: FloatArray) -> tuple[FloatArray, BoolArray]:
     """The reference path: ``q`` ``(n, k, 6)`` and ``valid`` ``(n, k)`` for validated
     ``(n, 4, 4)`` targets ``T``."""
-    geo = geometry(chain)
+    return _solve_numpy(geometry(chain), chain, T)
+
+
+def _solve_numpy(geo: Geometry, chain: Chain, T: FloatArray) -> tuple[FloatArray, BoolArray]:
     n, k = len(T), geo.n_solutions
     cols = np.ascontiguousarray(T.reshape(n, 16).T)
     R = ((cols[0], cols[1], cols[2]), (cols[4], cols[5], cols[6]), (cols[8], cols[9], cols[10]))
