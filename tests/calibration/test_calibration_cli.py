@@ -12,7 +12,7 @@ from typing import Any
 import numpy as np
 import pytest
 from calibration_helpers import JSON_KEYS
-from helpers import assert_one_error_line, run
+from helpers import assert_one_error_line, load_quiet, mj_pose, run
 
 import poekin
 from poekin.calibration.files import read_measurements, write_measurements
@@ -156,6 +156,102 @@ def test_plan(tmp_path: pathlib.Path, capsys: pytest.CaptureFixture[str]) -> Non
     assert np.load(out).shape == (12, 6)
 
 
+def _mj_z(q: np.ndarray) -> np.ndarray:
+    """The UR5e's end frame heights from MuJoCo's mj_forward (its qpos is the chain's q)."""
+    loaded = load_quiet(ROBOT)
+    return mj_pose(loaded.model, np.asarray(q), "attachment_site")[:, 2, 3]
+
+
+def test_plan_with_constraints(tmp_path: pathlib.Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """Issue 26: --above-z, --box and --range (degrees with --deg) constrain the plan as
+    plan_poses' above_z, box and ranges do, and the summary says how."""
+    from poekin.calibration import plan_poses
+
+    args = ["calibrate", ROBOT, "--plan", "12", "--candidates", "400", "--above-z", "0.05"]
+    args += ["--range", "shoulder_lift_joint", "-180", "0", "--deg"]
+    code, text, err = run(capsys, *args)
+    assert code == 0, err
+    lines = text.splitlines()
+    assert "(random poses meeting the constraints: condition number" in lines[0]
+    counted = re.fullmatch(
+        r"# constrained: shoulder_lift_joint in \[-180, 0\] deg; end frame z >= 0.05 m "
+        r"\(([\d,]+) of ([\d,]+) candidates kept\)",
+        lines[1],
+    )
+    assert counted, lines[1]
+    kept, drawn = (int(g.replace(",", "")) for g in counted.groups())
+    assert 400 <= kept < drawn and drawn % 400 == 0  # more were drawn: 400 were not enough
+    (tmp_path / "plan.csv").write_text(text)
+    q = read_array(tmp_path / "plan.csv")  # two comments, a header, 12 rows
+    expected = plan_poses(
+        ROBOT, 12, candidates=400, above_z=0.05, ranges={"shoulder_lift_joint": (-np.pi, 0)}
+    )
+    assert np.allclose(q, expected, atol=1e-6, rtol=0)
+    code, text, _ = run(capsys, *args, "--json")
+    doc = json.loads(text)
+    assert np.array_equal(doc["q"], expected)
+    assert np.all(_mj_z(doc["q"]) >= 0.05 - 1e-12)
+    assert (doc["candidates_kept"], doc["candidates_drawn"], doc["above_z"]) == (kept, drawn, 0.05)
+    assert doc["ranges"] == {"shoulder_lift_joint": [-np.pi, 0.0]} and doc["box"] is None
+    out = tmp_path / "box.npy"
+    box = ["-0.6", "-0.7", "0.1", "0.2", "0.7", "0.8"]
+    code, text, err = run(
+        capsys, "calibrate", ROBOT, "--plan", "12", "--box", *box, "--output", str(out)
+    )
+    assert code == 0, err
+    assert text.splitlines()[1].startswith(
+        "constrained: end frame x in [-0.6, 0.2], y in [-0.7, 0.7], z in [0.1, 0.8] m ("
+    )
+    loaded = load_quiet(ROBOT)
+    p = mj_pose(loaded.model, np.load(out), "attachment_site")[:, :3, 3]
+    assert np.all((p >= [-0.6, -0.7, 0.1]) & (p <= [0.2, 0.7, 0.8]))
+    # a range alone narrows the draw and drops nothing
+    code, text, _ = run(
+        capsys, "calibrate", ROBOT, "--plan", "12", "--range", "elbow_joint", "0", "2.5"
+    )
+    assert text.splitlines()[1] == (
+        "# constrained: elbow_joint in [0, 2.5] rad (2,000 candidates drawn within it)"
+    )
+    # without constraints: no such line, and the plan of before
+    code, text, _ = run(capsys, "calibrate", ROBOT, "--plan", "12", "--candidates", "400")
+    assert text.splitlines()[1] == ",".join(poekin.load(ROBOT).joint_names)
+    assert "random poses within the limits" in text
+
+
+def test_plan_for_a_parameter_set(
+    tmp_path: pathlib.Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Issue 26: --plan with --params plans for that chain (a named set, a DH table, a PoE file)
+    instead of a model's; before, calibrate took no --params at all."""
+    from poekin.calibration import plan_poses
+
+    code, text, err = run(
+        capsys, "calibrate", "--params", "ur5e-dh", "--plan", "12", "--candidates", "400", "--json"
+    )
+    assert code == 0, err
+    doc = json.loads(text)
+    table = poekin.load_params("ur5e-dh")
+    assert isinstance(table, poekin.DHTable)
+    assert doc["frame"] == "flange" and doc["robot"] == "ur5e-dh"
+    assert np.array_equal(doc["q"], plan_poses(table.to_chain(), 12, candidates=400))
+    # a robot on a 0.5 m pedestal, as a PoE file: --above-z is in its own base frame
+    lifted = poekin.load(ROBOT).with_base(
+        np.array([[1.0, 0, 0, 0], [0, 1, 0, 0], [0, 0, 1, 0.5], [0, 0, 0, 1]])
+    )
+    path = tmp_path / "on_a_pedestal.json"
+    path.write_text(json.dumps(lifted.describe()))
+    args = ["calibrate", "--params", str(path), "--plan", "12", "--above-z", "0.55"]
+    code, text, err = run(capsys, *args, "--output", str(tmp_path / "q.csv"))
+    assert code == 0, err
+    assert text.startswith(
+        f"12 poses (position and orientation) for {path} (universal_robots_ur5e)"
+    )
+    q = read_array(tmp_path / "q.csv")
+    assert np.allclose(q, plan_poses(lifted, 12, above_z=0.55), atol=1e-12)
+    assert np.all(_mj_z(q) + 0.5 >= 0.55 - 1e-12)  # MuJoCo's robot stands at 0
+    assert not np.all(_mj_z(plan_poses(ROBOT, 12)) >= 0.05)
+
+
 HEADER_LINE = (
     "shoulder_pan_joint,shoulder_lift_joint,elbow_joint,wrist_1_joint,wrist_2_joint,wrist_3_joint,"
     "x,y,z,qw,qx,qy,qz"
@@ -224,6 +320,9 @@ HEADER = (
 # what a bad data file must not leave behind
 WRITES = ["--output", "{tmp}/calibrated.json", "--plot", "{tmp}/calibration.png"]
 
+# the upper arm level or lower: the flange reaches no higher than about 0.7 m
+SHOULDER_DOWN = ["--range", "shoulder_lift_joint", "0", "0.1"]
+
 # (argv, message); {tracker} is a good measurement file, {bad:...} one with an edit
 BAD_INPUTS_CALIBRATE = [
     (["calibrate", ROBOT], "give --measurements FILE"),
@@ -263,6 +362,66 @@ BAD_INPUTS_CALIBRATE = [
     (["calibrate", ROBOT, "--plan", "10", "--measurements", "{tracker}"], "drop --measurements"),
     (["calibrate", ROBOT, "--plan", "10", "--candidates", "5"], "--candidates must be at least"),
     (["calibrate", ROBOT, "--plan", "10", "--output", "{tmp}/p.xyz"], "'.xyz'"),
+    # issue 26: the constraints (and the parameter set) of a plan
+    (
+        ["calibrate", ROBOT, "--plan", "10", "--range", "elbo_joint", "0", "1"],
+        "--range elbo_joint 0 1: universal_robots_ur5e has no joint 'elbo_joint'; did you mean "
+        "'elbow_joint'?",
+    ),
+    (
+        ["calibrate", ROBOT, "--plan", "10", "--range", "elbow_joint", "1", "-1"],
+        "--range elbow_joint 1 -1: LO must be below HI",
+    ),
+    (
+        ["calibrate", ROBOT, "--plan", "10", "--range", "elbow_joint", "0", "4"],
+        "elbow_joint's limits are [-3.1415, 3.1415] rad; give LO and HI within them (radians; "
+        "degrees with --deg)",
+    ),
+    (
+        ["calibrate", ROBOT, "--plan", "10", "--range", "elbow_joint", "0", "180", "--deg"],
+        "--range elbow_joint 0 180: elbow_joint's limits are [-179.9946, 179.9946] deg;",
+    ),
+    (
+        ["calibrate", ROBOT, "--plan", "10", "--range", "elbow_joint", "0", "pi"],
+        "--range elbow_joint 0 pi: LO and HI must be finite numbers",
+    ),
+    (
+        ["calibrate", ROBOT, "--plan", "10", *["--range", "elbow_joint", "0", "1"] * 2],
+        "--range elbow_joint is given twice",
+    ),
+    (["calibrate", ROBOT, "--plan", "10", "--above-z", "nan"], "--above-z must be a finite"),
+    (
+        ["calibrate", ROBOT, "--plan", "10", "--box", "-1", "-1", "1", "1", "1", "0"],
+        "--box: ZMIN 1 is not below ZMAX 0; give the lower corner, then the upper",
+    ),
+    (
+        ["calibrate", ROBOT, "--plan", "10", "--box", "-1", "-1", "0", "1", "1", "inf"],
+        "--box takes six finite numbers",
+    ),
+    (
+        ["calibrate", ROBOT, "--plan", "10", "--above-z", "1.2", "--output", "{tmp}/p.csv"],
+        "only 0 of 200,000 random configurations within the joint limits put the end frame at "
+        "z >= 1.2 m, too few for 10 poses: ask for a lower height",
+    ),
+    (
+        ["calibrate", ROBOT, "--plan", "10", "--above-z", "0.8", *SHOULDER_DOWN],
+        "within the joint limits and ranges put the end frame at z >= 0.8 m",
+    ),
+    (["calibrate", ROBOT, "--range", "elbow_joint", "0", "1"], "--range goes with --plan N"),
+    (
+        ["calibrate", ROBOT, "--measurements", "{tracker}", "--above-z", "0.05", *WRITES],
+        "--above-z goes with --plan N",
+    ),
+    (
+        ["calibrate", "--params", "ur5e-dh", "--measurements", "{tracker}", *WRITES],
+        "--params goes with --plan N",
+    ),
+    (["calibrate", ROBOT, "--params", "ur5e-dh", "--plan", "10"], "not both"),
+    (
+        ["calibrate", "--params", "ur5e-dh", "--frame", "tool0", "--plan", "10"],
+        "a parameter set has its own end frame",
+    ),
+    (["calibrate", "--params", "ur5e_dh", "--plan", "10"], "did you mean 'ur5e-dh'?"),
 ]
 
 

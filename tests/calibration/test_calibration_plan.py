@@ -8,10 +8,17 @@ import warnings
 
 import numpy as np
 import pytest
+from helpers import load_quiet, mj_pose
 
 import poekin
 from poekin.calibration import calibrate, model_of, plan_poses
-from poekin.calibration.plan import quality, sampling_chain
+from poekin.calibration.plan import (
+    draw_candidates,
+    make_plan,
+    pose_constraints,
+    quality,
+    sampling_chain,
+)
 from poekin.calibration.simulate import simulate_robot
 from poekin.errors import InputError
 from poekin.verification.verify import pose_errors, sample_joint_values
@@ -97,6 +104,28 @@ def test_a_planned_calibration_identifies_every_parameter() -> None:
         ({"n": 10, "measure": "orientation"}, "measure must be 'pose' or 'position'"),
         ({"n": 10, "candidates": 5}, "candidates must be a whole number, 10 or more"),
         ({"n": 2.5}, "whole number"),
+        # issue 26: the constraints
+        ({"n": 10, "ranges": {"elbow": (0, 1)}}, "no joint 'elbow' in the chain; did you mean"),
+        ({"n": 10, "ranges": {"elbow_joint": (1, 0)}}, r"\(1, 0\): give low below high"),
+        (
+            {"n": 10, "ranges": {"elbow_joint": (0, 4)}},
+            r"not within the joint's limits \[-3.1415, 3.1415\] rad",
+        ),
+        ({"n": 10, "ranges": {"elbow_joint": (0, np.nan)}}, "two finite numbers in rad or m"),
+        ({"n": 10, "ranges": {"elbow_joint": "0 1"}}, "two finite numbers in rad or m"),
+        ({"n": 10, "ranges": [("elbow_joint", 0, 1)]}, "ranges must map joint names"),
+        ({"n": 10, "above_z": np.inf}, "above_z must be a finite height in m"),
+        ({"n": 10, "above_z": "0.05"}, "above_z must be a finite height in m"),
+        ({"n": 10, "box": ((0, 0, 0), (1, 1))}, r"box must be \(\(xmin, ymin, zmin\)"),
+        (
+            {"n": 10, "box": ((0, 1, 0), (1, 0, 1))},
+            "box: ymin 1 is not below ymax 0; give the lower corner, then",
+        ),
+        (
+            {"n": 10, "above_z": 1.2},
+            r"only 0 of 200,000 random configurations within the joint limits put the end frame "
+            r"at z >= 1.2 m, too few for 10 poses: ask for a lower height",
+        ),
     ],
 )
 def test_bad_plans_raise(kwargs: dict[str, object], message: str) -> None:
@@ -133,3 +162,104 @@ def test_a_plan_is_bounded_and_reports_its_progress(monkeypatch: pytest.MonkeyPa
         step(250)
     with _calibrate._bar(50, "plan", "pose") as step:
         assert step is None  # a short plan takes well under 2 s: no bar
+
+
+# --- constraints (issue 26: 17 of 40 planned UR5e poses put the flange below its base) ---------
+
+
+def _mj_positions(robot: str, chain: poekin.Chain, q: np.ndarray) -> np.ndarray:
+    """``(N, 3)`` the end frame's origin from MuJoCo's mj_forward, not poekin's FK."""
+    loaded = load_quiet(robot)
+    assert chain.qpos_indices is not None
+    qpos = np.tile(loaded.model.qpos0, (len(q), 1))
+    qpos[:, list(chain.qpos_indices)] = q
+    return mj_pose(loaded.model, qpos, chain.frame)[:, :3, 3]
+
+
+@pytest.mark.parametrize("robot", ["universal_robots_ur5e", "franka_fr3"])
+def test_above_z_keeps_the_end_frame_off_the_table(robot: str) -> None:
+    chain = _load(robot)
+    free = plan_poses(chain, 40)
+    assert np.any(_mj_positions(robot, chain, free)[:, 2] < 0)  # what the issue saw
+    plan = make_plan(chain, 40, above_z=0.05, candidates=4000)
+    z = _mj_positions(robot, chain, plan.q)[:, 2]
+    assert np.all(z >= 0.05 - 1e-12), np.min(z)
+    assert plan.q.shape == (40, chain.n_joints) and len({tuple(r) for r in plan.q}) == 40
+    assert chain.limits is not None
+    assert np.all(plan.q >= chain.limits[:, 0]) and np.all(plan.q <= chain.limits[:, 1])
+    # the candidates: those of the unconstrained draw that MuJoCo puts at 0.05 m or higher
+    # (enough of 4,000: none drawn more)
+    pool = sample_joint_values(sampling_chain(chain), 4000, seed=0, within_limits=True)
+    assert plan.drawn == 4000
+    assert plan.kept == int(np.sum(_mj_positions(robot, chain, pool)[:, 2] >= 0.05)) >= 2000
+    # still a design: better than random poses that meet the same constraint
+    model = model_of(chain, "pose")
+    o1 = quality(model, plan.q)[0]
+    for seed in range(3):
+        random_q = draw_candidates(chain, plan.constraints, 40, seed=seed + 1)[0][:40]
+        assert len(random_q) == 40 and o1 > quality(model, random_q)[0]
+
+
+def test_a_box_holds_every_planned_position() -> None:
+    robot = "universal_robots_ur5e"
+    chain = _load(robot)
+    box = ((-0.6, -0.7, 0.1), (0.2, 0.7, 0.8))
+    free = _mj_positions(robot, chain, plan_poses(chain, 20, measure="position"))
+    assert not np.all((free >= box[0]) & (free <= box[1]))
+    plan = make_plan(chain, 20, measure="position", box=box, above_z=0.3)
+    p = _mj_positions(robot, chain, plan.q)
+    assert np.all((p >= np.array(box[0]) - 1e-12) & (p <= np.array(box[1]) + 1e-12)), p
+    assert np.all(p[:, 2] >= 0.3 - 1e-12)
+    assert plan.constraints.region_text() == (
+        "z >= 0.3 m and x in [-0.6, 0.2], y in [-0.7, 0.7], z in [0.1, 0.8] m"
+    )
+
+
+def test_joint_ranges_narrow_the_draw() -> None:
+    chain = _load("universal_robots_ur5e")
+    ranges = {"shoulder_lift_joint": (-np.pi, 0.0), "wrist_2_joint": (0.5, 2.0)}
+    plan = make_plan(chain, 30, ranges=ranges, above_z=0.05)
+    for name, (lo, hi) in ranges.items():
+        k = chain.joint_names.index(name)
+        assert np.all((plan.q[:, k] >= lo) & (plan.q[:, k] <= hi)), name
+    assert np.ptp(plan.q[:, 0]) > np.pi  # the others still range over their limits
+    assert list(plan.constraints.ranged) == [False, True, False, False, True, False]
+    assert np.all(_mj_positions("universal_robots_ur5e", chain, plan.q)[:, 2] >= 0.05 - 1e-12)
+    # a chain without limits takes a range wider than a turn as it is given
+    unlimited = poekin.load_params("lynch-park-ur5")
+    assert isinstance(unlimited, poekin.Chain)
+    q = plan_poses(unlimited, 12, ranges={"elbow_joint": (-5.0, 5.0)}, candidates=400)
+    assert np.max(np.abs(q[:, 2])) <= 5.0
+    pool, _ = draw_candidates(
+        unlimited, pose_constraints(unlimited, {"elbow_joint": (-5.0, 5.0)}), 400, seed=0
+    )
+    assert np.max(np.abs(pool[:, 2])) > np.pi  # not clipped to one turn as the limits are
+
+
+def test_without_constraints_the_plan_is_what_it_was() -> None:
+    """The pool is the draw plan_poses always made (sample_joint_values of the sampling chain),
+    and a height and a box that every pose meets leave the plan as it is."""
+    chain = _load("universal_robots_ur5e")
+    none = pose_constraints(chain)
+    assert not none.filters and not none.ranged.any()
+    pool, drawn = draw_candidates(chain, none, 500, seed=4)
+    assert drawn == 500
+    expected = sample_joint_values(sampling_chain(chain), 500, seed=4, within_limits=True)
+    assert np.array_equal(pool, expected)
+    free = make_plan(chain, 12, seed=4, candidates=500)
+    assert (free.drawn, free.kept) == (500, 500)
+    everywhere = make_plan(
+        chain, 12, seed=4, candidates=500, above_z=-10.0, box=((-5, -5, -5), (5, 5, 5))
+    )
+    assert np.array_equal(free.q, everywhere.q) and everywhere.kept == 500
+
+
+def test_more_candidates_are_drawn_when_few_meet_the_constraints() -> None:
+    robot = "universal_robots_ur5e"
+    chain = _load(robot)
+    plan = make_plan(chain, 12, above_z=0.8)  # about 1 in 13 candidates reaches 0.8 m
+    assert plan.drawn > 2000 and plan.drawn % 2000 == 0 and plan.kept >= 2000
+    assert np.all(_mj_positions(robot, chain, plan.q)[:, 2] >= 0.8 - 1e-12)
+    assert np.array_equal(plan.q, plan_poses(robot, 12, above_z=0.8))  # deterministic
+    with pytest.raises(InputError, match=r"only 0 of 200,000 .* z >= 1.5 m, too few for 12"):
+        plan_poses(chain, 12, above_z=1.5)  # beyond the arm's reach

@@ -13,7 +13,7 @@ from typing import TYPE_CHECKING, Any, TextIO
 
 import numpy as np
 
-from poekin.cli._args import add_source, model_source, note
+from poekin.cli._args import add_params, add_source, model_source, note
 
 if TYPE_CHECKING:
     from poekin.calibration.model import Measure
@@ -34,12 +34,25 @@ def _check_options(args: argparse.Namespace) -> None:
             raise InputError(f"--plan must be a whole number of poses, 1 or more, got {args.plan}")
         if args.candidates is not None and args.candidates < args.plan:
             raise InputError(f"--candidates must be at least --plan ({args.plan})")
+        _check_constraints(args)
         if args.output:
             from poekin.io.fileio import array_format
 
             array_format(args.output, "--output")
             check_new_file(args.output, "planned poses", force=args.force)
         return
+    if args.params:
+        raise InputError(
+            "--params goes with --plan N (to plan the poses for a parameter set); a fit starts "
+            "from the model SOURCE the measurements were taken on"
+        )
+    for flag, given in (
+        ("--range", args.range),
+        ("--above-z", args.above_z is not None),
+        ("--box", args.box),
+    ):
+        if given:
+            raise InputError(f"{flag} goes with --plan N: it constrains the poses proposed")
     if not args.measurements:
         raise InputError(
             "give --measurements FILE (a .csv or .npz of joint readings and measured poses), or "
@@ -66,54 +79,188 @@ def _check_options(args: argparse.Namespace) -> None:
         raise InputError("--output and --plot name the same file")
 
 
+def _number(text: str) -> float:
+    """A finite number, or NaN for anything else (said by the caller, naming the option)."""
+    try:
+        value = float(text)
+    except ValueError:
+        return math.nan
+    return value if math.isfinite(value) else math.nan
+
+
+def _check_constraints(args: argparse.Namespace) -> None:
+    """--range, --above-z and --box, as far as they can be checked without the model."""
+    seen: set[str] = set()
+    for joint, lo_text, hi_text in args.range or []:
+        lo, hi = _number(lo_text), _number(hi_text)
+        given = f"--range {joint} {lo_text} {hi_text}"
+        if math.isnan(lo) or math.isnan(hi):
+            raise InputError(
+                f"{given}: LO and HI must be finite numbers (rad or m; degrees with --deg)"
+            )
+        if not lo < hi:
+            raise InputError(f"{given}: LO must be below HI")
+        if joint in seen:
+            raise InputError(f"--range {joint} is given twice; give each joint one range")
+        seen.add(joint)
+    if args.above_z is not None and not math.isfinite(args.above_z):
+        raise InputError(f"--above-z must be a finite height in m, got {args.above_z}")
+    if args.box:
+        if not all(math.isfinite(v) for v in args.box):
+            raise InputError("--box takes six finite numbers: XMIN YMIN ZMIN XMAX YMAX ZMAX (m)")
+        for k, axis in enumerate("XYZ"):
+            lo, hi = args.box[k], args.box[k + 3]
+            if not lo < hi:
+                raise InputError(
+                    f"--box: {axis}MIN {lo:g} is not below {axis}MAX {hi:g}; give the lower "
+                    "corner, then the upper: XMIN YMIN ZMIN XMAX YMAX ZMAX (m)"
+                )
+
+
+def _ranges(args: argparse.Namespace, chain: Any) -> dict[str, tuple[float, float]]:
+    """--range as joint name -> (low, high) in rad and m, checked against the chain: a name it
+    has (or the nearest named), within the joint's limits (said in the units given)."""
+    from poekin.errors import did_you_mean
+
+    names = list(chain.joint_names)
+    ranges: dict[str, tuple[float, float]] = {}
+    for joint, lo_text, hi_text in args.range or []:
+        given = f"--range {joint} {lo_text} {hi_text}"
+        if joint not in names:
+            raise InputError(
+                f"{given}: {chain.robot or 'the chain'} has no joint {joint!r}; "
+                f"{did_you_mean(joint, names)}"
+            )
+        k = names.index(joint)
+        degrees = args.deg and chain.joint_types[k] == "revolute"
+        scale = math.pi / 180 if degrees else 1.0
+        lo, hi = float(lo_text) * scale, float(hi_text) * scale
+        low, high = (float(v) for v in chain.limits[k])
+        if lo < low or hi > high:
+            unit = "deg" if degrees else "rad" if chain.joint_types[k] == "revolute" else "m"
+            shown = [_inward(low / scale, math.ceil), _inward(high / scale, math.floor)]
+            raise InputError(
+                f"{given}: {joint}'s limits are [{shown[0]}, {shown[1]}] {unit}; give LO and HI "
+                f"within them{'' if args.deg else ' (radians; degrees with --deg)'}"
+            )
+        ranges[joint] = (lo, hi)
+    return ranges
+
+
+def _inward(limit: float, rounding: Callable[[float], int]) -> str:
+    """A joint limit to 4 decimals, rounded inwards (``math.ceil`` for a lower limit,
+    ``math.floor`` for an upper) so that the number shown is within it."""
+    if not math.isfinite(limit):
+        return f"{limit}"
+    text = f"{rounding(limit * 1e4) / 1e4:.4f}".rstrip("0").rstrip(".")
+    return "0" if text == "-0" else text
+
+
+def _constraints_text(args: argparse.Namespace, chain: Any, plan: Any) -> str:
+    """How the candidates were constrained, in the units given, and how many were kept; empty
+    without constraints."""
+    parts = []
+    for joint, lo_text, hi_text in args.range or []:
+        revolute = chain.joint_types[list(chain.joint_names).index(joint)] == "revolute"
+        unit = ("deg" if args.deg else "rad") if revolute else "m"
+        parts.append(f"{joint} in [{float(lo_text):g}, {float(hi_text):g}] {unit}")
+    if plan.constraints.filters:
+        parts.append(f"end frame {plan.constraints.region_text()}")
+    if not parts:
+        return ""
+    counted = (
+        f"{plan.kept:,} of {plan.drawn:,} candidates kept"
+        if plan.constraints.filters
+        else f"{plan.drawn:,} candidates drawn within {'it' if len(parts) == 1 else 'them'}"
+    )
+    return f"{'; '.join(parts)} ({counted})"
+
+
+def _plan_chain(args: argparse.Namespace) -> Any:
+    """The chain to plan for: --params as a chain (a DH table's), else the model's."""
+    from poekin.chain import Chain
+    from poekin.cli._describe import params_or_chain
+
+    if not args.params:
+        from poekin.io.loading import load
+
+        return load(model_source(args, None), args.frame)
+    read = params_or_chain(args)
+    return read if isinstance(read, Chain) else read.to_chain()
+
+
 def _plan(args: argparse.Namespace, chain: Any, out: TextIO) -> int:
-    from poekin.calibration import plan_poses
     from poekin.calibration.identify import quality_text
     from poekin.calibration.model import model_of
-    from poekin.calibration.plan import quality, sampling_chain
-    from poekin.verification.verify import sample_joint_values
+    from poekin.calibration.plan import draw_candidates, make_plan, quality
 
     measure: Measure = "position" if args.positions else "pose"
+    ranges = _ranges(args, chain)
+    box = None if not args.box else (tuple(args.box[:3]), tuple(args.box[3:]))
     with _bar(args.plan, "plan", "pose") as step:
-        q = plan_poses(
+        plan = make_plan(
             chain,
             args.plan,
             measure=measure,
             candidates=args.candidates,
             seed=args.seed,
+            ranges=ranges or None,
+            above_z=args.above_z,
+            box=box,
             progress=step,
         )
+    q = plan.q
     cm = model_of(chain, measure)
     o1, cond = quality(cm, q)
-    random_q = sample_joint_values(
-        sampling_chain(chain), args.plan, seed=args.seed + 1, within_limits=True
-    )
-    o1_random, cond_random = quality(cm, random_q)
+    # as many random poses, drawn as the candidates were: within the limits, the same draw as
+    # sample_joint_values of the sampling chain; with a height or box, 1,000 at a time until
+    # enough meet them
+    batch = max(args.plan, 1000) if plan.constraints.filters else args.plan
+    drawn_q, _ = draw_candidates(chain, plan.constraints, batch, seed=args.seed + 1, want=args.plan)
+    random_q = drawn_q[: args.plan]
+    constrained = _constraints_text(args, chain, plan)
     what = "poses (position and orientation)" if measure == "pose" else "positions"
-    summary = (
-        f"{args.plan} {what} for {chain.robot or 'the chain'} / {chain.frame!r}: "
-        f"{quality_text(cond, o1)} (random poses within the limits: "
-        f"{quality_text(cond_random, o1_random)})"
-    )
+    where = "meeting the constraints" if constrained else "within the limits"
+    if len(random_q) == args.plan:
+        o1_random, cond_random = quality(cm, random_q)
+        compared = f" (random poses {where}: {quality_text(cond_random, o1_random)})"
+    else:  # too few drawn meet the constraints (the plan's candidates were more)
+        o1_random = cond_random = math.nan
+        compared = ""
+    name = chain.robot or "the chain"
+    if args.params:  # as poekin verify names them
+        name = args.params if chain.robot in ("", args.params) else f"{args.params} ({chain.robot})"
+    summary = f"{args.plan} {what} for {name} / {chain.frame!r}: {quality_text(cond, o1)}{compared}"
+    lines = [summary] + ([f"constrained: {constrained}"] if constrained else [])
     if args.json:
+        from poekin.io.fileio import finite_json
+
         print(
             json.dumps(
-                {
-                    "robot": chain.robot,
-                    "frame": chain.frame,
-                    "measure": measure,
-                    "joint_names": list(chain.joint_names),
-                    "q": q.tolist(),
-                    "observability_o1": o1,
-                    "condition_number": cond,
-                    "random_observability_o1": o1_random,
-                    "random_condition_number": cond_random,
-                }
+                finite_json(
+                    {
+                        "robot": chain.robot,
+                        "frame": chain.frame,
+                        "measure": measure,
+                        "joint_names": list(chain.joint_names),
+                        "q": q.tolist(),
+                        "observability_o1": o1,
+                        "condition_number": cond,
+                        "random_observability_o1": o1_random,
+                        "random_condition_number": cond_random,
+                        "ranges": {k: list(v) for k, v in ranges.items()},
+                        "above_z": plan.constraints.above_z,
+                        "box": None if box is None else [list(c) for c in box],
+                        "candidates_drawn": plan.drawn,
+                        "candidates_kept": plan.kept,
+                    }
+                )
             ),
             file=out,
         )
     elif not args.output:
-        print(f"# {summary}", file=out)
+        for line in lines:
+            print(f"# {line}", file=out)
         print(",".join(chain.joint_names), file=out)
         for row in q:
             print(",".join(f"{v:.6f}" for v in row), file=out)
@@ -122,7 +269,8 @@ def _plan(args: argparse.Namespace, chain: Any, out: TextIO) -> int:
 
         write_array(args.output, q, name="q", columns=chain.joint_names)
         if not args.json:
-            print(summary, file=out)
+            for line in lines:
+                print(line, file=out)
             print(f"planned poses written to {args.output}", file=out)
     return 0
 
@@ -147,10 +295,10 @@ def _cmd_calibrate(args: argparse.Namespace, out: TextIO) -> int:
     from poekin.io.loading import load
 
     _check_options(args)
+    if args.plan is not None:
+        return _plan(args, _plan_chain(args), out)
     source = model_source(args, None)
     chain = load(source, args.frame)
-    if args.plan is not None:
-        return _plan(args, chain, out)
     q, measured = read_measurements(args.measurements, chain, deg=args.deg)
     if not args.deg:
         revolute = np.array([t == "revolute" for t in chain.joint_types])
@@ -267,13 +415,17 @@ def register(sub: Any, fmt: type[argparse.HelpFormatter]) -> None:
         "as a PoE parameter file (--params, poekin.load_params): its FK for the encoder readings "
         "is the measured frame in the robot's own base frame, and its registration the base in "
         "the measuring frame (poekin.load_registration); poekin export writes it for the "
-        "controller or ROS. --plan N proposes N poses to measure. Exit 0 on success, 2 on bad "
-        "input.",
+        "controller or ROS. --plan N proposes N poses to measure, for the model or a parameter "
+        "set (--params), with joints kept to sub-ranges (--range) and the end frame above a "
+        "height (--above-z) or in a box (--box). Exit 0 on success, 2 on bad input.",
         epilog="measurements: a .csv whose header names the joints, then x,y,z (m) and optionally "
         "qw,qx,qy,qz; or a .npz with q and T (N, 4, 4) or p (N, 3).\n"
         "examples:\n"
         "  poekin calibrate universal_robots_ur5e --plan 30\n"
         "  poekin calibrate universal_robots_ur5e --plan 40 --positions --output poses.csv\n"
+        "  poekin calibrate universal_robots_ur5e --plan 40 --above-z 0.05 "
+        "--range shoulder_lift_joint -180 0 --deg\n"
+        "  poekin calibrate --params my_robot.json --plan 30 --box -0.8 -0.8 0.1 0.8 0.8 0.9\n"
         "  poekin calibrate universal_robots_ur5e --measurements tracker.csv "
         "--output my_robot.json --plot calibration.png\n"
         "  poekin calibrate universal_robots_ur5e --measurements tracker.csv --json",
@@ -285,7 +437,9 @@ def register(sub: Any, fmt: type[argparse.HelpFormatter]) -> None:
         metavar="FILE",
         help="joint readings and measured poses: a .csv or .npz file (see below)",
     )
-    c.add_argument("--deg", action="store_true", help="revolute joint readings are in degrees")
+    c.add_argument(
+        "--deg", action="store_true", help="revolute joint readings (and --range) are in degrees"
+    )
     c.add_argument(
         "--output",
         metavar="FILE",
@@ -326,5 +480,28 @@ def register(sub: Any, fmt: type[argparse.HelpFormatter]) -> None:
         "--positions", action="store_true", help="--plan for a tracker that measures points only"
     )
     c.add_argument("--candidates", type=int, metavar="C", help="--plan: random candidates")
+    c.add_argument(
+        "--range",
+        nargs=3,
+        action="append",
+        metavar=("JOINT", "LO", "HI"),
+        help="--plan: keep JOINT within [LO, HI] (rad or m; degrees with --deg), inside its "
+        "limits; repeat for more joints",
+    )
+    c.add_argument(
+        "--above-z",
+        type=float,
+        metavar="Z",
+        help="--plan: only poses whose end frame is at z >= Z (m, the base frame), e.g. 0.05 "
+        "above the table the robot stands on",
+    )
+    c.add_argument(
+        "--box",
+        type=float,
+        nargs=6,
+        metavar=("XMIN", "YMIN", "ZMIN", "XMAX", "YMAX", "ZMAX"),
+        help="--plan: only poses whose end frame lies in this box (m, the base frame)",
+    )
+    add_params(c, "--plan: plan for these parameters instead of a model")
     c.add_argument("--seed", type=int, default=0, help="random seed: folds, --plan (0)")
     c.set_defaults(run=_cmd_calibrate)
