@@ -483,3 +483,26 @@ def test_a_noise_given_far_too_large_is_named_as_the_cause(ur5e: Setup) -> None:
     with warnings.catch_warnings():
         warnings.simplefilter("error", CalibrationWarning)  # the true noise: no note
         calibrate(ur5e.chain, ur5e.q, measured, sigma_pos=SIGMA, sigma_ori=SIGMA, folds=0)
+
+
+@pytest.mark.parametrize("offset", [0.002, 0.005])
+def test_a_point_near_the_last_axis_predicts_as_well_as_a_plain_fit(offset: float) -> None:
+    """Issue 26: a point measured 2 mm from joint 6's axis (positions only, 0.1 mm noise) had
+    two weakly determined combinations kept at the model's values, and a held-out error 1.4x
+    a plain full-rank fit's (1.58x at 5 mm, seed 4). They are fitted now, shrunk toward the
+    model by their prior: on held-out configurations, against MuJoCo's perturbed robot, never
+    more than 5% worse than the plain fit on the same data, and the advice stays."""
+    target = np.eye(4)
+    target[:3, 3] = [offset, 0.0, 0.0]
+    for seed in (1, 4, 12):
+        setup = Setup("universal_robots_ur5e", seed, target)
+        measured = setup.sim.measure(setup.q, noise_m=SIGMA, positions=True, seed=seed + 1)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", CalibrationWarning)
+            result = calibrate(setup.chain, setup.q, measured, folds=0)
+        chain = setup.chain
+        plain = plain_fit(
+            chain.screws, chain.home, chain.joint_types, setup.q, measured, SIGMA, 1.0
+        )
+        ours, theirs = _rms(setup.errors(result.chain.fk)[0]), _rms(setup.errors(plain)[0])
+        assert ours <= 1.05 * theirs, (seed, ours, theirs)

@@ -160,8 +160,9 @@ def calibrate(
         loss: ``"linear"`` (least squares), or ``"huber"`` / ``"soft_l1"`` to weigh down poses
             whose residual exceeds ``f_scale`` sigmas (outliers are reported either way).
         prior_m, prior_rad: the size of the differences a robot may have from its model: a
-            combination of parameters the data determine worse than this is not fitted (it
-            keeps the model's value) and is reported as unidentifiable.
+            combination of parameters the data determine worse than this is reported as
+            unidentified, and fitted only as far as the data say (shrunk toward the model's
+            value by this prior; one the data do not see at all keeps the model's value).
         folds: k of the k-fold held-out residual (0: none): each fold's poses predicted by a
             fit to the others (:func:`~.fit.leave_out`).
         seed: the folds' random split.

@@ -149,7 +149,7 @@ def unidentified(
     its motion to within the noise; a pivot whose own motion is within the noise moves the tool
     too little to be measured."""
     free = list(model.free)
-    kept = fitted.basis.shape[1] - 6
+    kept = fitted.identified
     V = fitted.directions[kept:]  # (k, R): orthonormal rows over the robot corrections
     s = fitted.singular[kept:]
     top = float(fitted.singular[0]) if fitted.singular.size else 0.0
@@ -183,7 +183,7 @@ def undetermined(model: CalibrationModel, fitted: Fit) -> tuple[int, ...]:
     """The free robot corrections the data do not determine: those with at least ``_PART`` of
     their direction (in prior units) in the combinations left unidentified (indices into the
     model's parameters). Their fitted values are one of several that fit the data as well."""
-    kept = fitted.basis.shape[1] - 6
+    kept = fitted.identified
     share = np.sum(fitted.directions[kept:] ** 2, axis=0)
     free = list(model.free)
     return tuple(free[6 + j] for j in np.flatnonzero(share >= _PART))
@@ -378,7 +378,8 @@ def advice(
         count = len(directions)
         text = (
             f"the {what} leave {count} combination{'s' if count > 1 else ''} of parameters "
-            f"unidentified, kept at the model's values (corrections of {_listed(parts)})"
+            f"unidentified, kept at or shrunk toward the model's values (corrections of "
+            f"{_listed(parts)})"
         )
         still = _still(model, q)
         move = [i for i in involved if i in still] or still

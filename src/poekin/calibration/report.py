@@ -112,8 +112,10 @@ class Calibration:
 
     @property
     def identifiable(self) -> int:
-        """The numerical rank: the base's 6 and the robot combinations that were fitted."""
-        return int(self.fitted.basis.shape[1])
+        """The base's 6 and the robot combinations the data identify (standard error within
+        one prior unit); weakly determined ones are fitted shrunk toward the model, and listed
+        with the unidentified."""
+        return 6 + int(self.fitted.identified)
 
     @property
     def expected_identifiable(self) -> int:
@@ -246,7 +248,7 @@ class Calibration:
                 {
                     "parameter": p.key,
                     "alike": [self.model.params[k].key for k in r.alike],
-                    "message": f"{text}: kept at the model's value",
+                    "message": f"{text}: kept at or shrunk toward the model's value",
                 }
             )
         return out
