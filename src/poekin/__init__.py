@@ -32,7 +32,6 @@ from poekin.errors import (
     UnknownRobotError,
     URDFError,
 )
-from poekin.ik._angles import wrap
 from poekin.io.import_mujoco import chain_from_model, tree_from_model
 from poekin.io.import_urdf import URDFLimitsWarning, tree_from_urdf
 from poekin.io.loading import load, load_tree
@@ -85,6 +84,7 @@ from poekin.verification.verify import (
 if TYPE_CHECKING:
     from poekin.calibration import calibrate as calibrate
     from poekin.calibration import plan_poses as plan_poses
+    from poekin.ik._angles import wrap as wrap
     from poekin.io.exporters import export as export
     from poekin.viewer.app import view as view
     from poekin.viewer.draw import draw as draw
@@ -167,13 +167,12 @@ __all__ = [
     "vee_se3",
     "vee_so3",
     "verify",
-    "wrap",
 ]
 
 
 # The names imported at first use, by __getattr__: listed by dir(poekin), not in __all__ (a
 # star import would import the viewer, which needs the extra `view`).
-_LAZY = ("calibrate", "draw", "export", "plan_poses", "view")
+_LAZY = ("calibrate", "draw", "export", "plan_poses", "view", "wrap")
 
 
 def __dir__() -> list[str]:
@@ -184,7 +183,8 @@ def __dir__() -> list[str]:
 def __getattr__(name: str) -> Any:
     """``poekin.view`` and ``poekin.draw``, imported at first use (viser, matplotlib),
     ``poekin.calibrate`` and ``poekin.plan_poses`` (:mod:`poekin.calibration`), and
-    ``poekin.export`` (:mod:`poekin.io.exporters`)."""
+    ``poekin.export`` (:mod:`poekin.io.exporters`), and ``poekin.wrap`` (:mod:`poekin.ik`:
+    the model itself imports no solver)."""
     if name == "view":
         from poekin._extras import require_view
 
@@ -204,4 +204,8 @@ def __getattr__(name: str) -> Any:
         from poekin.io.exporters import export as export
 
         return export
+    if name == "wrap":
+        from poekin.ik._angles import wrap as wrap
+
+        return wrap
     raise AttributeError(f"module 'poekin' has no attribute {name!r}")

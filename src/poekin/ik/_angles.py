@@ -78,14 +78,13 @@ def nearest_turns(q: Any, reference: Any, limits: FloatArray, revolute: Sequence
     ref = np.broadcast_to(np.asarray(reference, dtype=np.float64), q.shape)
     lo, hi = limits[:, 0], limits[:, 1]
     turning = np.asarray(revolute, dtype=np.bool_)
-    near = q + TWO_PI * np.round((ref - q) / TWO_PI)  # the equivalent nearest ref
-    best = np.where((near >= lo) & (near <= hi), near, np.nan)
-    for step in (-TWO_PI, TWO_PI):  # nearest outside the limits: the next turn inside
-        other = near + step
-        ok = (other >= lo) & (other <= hi)
-        closer = ok & (np.isnan(best) | (np.abs(other - ref) < np.abs(best - ref)))
-        best = np.where(closer, other, best)
-    return np.where(turning & ~np.isnan(best), best, q)
+    with np.errstate(invalid="ignore"):  # infinite limits: no bound on the turns
+        fewest = np.ceil((lo - q) / TWO_PI)  # the turns that keep q + 2 pi k within the limits
+        most = np.floor((hi - q) / TWO_PI)
+    # |q + 2 pi k - ref| is convex in k: the nearest allowed k is the nearest k, clipped
+    k = np.clip(np.round((ref - q) / TWO_PI), fewest, most)
+    moved = q + k * TWO_PI
+    return np.where(turning & (fewest <= most) & (k != 0), moved, q)
 
 
 def wrap(q: ArrayLike, chain: Any, reference: ArrayLike | None = None) -> FloatArray:
