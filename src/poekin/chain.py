@@ -773,7 +773,17 @@ class Chain:
             >>> bool(found.success), found.q.shape
             (True, (6,))
         """
-        from poekin.ik.numerical import settings, solve
+        from poekin.ik.numerical import Settings, settings, solve
+
+        def numpy_options() -> Settings:  # the NumPy solve's (the kernel's) settings
+            return settings(
+                pos_tol=pos_tol,
+                ori_tol=ori_tol,
+                position_only=position_only,
+                orientation_weight=orientation_weight,
+                max_iterations=max_iterations,
+                max_attempts=max_attempts,
+            )
 
         if nearest_branch is not False:
             from poekin.ik.analytic import nearest_branch as nearest
@@ -786,28 +796,13 @@ class Chain:
                     "their distance to q0: give q0, and leave out position_only, params and "
                     "max_total_iterations"
                 )
-            options = settings(
-                pos_tol=pos_tol,
-                ori_tol=ori_tol,
-                position_only=False,
-                orientation_weight=orientation_weight,
-                max_iterations=max_iterations,
-                max_attempts=max_attempts,
-            )
+            options = numpy_options()
             return nearest(self, T, q0, lambda: solve(self, T, q0, seed=seed, options=options))
         numpy = params is None and arrays.kind_of(T) is None
         budget = max_total_iterations
         kernel = numpy and budget is None and (q0 is None or arrays.kind_of(q0) is None)
         if kernel:  # the kernel's path, quickly
-            options = settings(
-                pos_tol=pos_tol,
-                ori_tol=ori_tol,
-                position_only=position_only,
-                orientation_weight=orientation_weight,
-                max_iterations=max_iterations,
-                max_attempts=max_attempts,
-            )
-            return solve(self, T, q0, seed=seed, options=options)
+            return solve(self, T, q0, seed=seed, options=numpy_options())
         from poekin.ik import fixed
 
         kind = fixed.array_kind(T, q0, params)
