@@ -915,13 +915,16 @@ def nearest_branch(
     )
 
 
-# Two refined branches this close (rad, every joint) reached the same solution
-_SAME = 1e-8
+# Two refined branches this close (rad, every joint) reached the same solution: near a fold,
+# where the Jacobian's smallest singular value is 1e-4, a solve to 1e-10 m and rad leaves q
+# uncertain by some 1e-6, and two solutions of a pair that close are one to any controller
+_SAME = 1e-5
 
 
-# A lost branch starts again this far (rad) on either side of its start, along the direction
-# in which two solutions meeting at a fold of the arm part
-_FOLD_STEP = 0.05
+# A lost branch starts again these far (rad) on either side of its start, in turn, along the
+# direction in which two solutions meeting at a fold of the arm part (near a straight wrist,
+# along which the wrist's turns trade, the calibrated arm's solution can be a radian away)
+_FOLD_STEPS = (0.05, 0.3, 1.0)
 
 
 def _refined(
@@ -959,11 +962,16 @@ def _refined(
     mirrored = 2.0 * s0 - out[t, b]  # the other side of the fold from where it ended
     _retry(chain, targets[t, b], mirrored, t, b, out, valid)
     left = ~valid[t, b]
-    if left.any():  # a step either side along the direction in which the two solutions part
+    if left.any():  # steps either side along the direction in which the two solutions part
         t, b, s0 = t[left], b[left], s0[left]
         fold = np.linalg.svd(chain.jacobian_space(s0))[2][:, -1, :]  # (m, 6), unit
-        for side in (1.0, -1.0):
-            _retry(chain, targets[t, b], s0 + side * _FOLD_STEP * fold, t, b, out, valid)
+        for step in _FOLD_STEPS:
+            for side in (step, -step):
+                _retry(chain, targets[t, b], s0 + side * fold, t, b, out, valid)
+            left = ~valid[t, b]
+            t, b, s0, fold = t[left], b[left], s0[left], fold[left]
+            if not len(t):
+                break
     return out, valid
 
 
