@@ -89,6 +89,14 @@ def _numerical() -> types.ModuleType:
     return numerical
 
 
+@functools.cache
+def _analytic() -> types.ModuleType:
+    """:mod:`poekin.ik.analytic`, imported at first use."""
+    from poekin.ik import analytic
+
+    return analytic
+
+
 def readonly_array(a: ArrayLike, shape: tuple[int, ...], name: str) -> FloatArray:
     arr = np.array(a, dtype=np.float64)  # always a copy: the chain owns its arrays
     if arr.shape != shape:
@@ -893,9 +901,8 @@ class Chain:
                 condition that fails and by how much.
             InputError: ``T`` is not ``(..., 4, 4)`` finite rigid transforms.
         """
-        from poekin.ik.analytic import ik_all
-
-        return ik_all(self, T, near=near, refine=refine)
+        solutions: IKSolutions = _analytic().ik_all(self, T, near=near, refine=refine)
+        return solutions
 
     def __repr__(self) -> str:
         joints = ", ".join(

@@ -870,6 +870,10 @@ def ik_all(
         InputError: ``T`` is not ``(..., 4, 4)`` finite rigid transforms, or ``near`` not
             joint values that broadcast against them.
     """
+    if near is None and refine is True and _kernel is not None and type(T) is np.ndarray:
+        quick = _quick(chain, T)  # the exact geometry's kernel, with the least around it
+        if quick is not None:
+            return quick
     if not isinstance(refine, bool):
         raise InputError(f"refine must be True or False, got {refine!r}")
     geo = nearest_geometry(chain) if refine else geometry(chain)
@@ -887,6 +891,34 @@ def ik_all(
     if near is not None:
         q, valid = _ordered(chain, q, valid, near)
     return IKSolutions(q, valid, geo, chain, arr)
+
+
+def _quick(chain: Chain, T: FloatArray) -> IKSolutions | None:
+    """:func:`ik_all` of a NumPy array ``T`` on a chain of a supported geometry (not a near
+    one), as the usual path solves it, with less around the kernel; None where that does not
+    serve (the geometry not yet found or only near, ``T`` not a plain float64 ``(..., 4, 4)``
+    array, a target that is not a rigid transform): the usual path then says what is wrong."""
+    geo = _NEAREST.get(chain)
+    if type(geo) is not Geometry or geo.nearest:
+        return None
+    try:
+        q, valid, bad = _kernel.ik_all(geo._kind, geo._params, T, chain.limits)
+    except ValueError:  # not a C-contiguous, aligned float64 (..., 4, 4) array
+        return None
+    if bad >= 0:
+        return None
+    batch = T.shape[:-2]
+    if batch:
+        q, valid = q.reshape(*batch, *q.shape[1:]), valid.reshape(*batch, valid.shape[1])
+    else:
+        q, valid = q[0], valid[0]
+    found = _new(IKSolutions)
+    d = found.__dict__  # as the dataclass's __init__ sets them, without its five calls
+    d["q"], d["valid"], d["geometry"], d["_chain"], d["_targets"] = q, valid, geo, chain, T
+    return found
+
+
+_new = object.__new__
 
 
 def nearest_branch(
