@@ -898,20 +898,17 @@ def _quick(chain: Chain, T: FloatArray) -> IKSolutions | None:
     one), as the usual path solves it, with less around the kernel; None where that does not
     serve (the geometry not yet found or only near, ``T`` not a plain float64 ``(..., 4, 4)``
     array, a target that is not a rigid transform): the usual path then says what is wrong."""
-    geo = _NEAREST.get(chain)
-    if type(geo) is not Geometry or geo.nearest:
+    global _last
+    ref, geo = _last  # one read: another thread may set it meanwhile
+    if ref() is not chain:  # not a control loop's chain, as last time
+        geo = _NEAREST.get(chain)
+        if type(geo) is not Geometry or geo.nearest:
+            return None
+        _last = weakref.ref(chain), geo
+    done = _kernel.ik_all(geo._kind, geo._params, T, chain.limits, True)  # in T's batch shape
+    if done is None:
         return None
-    try:
-        q, valid, bad = _kernel.ik_all(geo._kind, geo._params, T, chain.limits)
-    except ValueError:  # not a C-contiguous, aligned float64 (..., 4, 4) array
-        return None
-    if bad >= 0:
-        return None
-    batch = T.shape[:-2]
-    if batch:
-        q, valid = q.reshape(*batch, *q.shape[1:]), valid.reshape(*batch, valid.shape[1])
-    else:
-        q, valid = q[0], valid[0]
+    q, valid, _ = done
     found = _new(IKSolutions)
     d = found.__dict__  # as the dataclass's __init__ sets them, without its five calls
     d["q"], d["valid"], d["geometry"], d["_chain"], d["_targets"] = q, valid, geo, chain, T
@@ -919,6 +916,14 @@ def _quick(chain: Chain, T: FloatArray) -> IKSolutions | None:
 
 
 _new = object.__new__
+
+
+def _nobody() -> None:
+    return None
+
+
+# the chain :func:`_quick` last solved (weakly) and its exact geometry
+_last: tuple[Callable[[], Chain | None], Any] = (_nobody, None)
 
 
 def nearest_branch(
