@@ -923,14 +923,35 @@ def solve_quick(
         kernel = _ik_kernel(chain)
         if kernel is None:
             return None
-        quick = chain._ik_cache["quick"] = (kernel, chain_terms(chain).scale)
-    kernel, scale = quick
-    try:
-        options = _quick_options(
-            scale, pos_tol, ori_tol, position_only, orientation_weight, max_iterations, max_attempts
-        )
-    except TypeError:  # an unhashable option: the usual path says what is wrong with it
-        return None
+        memo: list[tuple[Any, ...] | None] = [None]
+        quick = chain._ik_cache["quick"] = (kernel, chain_terms(chain).scale, memo)
+    kernel, scale, memo = quick
+    seen = memo[0]  # the options of the chain's last call: the very same objects, validated
+    if (
+        seen is not None
+        and seen[0] is pos_tol
+        and seen[1] is ori_tol
+        and seen[2] is position_only
+        and seen[3] is orientation_weight
+        and seen[4] is max_iterations
+        and seen[5] is max_attempts
+    ):
+        options = seen[6]
+    else:
+        try:
+            options = _quick_options(
+                scale,
+                pos_tol,
+                ori_tol,
+                position_only,
+                orientation_weight,
+                max_iterations,
+                max_attempts,
+            )
+        except TypeError:  # an unhashable option: the usual path says what is wrong with it
+            return None
+        args = (pos_tol, ori_tol, position_only, orientation_weight, max_iterations, max_attempts)
+        memo[0] = (*args, options)
     if type(seed) is not int or not 0 <= seed < 2**64:
         return None
     done = kernel.solve(T, q0, seed, options, False)
