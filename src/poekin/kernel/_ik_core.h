@@ -147,8 +147,8 @@ AI void ik_damped_step_sized(vd *const *J, const vd *r, vd lam, double tiny, int
     }
 }
 
-/* ik_damped_step_sized, its loops unrolled for the usual sizes (the same operations in the
- * same order: the same bits). */
+/* ik_damped_step_sized with the usual sizes as constants, which the compiler unrolls and
+ * schedules in part (the same operations in the same order: the same bits). */
 AI void ik_damped_step(vd *const *J, const vd *r, vd lam, double tiny, int m, int n, vd *d) {
     if (m == 6 && n == 6)
         ik_damped_step_sized(J, r, lam, tiny, 6, 6, d);
