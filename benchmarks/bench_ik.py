@@ -13,8 +13,9 @@ figures compare. A solver of every solution succeeds on a target when one of its
 Rows (each a prefix of the same targets):
 
 * poekin ``chain.ik(T)``: one batch, all threads and one thread (solves per second, time per
-  solve including failures); a loop of single calls (median, p99 and mean per call); targets
-  out of reach (2.5 m from the base: every one must fail; time per failed target);
+  solve including failures); a loop of single calls (median, p99 and mean per call), and
+  one from ``q0`` near the answer (the generating q plus 0.01 rad of noise: a control loop's
+  call); targets out of reach (2.5 m from the base: every one must fail; time per failed target);
 * poekin ``chain.ik_all(T)``, every closed-form solution, on the arms that have one (the UR
   arms: three parallel axes; the Lite6: a spherical wrist): one batch on all threads and on one,
   the NumPy reference path (an installation without a compiler), a loop of single calls, and
@@ -349,6 +350,16 @@ def poekin_rows(case: Case, sizes: Sizes) -> list[Row]:
     singles: list[FloatArray] = []
     times = _loop_times(lambda t: singles.append(chain.ik(t).q), T[: sizes.single])
     rows.append(_single_row("poekin chain.ik", case, times, np.array(singles), ""))
+    # a control loop's call: q0 near the answer (the generating q, 0.01 rad of noise on each
+    # joint, brought into the limits)
+    n = min(sizes.single, len(T))
+    lo, hi = chain.limits[:, 0], chain.limits[:, 1]
+    noise = np.random.default_rng(2).normal(0.0, 0.01, (n, chain.n_joints))
+    near = np.clip(case.q_true[:n] + noise, lo, hi)
+    singles = []
+    times = _loop_times(lambda k: singles.append(chain.ik(T[k], near[k]).q), range(n))
+    note = "q0 near the answer: the generating q plus 0.01 rad of noise"
+    rows.append(_single_row("poekin chain.ik, q0 near", case, times, np.array(singles), note))
     rows.append(unreachable_row(case, sizes))
     return rows
 

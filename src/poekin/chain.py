@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import dataclasses
 import functools
+import types
 from collections.abc import Callable, Sequence
 from typing import TYPE_CHECKING, Any, Literal
 
@@ -78,6 +79,22 @@ IDENTITY.flags.writeable = False
 # A user-given screw axis must be unit length to this tolerance. Screws derived from MuJoCo are
 # unit to ~1e-16 (the compiler normalises axes); hand-typed tables are usually good to ~1e-6.
 _UNIT_TOL = 1e-6
+
+
+@functools.cache
+def _numerical() -> types.ModuleType:
+    """:mod:`poekin.ik.numerical`, imported at first use (it imports this module's users)."""
+    from poekin.ik import numerical
+
+    return numerical
+
+
+@functools.cache
+def _analytic() -> types.ModuleType:
+    """:mod:`poekin.ik.analytic`, imported at first use."""
+    from poekin.ik import analytic
+
+    return analytic
 
 
 def readonly_array(a: ArrayLike, shape: tuple[int, ...], name: str) -> FloatArray:
@@ -773,6 +790,27 @@ class Chain:
             >>> bool(found.success), found.q.shape
             (True, (6,))
         """
+        if (
+            params is None
+            and max_total_iterations is None
+            and nearest_branch is False
+            and type(T) is np.ndarray
+            and (q0 is None or type(q0) is np.ndarray)
+        ):  # the kernel's path, with the least around it; None: the usual path
+            quick: IKResult | None = _numerical().solve_quick(
+                self,
+                T,
+                q0,
+                seed,
+                pos_tol,
+                ori_tol,
+                position_only,
+                orientation_weight,
+                max_iterations,
+                max_attempts,
+            )
+            if quick is not None:
+                return quick
         from poekin.ik.numerical import Settings, settings, solve
 
         def numpy_options() -> Settings:  # the NumPy solve's (the kernel's) settings
@@ -858,9 +896,8 @@ class Chain:
                 condition that fails and by how much.
             InputError: ``T`` is not ``(..., 4, 4)`` finite rigid transforms.
         """
-        from poekin.ik.analytic import ik_all
-
-        return ik_all(self, T, near=near, refine=refine)
+        solutions: IKSolutions = _analytic().ik_all(self, T, near=near, refine=refine)
+        return solutions
 
     def __repr__(self) -> str:
         joints = ", ".join(

@@ -870,6 +870,10 @@ def ik_all(
         InputError: ``T`` is not ``(..., 4, 4)`` finite rigid transforms, or ``near`` not
             joint values that broadcast against them.
     """
+    if near is None and refine is True and _kernel is not None and type(T) is np.ndarray:
+        quick = _quick(chain, T)  # the exact geometry's kernel, with the least around it
+        if quick is not None:
+            return quick
     if not isinstance(refine, bool):
         raise InputError(f"refine must be True or False, got {refine!r}")
     geo = nearest_geometry(chain) if refine else geometry(chain)
@@ -887,6 +891,39 @@ def ik_all(
     if near is not None:
         q, valid = _ordered(chain, q, valid, near)
     return IKSolutions(q, valid, geo, chain, arr)
+
+
+def _quick(chain: Chain, T: FloatArray) -> IKSolutions | None:
+    """:func:`ik_all` of a NumPy array ``T`` on a chain of a supported geometry (not a near
+    one), as the usual path solves it, with less around the kernel; None where that does not
+    serve (the geometry not yet found or only near, ``T`` not a plain float64 ``(..., 4, 4)``
+    array, a target that is not a rigid transform): the usual path then says what is wrong."""
+    global _last
+    ref, geo = _last  # one read: another thread may set it meanwhile
+    if ref() is not chain:  # not a control loop's chain, as last time
+        geo = _NEAREST.get(chain)
+        if type(geo) is not Geometry or geo.nearest:
+            return None
+        _last = weakref.ref(chain), geo
+    done = _kernel.ik_all(geo._kind, geo._params, T, chain.limits, True)  # in T's batch shape
+    if done is None:
+        return None
+    q, valid, _ = done
+    found = _new(IKSolutions)
+    d = found.__dict__  # as the dataclass's __init__ sets them, without its five calls
+    d["q"], d["valid"], d["geometry"], d["_chain"], d["_targets"] = q, valid, geo, chain, T
+    return found
+
+
+_new = object.__new__
+
+
+def _nobody() -> None:
+    return None
+
+
+# the chain :func:`_quick` last solved (weakly) and its exact geometry
+_last: tuple[Callable[[], Chain | None], Any] = (_nobody, None)
 
 
 def nearest_branch(

@@ -870,22 +870,115 @@ def _kernel_options(chain: Chain, s: Settings) -> tuple[float, ...]:
     cache = chain._ik_cache
     key = ("options", s)
     if key not in cache:
-        terms = chain_terms(chain)
-        cache[key] = (
-            s.pos_tol,
-            s.ori_tol,
-            s.pos_tol2,
-            s.ori_tol2,
-            s.orientation_weight,
-            DAMPING,
-            damping_floor(terms, s),
-            damping_ceiling(terms, s),
-            STEP_MAX,
-            STALL_FACTOR,
-            float(STALL_ITERATIONS),
-            float(s.position_only),
-            float(s.max_iterations),
-            float(s.max_attempts),
-        )
+        cache[key] = _options_of(chain_terms(chain), s)
     options: tuple[float, ...] = cache[key]
     return options
+
+
+def _options_of(terms: ChainTerms | _Scale, s: Settings) -> tuple[float, ...]:
+    return (
+        s.pos_tol,
+        s.ori_tol,
+        s.pos_tol2,
+        s.ori_tol2,
+        s.orientation_weight,
+        DAMPING,
+        damping_floor(terms, s),  # type: ignore[arg-type]  # they read terms.scale only
+        damping_ceiling(terms, s),  # type: ignore[arg-type]
+        STEP_MAX,
+        STALL_FACTOR,
+        float(STALL_ITERATIONS),
+        float(s.position_only),
+        float(s.max_iterations),
+        float(s.max_attempts),
+    )
+
+
+class _Scale(NamedTuple):
+    """What :func:`damping_floor` and :func:`damping_ceiling` read of a chain's terms."""
+
+    scale: float
+
+
+def solve_quick(
+    chain: Chain,
+    T: FloatArray,
+    q0: FloatArray | None,
+    seed: int,
+    pos_tol: float,
+    ori_tol: float,
+    position_only: bool,
+    orientation_weight: float,
+    max_iterations: int,
+    max_attempts: int,
+) -> IKResult | None:
+    """:meth:`poekin.Chain.ik` for NumPy arrays ``T`` and ``q0`` without ``params`` or a
+    budget, as :func:`solve` runs it, with less around the kernel: the options validated and
+    turned into the kernel's once per chain size and values (:func:`_quick_options`), the
+    kernel taking the arrays as they are. None where that does not serve (no kernel, an
+    unhashable option, a seed that is not a plain int in range, arguments the kernel leaves
+    to the validation): the caller then runs the usual path, which says what is wrong."""
+    quick = chain._ik_cache.get("quick")
+    if quick is None:
+        kernel = _ik_kernel(chain)
+        if kernel is None:
+            return None
+        memo: list[tuple[Any, ...] | None] = [None]
+        quick = chain._ik_cache["quick"] = (kernel, chain_terms(chain).scale, memo)
+    kernel, scale, memo = quick
+    seen = memo[0]  # the options of the chain's last call: the very same objects, validated
+    if (
+        seen is not None
+        and seen[0] is pos_tol
+        and seen[1] is ori_tol
+        and seen[2] is position_only
+        and seen[3] is orientation_weight
+        and seen[4] is max_iterations
+        and seen[5] is max_attempts
+    ):
+        options = seen[6]
+    else:
+        try:
+            options = _quick_options(
+                scale,
+                pos_tol,
+                ori_tol,
+                position_only,
+                orientation_weight,
+                max_iterations,
+                max_attempts,
+            )
+        except TypeError:  # an unhashable option: the usual path says what is wrong with it
+            return None
+        args = (pos_tol, ori_tol, position_only, orientation_weight, max_iterations, max_attempts)
+        memo[0] = (*args, options)
+    if type(seed) is not int or not 0 <= seed < 2**64:
+        return None
+    done = kernel.solve(T, q0, seed, options, False)
+    if done is None:
+        return None
+    found = _new(IKResult)
+    d = found.__dict__  # as the dataclass's __init__ sets them, without its six calls
+    d["q"], d["success"], d["pos_err"], d["ori_err"], d["iterations"], d["attempts"] = done
+    return found
+
+
+_new = object.__new__
+
+
+@functools.lru_cache(maxsize=64, typed=True)
+def _quick_options(
+    scale: float,
+    pos_tol: float,
+    ori_tol: float,
+    position_only: bool,
+    orientation_weight: float,
+    max_iterations: int,
+    max_attempts: int,
+) -> tuple[float, ...]:
+    """The kernel's options (:func:`_kernel_options`) of a chain of size ``scale`` for these
+    options of :func:`settings` (``max_total_iterations`` None), validated."""
+    s = _settings(
+        pos_tol, ori_tol, position_only, orientation_weight, max_iterations, max_attempts, None
+    )
+    return _options_of(_Scale(scale), s)

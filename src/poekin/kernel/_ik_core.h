@@ -20,6 +20,7 @@
 #define ik_dot_rows GLUE(ik_dot_rows, LANES)
 #define ik_cholesky_solve GLUE(ik_cholesky_solve, LANES)
 #define ik_damped_step GLUE(ik_damped_step, LANES)
+#define ik_damped_step_sized GLUE(ik_damped_step_sized, LANES)
 #define ik_capped GLUE(ik_capped, LANES)
 #define ik_wrapped GLUE(ik_wrapped, LANES)
 #define ik_clamped GLUE(ik_clamped, LANES)
@@ -116,8 +117,8 @@ AI void ik_cholesky_solve(vd A[6][6], const vd *b, vd *x, int s, double tiny) {
 }
 
 /* damped_step: d = (J^T J + lam I)^-1 J^T r for n <= m, else J^T (J J^T + lam I)^-1 r. */
-AI void ik_damped_step(vd *const *J, const vd *r, vd lam, double tiny, int m, int n,
-                       vd *d) {
+AI void ik_damped_step_sized(vd *const *J, const vd *r, vd lam, double tiny, int m, int n,
+                             vd *d) {
     vd A[6][6], b[6], z[6];
     if (n <= m) {
         for (int i = 0; i < n; ++i)
@@ -144,6 +145,17 @@ AI void ik_damped_step(vd *const *J, const vd *r, vd lam, double tiny, int m, in
         for (int a = 1; a < m; ++a) t = t + J[a][i] * z[a];
         d[i] = t;
     }
+}
+
+/* ik_damped_step_sized with the usual sizes as constants, which the compiler unrolls and
+ * schedules in part (the same operations in the same order: the same bits). */
+AI void ik_damped_step(vd *const *J, const vd *r, vd lam, double tiny, int m, int n, vd *d) {
+    if (m == 6 && n == 6)
+        ik_damped_step_sized(J, r, lam, tiny, 6, 6, d);
+    else if (m == 6 && n == 7)
+        ik_damped_step_sized(J, r, lam, tiny, 6, 7, d);
+    else
+        ik_damped_step_sized(J, r, lam, tiny, m, n, d);
 }
 
 /* _capped: d scaled so that its largest entry is at most step_max in size. */
@@ -446,6 +458,7 @@ TARGET static void ik_run_task(IKTask *task) {
 #undef ik_dot_rows
 #undef ik_cholesky_solve
 #undef ik_damped_step
+#undef ik_damped_step_sized
 #undef ik_capped
 #undef ik_wrapped
 #undef ik_clamped

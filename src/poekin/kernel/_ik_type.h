@@ -154,8 +154,19 @@ static int ik_run(IKTask *proto, int threads) {
     int started[MAX_THREADS];
     /* fewer targets than lanes: a target's attempts side by side, on G lanes each, G at most
      * the attempts there are (every lane of a group runs at least one) */
+    int lanes = g_lanes;
+    IKTaskFn run_task = g_ik_run_task;
+#ifdef X86_DISPATCH
+    /* a few targets (one thread) on AVX2's 4 lanes rather than AVX-512's 8: an iteration costs
+     * less there and the attempts past the first 4 are rarely needed (every width gives the
+     * same bits) */
+    if (proto->N <= 4 && lanes == 8) {
+        lanes = 4;
+        run_task = ik_run_task_4;
+    }
+#endif
     int group = 1;
-    while (2 * group * proto->N <= g_lanes && 2 * group <= proto->opt->max_attempts) group *= 2;
+    while (2 * group * proto->N <= lanes && 2 * group <= proto->opt->max_attempts) group *= 2;
     for (int k = 0; k < nt; ++k) {
         tasks[k] = *proto;
         tasks[k].next = &next;
@@ -169,7 +180,7 @@ static int ik_run(IKTask *proto, int threads) {
         started[k] = pthread_create(&handles[k], NULL, ik_thread_main, &tasks[k]) == 0;
 #endif
     }
-    g_ik_run_task(&tasks[0]);
+    run_task(&tasks[0]); /* the others, if any (nt > 1: many targets), at g_lanes */
     for (int k = 1; k < nt; ++k) {
         if (!started[k]) continue; /* the others took its targets */
 #ifdef _WIN32

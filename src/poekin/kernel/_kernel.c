@@ -829,26 +829,36 @@ static void ik_run_small(IkAllTask task, npy_intp n) {
     task.lo = 0;
     task.hi = n;
 #ifdef X86_DISPATCH
-    if (n <= 2) {
-        ik_all_task_2(&task);
+    if (n <= 4 && g_lanes >= 4) { /* one target too: AVX2's block runs it faster than SSE2's */
+        ik_all_task_4(&task);
         return;
     }
-    if (n <= 4 && g_lanes >= 4) {
-        ik_all_task_4(&task);
+    if (n <= 2) {
+        ik_all_task_2(&task);
         return;
     }
 #endif
     g_ik_all_task(&task);
 }
 
-/* ik_all(kind, params, T, limits) -> (q, valid, bad): q (n, 8, 6) and valid (n, 8) for the n
- * targets of T (a C-contiguous float64 array of shape (..., 4, 4)), or (None, None, i) where
- * target i is not a rigid transform (the caller's validation then says why). */
+/* ik_all(kind, params, T, limits[, shaped]) -> (q, valid, bad): q (n, 8, 6) and valid (n, 8)
+ * for the n targets of T (a C-contiguous float64 array of shape (..., 4, 4)), or (None, None, i)
+ * where target i is not a rigid transform (the caller's validation then says why). shaped
+ * (poekin.ik.analytic._quick): q (..., 8, 6) and valid (..., 8) in T's batch shape, and None
+ * instead of an error for a T that is not such an array or not rigid transforms. */
 static PyObject *ik_all(PyObject *Py_UNUSED(mod), PyObject *args) {
-    int kind;
+    int kind, shaped = 0;
     PyObject *params_obj, *T_obj, *limits_obj;
-    if (!PyArg_ParseTuple(args, "iOOO:ik_all", &kind, &params_obj, &T_obj, &limits_obj))
+    if (!PyArg_ParseTuple(args, "iOOO|p:ik_all", &kind, &params_obj, &T_obj, &limits_obj, &shaped))
         return NULL;
+    if (shaped) { /* T as the checks below want it, else None: before any conversion */
+        PyArrayObject *A = (PyArrayObject *)T_obj;
+        if (!PyArray_Check(T_obj) || PyArray_NDIM(A) < 2 || PyArray_NDIM(A) > NPY_MAXDIMS - 1 ||
+            PyArray_TYPE(A) != NPY_FLOAT64 || !PyArray_IS_C_CONTIGUOUS(A) ||
+            !PyArray_ISALIGNED(A) || PyArray_ISBYTESWAPPED(A) ||
+            PyArray_DIM(A, PyArray_NDIM(A) - 1) != 4 || PyArray_DIM(A, PyArray_NDIM(A) - 2) != 4)
+            Py_RETURN_NONE;
+    }
     PyArrayObject *params = (PyArrayObject *)PyArray_FROMANY(params_obj, NPY_FLOAT64, 1, 1,
                                                               NPY_ARRAY_CARRAY_RO);
     if (params == NULL) return NULL;
@@ -877,12 +887,19 @@ static PyObject *ik_all(PyObject *Py_UNUSED(mod), PyObject *args) {
         if (ik_bad_target(Td + 16 * i)) {
             Py_DECREF(params);
             Py_DECREF(limits);
+            if (shaped) Py_RETURN_NONE;
             return Py_BuildValue("(OOn)", Py_None, Py_None, (Py_ssize_t)i);
         }
     }
-    npy_intp qdims[3] = {n, 8, 6}, vdims[2] = {n, 8};
-    PyArrayObject *q = (PyArrayObject *)PyArray_SimpleNew(3, qdims, NPY_FLOAT64);
-    PyArrayObject *valid = (PyArrayObject *)PyArray_SimpleNew(2, vdims, NPY_BOOL);
+    npy_intp qdims[NPY_MAXDIMS] = {n, 8, 6}, vdims[NPY_MAXDIMS] = {n, 8};
+    int qnd = 3, vnd = 2;
+    if (shaped) { /* T's batch axes, then (8, 6) and (8) */
+        qnd = vnd = nd - 2;
+        for (int i = 0; i < nd - 2; ++i) qdims[i] = vdims[i] = PyArray_DIM(T, i);
+        qdims[qnd++] = 8, qdims[qnd++] = 6, vdims[vnd++] = 8;
+    }
+    PyArrayObject *q = (PyArrayObject *)PyArray_SimpleNew(qnd, qdims, NPY_FLOAT64);
+    PyArrayObject *valid = (PyArrayObject *)PyArray_SimpleNew(vnd, vdims, NPY_BOOL);
     if (q == NULL || valid == NULL) {
         Py_XDECREF(q);
         Py_XDECREF(valid);
