@@ -1047,13 +1047,16 @@ def _distinct(q: FloatArray, ok: BoolArray) -> BoolArray:
     earlier = _EARLIER.get(k)
     if earlier is None:
         earlier = _EARLIER[k] = np.tri(k, k, -1, dtype=np.bool_)
-    both = ok[:, :, None] & ok[:, None, :] & earlier
     if n <= 64:  # few targets: every pair at once
+        both = ok[:, :, None] & ok[:, None, :] & earlier
         gap = np.max(np.abs(q[:, :, None, :] - q[:, None, :, :]), axis=-1)
         twin_of: BoolArray = np.any(both & (gap < _SAME), axis=-1)
         return ok & ~twin_of
+    later, first_of = np.nonzero(earlier)  # the k (k - 1) / 2 pairs (b, a), a < b
     first = q[:, :, 0]
-    t, b, a = np.nonzero(both & (np.abs(first[:, :, None] - first[:, None, :]) < _SAME))
+    close = np.abs(first[:, later] - first[:, first_of]) < _SAME  # (n, pairs)
+    t, p = np.nonzero(close & ok[:, later] & ok[:, first_of])
+    b, a = later[p], first_of[p]
     twin = np.max(np.abs(q[t, b] - q[t, a]), axis=-1) < _SAME
     valid: BoolArray = ok.copy()
     valid[t[twin], b[twin]] = False
