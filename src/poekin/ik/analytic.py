@@ -976,9 +976,10 @@ def _refined(
     straight wrist) two solutions of the chain are close, and the ideal geometry may give both
     one start (its two roots merge there) or none. A branch that reached its twin's solution,
     or did not converge, starts again: from its start mirrored through the solution its twin
-    reached (the other side of the fold), then a step either side of its start along the
-    right singular vector of the Jacobian's smallest singular value there (the direction in
-    which the two solutions part); it is kept if it reaches a solution of its own."""
+    reached (the other side of the fold), then steps of :data:`_FOLD_STEPS` either side of its
+    start along the right singular vector of the Jacobian's smallest singular value there (the
+    direction in which the two solutions part); it is kept if it reaches a solution of its
+    own."""
     limits = chain.limits
     assert limits is not None  # Chain.__post_init__ sets them
     lo, hi = limits[:, 0], limits[:, 1]
@@ -1037,22 +1038,18 @@ def _retry(
         out[t[new], branch], valid[t[new], branch] = again.q[new], True
 
 
-_EARLIER: dict[int, BoolArray] = {}  # (k, k): True below the diagonal
+# k -> the k (k - 1) / 2 pairs of branches (b, a), a < b
+_PAIRS: dict[int, tuple[NDArray[np.intp], NDArray[np.intp]]] = {}
 
 
 def _distinct(q: FloatArray, ok: BoolArray) -> BoolArray:
     """``ok`` ``(n, k)`` less each branch whose solution an earlier one of its target
     reached: the pairs whose first joints agree (few: the two shoulders differ), then all."""
-    n, k = q.shape[:2]
-    earlier = _EARLIER.get(k)
-    if earlier is None:
-        earlier = _EARLIER[k] = np.tri(k, k, -1, dtype=np.bool_)
-    if n <= 64:  # few targets: every pair at once
-        both = ok[:, :, None] & ok[:, None, :] & earlier
-        gap = np.max(np.abs(q[:, :, None, :] - q[:, None, :, :]), axis=-1)
-        twin_of: BoolArray = np.any(both & (gap < _SAME), axis=-1)
-        return ok & ~twin_of
-    later, first_of = np.nonzero(earlier)  # the k (k - 1) / 2 pairs (b, a), a < b
+    k = q.shape[1]
+    if k not in _PAIRS:
+        later, first_of = np.nonzero(np.tri(k, k, -1, dtype=np.bool_))
+        _PAIRS[k] = later, first_of
+    later, first_of = _PAIRS[k]
     first = q[:, :, 0]
     close = np.abs(first[:, later] - first[:, first_of]) < _SAME  # (n, pairs)
     t, p = np.nonzero(close & ok[:, later] & ok[:, first_of])
