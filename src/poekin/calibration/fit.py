@@ -310,11 +310,10 @@ class _Problem:
     def prior_rows(self, state: State, Z: FloatArray | None) -> tuple[FloatArray, FloatArray]:
         """The prior's residuals ``b_p`` ``(w,)`` and their Jacobian ``A_p`` ``(w, K)`` as
         :meth:`linearise` gives the data's: a step ``dy`` leaves ``b_p - A_p dy``."""
-        K = len(self.free) if Z is None else Z.shape[1]
         if self.prior is None:
-            return np.zeros(0), np.zeros((0, K))
-        robot = np.eye(len(self.free))[6:] if Z is None else Z[6:]
-        A_p = self.prior @ (robot / self.units[6:, None]) / _PRIOR_SPREAD
+            return np.zeros(0), np.zeros((0, len(self.free) if Z is None else Z.shape[1]))
+        assert Z is not None  # a prior is found with the basis it is fitted in
+        A_p = self.prior @ (Z[6:] / self.units[6:, None]) / _PRIOR_SPREAD
         return -self.pulled(state), np.asarray(A_p, dtype=np.float64)
 
     def at(self, state: State) -> _Point:
