@@ -267,12 +267,17 @@ def check_seed(seed: object) -> int:
 
 def damping_floor(terms: ChainTerms, s: Settings) -> float:
     """The damping's floor, ``1e-18 L^2`` with ``L`` at least the orientation weight."""
-    length = max(terms.scale, 0.0 if s.position_only else s.orientation_weight)
-    return FLOOR * length * length
+    return FLOOR * _damping_length2(terms.scale, s)
 
 
 def damping_ceiling(terms: ChainTerms, s: Settings) -> float:
-    length = max(terms.scale, 0.0 if s.position_only else s.orientation_weight)
+    return _damping_length2(terms.scale, s)
+
+
+def _damping_length2(scale: float, s: Settings) -> float:
+    """``L^2`` of the damping (:func:`step`): the chain's size, at least the orientation
+    weight."""
+    length = max(scale, 0.0 if s.position_only else s.orientation_weight)
     return length * length
 
 
@@ -870,12 +875,13 @@ def _kernel_options(chain: Chain, s: Settings) -> tuple[float, ...]:
     cache = chain._ik_cache
     key = ("options", s)
     if key not in cache:
-        cache[key] = _options_of(chain_terms(chain), s)
+        cache[key] = _options_of(chain_terms(chain).scale, s)
     options: tuple[float, ...] = cache[key]
     return options
 
 
-def _options_of(terms: ChainTerms | _Scale, s: Settings) -> tuple[float, ...]:
+def _options_of(scale: float, s: Settings) -> tuple[float, ...]:
+    """The kernel's options for a chain of size ``scale`` (:class:`ChainTerms`) and ``s``."""
     return (
         s.pos_tol,
         s.ori_tol,
@@ -883,8 +889,8 @@ def _options_of(terms: ChainTerms | _Scale, s: Settings) -> tuple[float, ...]:
         s.ori_tol2,
         s.orientation_weight,
         DAMPING,
-        damping_floor(terms, s),  # type: ignore[arg-type]  # they read terms.scale only
-        damping_ceiling(terms, s),  # type: ignore[arg-type]
+        FLOOR * _damping_length2(scale, s),
+        _damping_length2(scale, s),
         STEP_MAX,
         STALL_FACTOR,
         float(STALL_ITERATIONS),
@@ -892,12 +898,6 @@ def _options_of(terms: ChainTerms | _Scale, s: Settings) -> tuple[float, ...]:
         float(s.max_iterations),
         float(s.max_attempts),
     )
-
-
-class _Scale(NamedTuple):
-    """What :func:`damping_floor` and :func:`damping_ceiling` read of a chain's terms."""
-
-    scale: float
 
 
 def solve_quick(
@@ -981,4 +981,4 @@ def _quick_options(
     s = _settings(
         pos_tol, ori_tol, position_only, orientation_weight, max_iterations, max_attempts, None
     )
-    return _options_of(_Scale(scale), s)
+    return _options_of(scale, s)
