@@ -299,26 +299,40 @@ def _read_text(p: pathlib.Path, where: str, delimiter: str | None) -> Table:
         numbered = numbered[1:]  # a first line of column names only
     if not numbered:
         raise InputError(f"{where} holds no numbers")
-    rows: list[NDArray[np.float64]] = []
+    try:  # every row at once; only a file it refuses is read again, line by line, to say where
+        values = np.loadtxt(
+            io.StringIO("\n".join(content for _, content in numbered)),
+            delimiter=delimiter,
+            ndmin=2,
+        )
+    except ValueError as e:
+        _refused_line(numbered, where, delimiter)
+        sep = "commas" if delimiter else "whitespace"
+        raise InputError(f"{where}: {e} (values separated by {sep}, one row each)") from None
+    if header is not None and len(header) != values.shape[1]:
+        raise InputError(
+            f"{where}: the header names {len(header)} columns, line {numbered[0][0]} holds "
+            f"{values.shape[1]} values"
+        )
+    return Table(header, values, tuple(line for line, _ in numbered), where)
+
+
+def _refused_line(numbered: list[tuple[int, str]], where: str, delimiter: str | None) -> None:
+    """Raise :class:`InputError` naming the first of the file's ``(line, content)`` rows that
+    is not numbers, or whose count of values differs from the first row's."""
+    sep = "commas" if delimiter else "whitespace"
+    width = None
     for line, content in numbered:
         try:
             row = np.loadtxt(io.StringIO(content), delimiter=delimiter, ndmin=1)
         except ValueError as e:
-            sep = "commas" if delimiter else "whitespace"
             raise InputError(f"{where} line {line}: {e} (values separated by {sep})") from None
-        if rows and len(row) != len(rows[0]):
+        if width is not None and len(row) != width:
             raise InputError(
                 f"{where} line {line} holds {len(row)} values, line {numbered[0][0]} "
-                f"{len(rows[0])}: every row needs as many"
+                f"{width}: every row needs as many"
             )
-        rows.append(row)
-    if header is not None and len(header) != len(rows[0]):
-        raise InputError(
-            f"{where}: the header names {len(header)} columns, line {numbered[0][0]} holds "
-            f"{len(rows[0])} values"
-        )
-    values = np.asarray(np.stack(rows), dtype=np.float64)
-    return Table(header, values, tuple(line for line, _ in numbered), where)
+        width = len(row)
 
 
 def read_array(
