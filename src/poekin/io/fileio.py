@@ -272,14 +272,21 @@ class Table:
 def read_table(path: str | os.PathLike[str], what: str = "--input") -> Table:
     """The ``.csv`` or ``.txt`` file at ``path`` as a :class:`Table`; see :func:`read_array`
     for what is refused."""
-    suffix = array_format(path, what)
+    suffix, p, where = _existing(path, what)
     if suffix not in (".csv", ".txt"):
-        raise InputError(f"{what} {os.fspath(path)}: a table is a .csv or .txt file")
+        raise InputError(f"{where}: a table is a .csv or .txt file")
+    return _read_text(p, where, "," if suffix == ".csv" else None)
+
+
+def _existing(path: str | os.PathLike[str], what: str) -> tuple[str, pathlib.Path, str]:
+    """An array file's suffix (:func:`array_format`), its path, and how messages name it
+    (``--input q.csv``); :class:`InputError` if no file is there."""
+    suffix = array_format(path, what)
     p = pathlib.Path(path)
     where = f"{what} {os.fspath(path)}"
     if not p.is_file():
         raise InputError(f"{where}: no such file")
-    return _read_text(p, where, "," if suffix == ".csv" else None)
+    return suffix, p, where
 
 
 def _read_text(p: pathlib.Path, where: str, delimiter: str | None) -> Table:
@@ -347,11 +354,7 @@ def read_array(
             a command has no rows to compute), or values that are not real numbers (a complex
             array is refused, not truncated). Never a pickle.
     """
-    suffix = array_format(path, what)
-    p = pathlib.Path(path)
-    where = f"{what} {os.fspath(path)}"
-    if not p.is_file():
-        raise InputError(f"{where}: no such file")
+    suffix, p, where = _existing(path, what)
     if suffix == ".npy":
         arr = _read_npy(p, where)
     elif suffix == ".npz":
