@@ -43,7 +43,7 @@ def test_the_builtin_robots_and_the_licenses_are_installed() -> None:
     license is among the distribution's license files; poekin's own license too."""
     from poekin.io.sources import BUILTIN_ROBOTS
 
-    assert len(BUILTIN_ROBOTS) == 9
+    assert len(BUILTIN_ROBOTS) == 10
     data = resources.files("poekin") / "data"
     assert (
         (data / "universal_robots_ur5e" / "ur5e.xml")

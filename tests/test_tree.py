@@ -27,6 +27,7 @@ MENAGERIE = [
     "ufactory_lite6",
     "rethink_robotics_sawyer",
     "trs_so_arm100",
+    "unitree_g1",
     "unitree_go2",
     "aloha",
 ]

@@ -675,7 +675,7 @@ def test_argparse_errors_are_one_line(
 
 def test_no_network_menagerie(capsys: pytest.CaptureFixture[str], fresh_machine: None) -> None:
     """A robot poekin does not ship (the FR3 it does: issue #26), with no network."""
-    code, _, err = run(capsys, "verify", "unitree_g1")
+    code, _, err = run(capsys, "verify", "unitree_h1")
     assert code == 2
     assert_one_error_line(
         err, "set MENAGERIE_ROOT to a local mujoco_menagerie clone, or pass a path"

@@ -89,6 +89,7 @@ SHIPPED = [
     "rethink_robotics_sawyer",
     "trs_so_arm100",
     "ufactory_lite6",
+    "unitree_g1",
     "unitree_go2",
     "universal_robots_ur10e",
     "universal_robots_ur5e",
@@ -260,6 +261,7 @@ def test_ur5e_kinematics_only_compile_equals_the_full_compile_bitwise(
         "ufactory_lite6",
         "rethink_robotics_sawyer",
         "trs_so_arm100",
+        "unitree_g1",
         "unitree_go2",
         "aloha",
     ],
@@ -867,9 +869,9 @@ def test_robot_missing_under_menagerie_root(
 def test_download_that_cannot_happen(fresh_machine: None) -> None:
     """No local clone and no reachable archive, for a robot poekin does not ship: one clear
     error naming the fix."""
-    assert "unitree_g1" not in BUILTIN_ROBOTS
+    assert "unitree_h1" not in BUILTIN_ROBOTS
     with pytest.raises(MenagerieUnavailableError, match="set MENAGERIE_ROOT to a local"):
-        load_model("unitree_g1")
+        load_model("unitree_h1")
 
 
 def test_mujoco_warnings_are_notes_not_a_log_file(

@@ -169,6 +169,7 @@ BUILTIN_ROBOTS: dict[str, str] = {
     "rethink_robotics_sawyer": "sawyer.xml",
     "trs_so_arm100": "so_arm100.xml",
     "ufactory_lite6": "lite6.xml",
+    "unitree_g1": "g1.xml",
     "unitree_go2": "go2.xml",
     "universal_robots_ur10e": "ur10e.xml",
     "universal_robots_ur5e": "ur5e.xml",
