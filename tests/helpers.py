@@ -14,7 +14,9 @@ import pytest
 from numpy.typing import ArrayLike
 
 import poekin
+from poekin import lie
 from poekin.io.sources import LoadedModel
+from poekin.tree import Tree
 
 # PoE vs mj_forward. Both codes round to ~3e-15 m on the UR5e at |q| <= 2 pi (measured against
 # a 40-digit mpmath product), and error grows with the number of joints and the robot's size;
@@ -88,6 +90,36 @@ def mj_pose(model: mujoco.MjModel, qpos: np.ndarray, frame: str) -> np.ndarray:
         mujoco.mj_forward(model, data)
         out[k] = mj_frame_pose(model, data, kind, fid)
     return out
+
+
+def pinocchio_q(model: Any, tree: Tree, qpos: np.ndarray) -> np.ndarray:
+    """``(n, model.nq)``: Pinocchio's configuration for the tree's ``qpos``, joint by joint
+    (by name; ``root_joint`` is the floating base). Mimic followers are joints of their own
+    (Pinocchio's default), set from their leaders. A continuous joint is ``cos, sin``; a free
+    joint ``x y z qx qy qz qw`` relative to its ``<origin>`` (which poekin and MuJoCo fold into
+    qpos: their qpos is the world pose)."""
+    full = tree.full_qpos(qpos)
+    q = np.zeros((len(qpos), model.nq))
+    for j in range(1, model.njoints):
+        name, joint = model.names[j], model.joints[j]
+        k = 0 if name == "root_joint" else tree.joint_names.index(name)
+        a, i = tree.full_qpos_adr[k], joint.idx_q
+        if joint.nq == 7:
+            T = np.tile(np.eye(4), (len(qpos), 1, 1))
+            T[:, :3, 3] = full[:, a : a + 3]
+            T[:, :3, :3] = lie.quat_to_rotation(lie.quat_normalize(full[:, a + 3 : a + 7]))
+            local = np.linalg.inv(model.jointPlacements[j].homogeneous) @ T
+            wxyz = lie.rotation_to_quat(local[:, :3, :3])
+            q[:, i : i + 3], q[:, i + 3 : i + 6], q[:, i + 6] = (
+                local[:, :3, 3],
+                wxyz[:, 1:],
+                wxyz[:, 0],
+            )
+        elif joint.nq == 2:
+            q[:, i], q[:, i + 1] = np.cos(full[:, a]), np.sin(full[:, a])
+        else:
+            q[:, i] = full[:, a]
+    return q
 
 
 def run(capsys: pytest.CaptureFixture[str], *argv: str) -> tuple[int, str, str]:

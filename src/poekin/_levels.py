@@ -45,6 +45,7 @@ __all__ = [
     "Step",
     "batch_last",
     "body_pose",
+    "body_poses",
     "evaluate",
     "expand",
     "frames_array",
@@ -776,6 +777,21 @@ def frame_pose(poses: Poses, plan: Plan, f: int, lib: Lib) -> _pose.Pose:
         return body_pose(poses, plan, f)
     g, j = plan.site_lanes[f - nb]
     return _pose_of(poses.site_rotations[g], poses.site_points[g], j)
+
+
+def body_poses(poses: Poses, plan: Plan, lib: Lib) -> list[_pose.Pose]:
+    """Every body's world pose as entries: :func:`frame_pose` of each, the frames joined once
+    under JAX rather than once per body."""
+    if not _is_jax(lib.xp):
+        return [body_pose(poses, plan, b) for b in range(len(plan.bodies))]
+    T = _frames_batch_last(poses, plan, "3x4", lib)
+    return [
+        (
+            tuple(tuple(T[b, r, c] for c in range(3)) for r in range(3)),  # type: ignore[misc]
+            (T[b, 0, 3], T[b, 1, 3], T[b, 2, 3]),
+        )
+        for b in range(len(plan.bodies))
+    ]
 
 
 def frames_array(poses: Poses, plan: Plan, form: str, lib: Lib) -> Any:

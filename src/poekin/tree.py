@@ -138,6 +138,16 @@ def _add_column(column: Column, add: Sequence[Any], scale: float) -> Column:
     return tuple(c + scale * a for c, a in zip(column, add, strict=True))  # type: ignore[return-value]
 
 
+def _axpy(y: _pose.Vec, a: float, x: Sequence[Any]) -> _pose.Vec:
+    """``y + a x``, entry by entry."""
+    return (y[0] + a * x[0], y[1] + a * x[1], y[2] + a * x[2])
+
+
+def _scaled(a: float, x: Sequence[Any]) -> _pose.Vec:
+    """``a x``, entry by entry."""
+    return (a * x[0], a * x[1], a * x[2])
+
+
 @dataclasses.dataclass(frozen=True, eq=False)
 class Tree:
     """A kinematic tree of bodies, joints and sites. Immutable; build it with
@@ -164,6 +174,10 @@ class Tree:
             the home pose: hinges and slides at ``ref``, ball joints at the identity, a free
             joint at its body's fixed pose.
         robot: the model's name or file.
+        body_mass: ``(nb,)`` each body's mass (kg; MuJoCo's ``body_mass``), ``>= 0``, or NaN
+            where it is not known; empty (the default): no mass known. :meth:`com` needs them.
+        body_com: ``(nb, 3)`` each body's centre of mass in its own frame (m; MuJoCo's
+            ``body_ipos``), finite where the mass is known; empty with ``body_mass``.
         qpos_adr: ``(nj,)`` where each joint's numbers start in ``qpos`` (a mimic joint: its
             leader's) (derived).
     """
@@ -186,6 +200,8 @@ class Tree:
     site_rot: FloatArray = dataclasses.field(default_factory=lambda: np.zeros((0, 3, 3)))
     qpos0: FloatArray = dataclasses.field(default_factory=lambda: np.zeros(0))
     robot: str = ""
+    body_mass: FloatArray = dataclasses.field(default_factory=lambda: np.zeros(0))
+    body_com: FloatArray = dataclasses.field(default_factory=lambda: np.zeros((0, 3)))
     qpos_adr: IntArray = dataclasses.field(init=False, repr=False)
     _slots: IntArray = dataclasses.field(init=False, repr=False)
     _slot_scale: FloatArray = dataclasses.field(init=False, repr=False)
@@ -234,6 +250,7 @@ class Tree:
         set_(self, "site_bodies", _index_array(self.site_bodies, ns, "site_bodies"))
         set_(self, "site_pos", readonly_array(self.site_pos, (ns, 3), "site_pos"))
         set_(self, "site_rot", readonly_array(self.site_rot, (ns, 3, 3), "site_rot"))
+        self._check_masses()
         if self._base is not None:
             base = rigid_transform(self._base, "base")
             base.flags.writeable = False
@@ -320,6 +337,35 @@ class Tree:
                     f"free joint {name!r} must be the only joint of a body whose parent is "
                     "the world"
                 )
+
+    def _check_masses(self) -> None:
+        """``body_mass`` and ``body_com`` as read-only float64 arrays: both empty (no mass
+        known), or ``(nb,)`` masses, each ``>= 0`` or NaN (unknown), and ``(nb, 3)`` centres,
+        finite where the mass is known."""
+        nb = len(self.body_names)
+        mass = np.array(self.body_mass, dtype=np.float64)
+        com = np.array(self.body_com, dtype=np.float64)
+        if mass.size == 0 and com.size == 0:
+            mass, com = np.zeros(0), np.zeros((0, 3))
+        elif mass.shape != (nb,) or com.shape != (nb, 3):
+            raise InputError(
+                f"body_mass and body_com must have shapes ({nb},) and ({nb}, 3), or both be "
+                f"empty (no mass known); got {mass.shape} and {com.shape}"
+            )
+        known = ~np.isnan(mass)
+        for b in np.flatnonzero(known & ~(np.isfinite(mass) & (mass >= 0))):
+            raise InputError(
+                f"body_mass of {self.body_names[b]!r} is {mass[b]}; a mass is finite and >= 0 "
+                "(NaN: unknown)"
+            )
+        for b in np.flatnonzero(known & ~np.all(np.isfinite(com), axis=-1)):
+            raise InputError(
+                f"body_com of {self.body_names[b]!r} contains NaN or inf, but its mass is known"
+            )
+        for a in (mass, com):
+            a.flags.writeable = False
+        object.__setattr__(self, "body_mass", mass)
+        object.__setattr__(self, "body_com", com)
 
     def _layout(self) -> None:
         """qpos addresses, and the gather that expands qpos to one slot set per joint.
@@ -830,6 +876,131 @@ class Tree:
             for m, a in enumerate(turning):
                 J[d + m] = _add_column(J[d + m], (*a, *_pose.cross(a, reach)), scale)
         return jacobian_from_world(J, T_frame, convention)
+
+    # --- centre of mass -------------------------------------------------------------------
+
+    def com(self, qpos: ArrayLike) -> FloatArray:
+        """The whole robot's centre of mass in the world frame, ``(..., 3)``:
+        ``sum_b m_b (R_b c_b + p_b) / sum_b m_b`` over every body ``b``, ``(R_b, p_b)`` its
+        pose (:meth:`fk`), ``m_b`` and ``c_b`` its :attr:`body_mass` and :attr:`body_com`.
+
+        MuJoCo's ``data.subtree_com[0]`` (the world body has no mass). A whole-body IK target:
+        e.g. a humanoid's centre of mass held over its support polygon (:meth:`com_jacobian`).
+        ``qpos`` as for :meth:`fk` (NumPy, JAX or PyTorch), the result in its library.
+
+        Raises:
+            ModelError: the masses are not known (an empty or NaN :attr:`body_mass`), or they
+                sum to 0.
+            InputError: ``qpos`` is not ``(..., nq)`` finite numbers.
+
+        Example:
+            >>> tree = poekin.load_tree("unitree_go2")
+            >>> tree.com(tree.qpos0).shape
+            (3,)
+        """
+        mass, centre, total = self._mass_terms()
+        T = self.fk(qpos)
+        nb = len(self.body_names)
+        xp, _ = arrays.namespace_of([T])
+        c = arrays.convert(centre, xp, T.dtype, T)
+        m = arrays.convert(mass, xp, T.dtype, T)
+        R = T[..., :nb, :3, :3]  # entry by entry, not matmul: no reduced-precision product
+        x = T[..., :nb, :3, 3] + (
+            (R[..., 0] * c[:, 0:1] + R[..., 1] * c[:, 1:2]) + R[..., 2] * c[:, 2:3]
+        )
+        return xp.sum(x * m[:, None], axis=-2) / total  # type: ignore[no-any-return]
+
+    def com_jacobian(self, qpos: ArrayLike) -> FloatArray:
+        """The Jacobian of :meth:`com`, ``(..., 3, nv)``: the centre of mass's world velocity
+        is ``com_jacobian(qpos) @ qvel``.
+
+        Columns as :meth:`jacobian`'s (MuJoCo's ``qvel``: a free joint's linear velocity along
+        the world axes, then its angular velocity about the body's own axes; a mimic joint's
+        column, times its multiplier, added to its leader's); MuJoCo's ``mj_jacSubtreeCom`` of
+        the world body. Each joint moves its body's subtree: a hinge's column is
+        ``a x (sum m_b x_b - M_sub anchor) / M`` over the subtree's bodies, a slide's
+        ``M_sub a / M``. ``qpos`` as for :meth:`fk`, the result in its library.
+
+        Raises:
+            ModelError: as for :meth:`com`.
+            InputError: ``qpos`` is not ``(..., nq)`` finite numbers.
+        """
+        mass, centre, total = self._mass_terms()
+        xp, q, like, _ = self._inputs(qpos, None, None)
+        poses, lib = self._poses(q, xp, like, None, joints=True)
+        bodies = _levels.body_poses(poses, self._plan, lib)
+        # each body's subtree: its mass, and its bodies' masses times their centres' positions
+        sub_mass = [float(m) for m in mass]
+        moment: list[_pose.Vec] = []
+        for b, (R, p) in enumerate(bodies):
+            if sub_mass[b] == 0.0:
+                moment.append(_pose.ORIGIN)
+                continue
+            x = _pose.mat_vec(R, tuple(float(v) for v in centre[b]))
+            moment.append(_scaled(sub_mass[b], (p[0] + x[0], p[1] + x[1], p[2] + x[2])))
+        for b in range(len(bodies) - 1, -1, -1):
+            parent = int(self.body_parents[b])
+            if parent >= 0 and sub_mass[b] != 0.0:
+                moment[parent] = _axpy(moment[parent], 1.0, moment[b])
+                sub_mass[parent] += sub_mass[b]
+        J: list[_pose.Vec] = [_pose.ORIGIN] * self.nv
+        static = self._static
+        for k, kind in enumerate(self.joint_types):
+            b, d = static.joint_body[k], static.dof[k]
+            share, scale = sub_mass[b], static.scale[k] / total
+            if share == 0.0:
+                continue
+            axis, anchor = _levels.joint_axis_anchor(poses, self._plan, k)
+            if kind == "prismatic":
+                J[d] = _axpy(J[d], scale * share, axis)
+                continue
+            if kind == "revolute":
+                turning, about = [axis], anchor
+            else:  # ball, free: about the body's own axes, the columns of R_b
+                R_b, p_b = bodies[b]
+                turning = [(R_b[0][j], R_b[1][j], R_b[2][j]) for j in range(3)]
+                about = anchor if kind == "ball" else p_b
+                if kind == "free":  # moves its subtree along the world axes
+                    for e, unit in enumerate(_pose.IDENTITY):
+                        J[d + e] = _scaled(share / total, unit)
+                    d += 3
+            lever = _axpy(moment[b], -share, about)
+            for j, a in enumerate(turning):
+                J[d + j] = _axpy(J[d + j], scale, _pose.cross(a, lever))
+        entries = [J[c][r] for r in range(3) for c in range(self.nv)]
+        return _pose.stack(entries, (3, self.nv), xp, like)  # type: ignore[no-any-return]
+
+    def _mass_terms(self) -> tuple[FloatArray, FloatArray, float]:
+        """:attr:`body_mass`, :attr:`body_com` and the total mass, once they are known.
+
+        Raises:
+            ModelError: no mass known, a body's unknown, or a total mass of 0; one line.
+        """
+        label = f"{self.robot}: " if self.robot else ""
+        if self.body_names and self.body_mass.size == 0:
+            raise ModelError(
+                f"{label}the body masses are not known (body_mass is empty), so neither is the "
+                "centre of mass: load the model from a file that gives them (MJCF, URDF "
+                "<inertial>), or give the Tree body_mass and body_com"
+            )
+        unknown = [self.body_names[b] for b in np.flatnonzero(np.isnan(self.body_mass))]
+        if unknown:
+            listed = 6
+            shown = ", ".join(repr(name) for name in unknown[:listed])
+            more = f" and {len(unknown) - listed} more" if len(unknown) > listed else ""
+            raise ModelError(
+                f"{label}the mass of {shown}{more} is not known (NaN in body_mass), so neither "
+                "is the centre of mass: poekin leaves a mass unknown where MuJoCo would compute "
+                "it from mesh files that were not read; with the files present, "
+                "poekin.load_tree(poekin.load_model(source, read_assets=True)) reads them"
+            )
+        total = float(np.sum(self.body_mass))
+        if not total > 0.0:
+            raise ModelError(
+                f"{label}the bodies' masses sum to 0, so the centre of mass is undefined; give "
+                "body_mass"
+            )
+        return self.body_mass, self.body_com, total
 
     def qpos_names(self) -> tuple[str, ...]:
         """A name for each of the ``nq`` entries of ``qpos``: a hinge or slide joint's name,

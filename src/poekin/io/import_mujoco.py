@@ -18,6 +18,7 @@ pose for the same numbers.
 from __future__ import annotations
 
 import functools
+from collections.abc import Collection
 from typing import TYPE_CHECKING, Literal
 
 import numpy as np
@@ -145,13 +146,17 @@ def _site_offsets(model: mujoco.MjModel) -> tuple[NDArray[np.float64], NDArray[n
     return pos, rot
 
 
-def tree_from_model(model: mujoco.MjModel, *, robot: str = "") -> Tree:
+def tree_from_model(
+    model: mujoco.MjModel, *, robot: str = "", unknown_masses: Collection[int] = ()
+) -> Tree:
     """The whole kinematic tree of a compiled MuJoCo model: every body, joint and site.
 
     Body and site offsets, joint axes, anchors and ``ref`` (``qpos0``) are read from the
     compiled model, so ``<default>`` classes, ``childclass``, ``euler``/``axisangle`` frames and
     the like are already resolved. Mocap bodies sit at their model pose, and sites as
-    :func:`_site_offsets` says.
+    :func:`_site_offsets` says. Masses and centres of mass are ``body_mass`` and ``body_ipos``,
+    NaN for the MuJoCo body ids in ``unknown_masses`` (those a kinematics-only compile got
+    wrong: :attr:`poekin.io.sources.LoadedModel.unknown_masses`).
     """
 
     def quat(q: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -168,6 +173,10 @@ def tree_from_model(model: mujoco.MjModel, *, robot: str = "") -> Tree:
     )
     refs = np.array([model.qpos0[model.jnt_qposadr[j]] if hinge_like[j] else 0.0 for j in joints])
     site_pos, site_rot = _site_offsets(model)
+    body_mass = np.array(model.body_mass[1:], dtype=np.float64)
+    body_com = np.array(model.body_ipos[1:], dtype=np.float64)
+    unknown = [b - 1 for b in unknown_masses]
+    body_mass[unknown], body_com[unknown] = np.nan, np.nan
     return Tree(
         body_names=tuple(body_names),
         body_parents=model.body_parentid[1:] - 1,
@@ -187,6 +196,8 @@ def tree_from_model(model: mujoco.MjModel, *, robot: str = "") -> Tree:
         site_rot=site_rot,
         qpos0=model.qpos0,
         robot=robot,
+        body_mass=body_mass,
+        body_com=body_com,
     )
 
 

@@ -38,7 +38,14 @@ What poekin reads is checked first, and a file is refused (:class:`~poekin.error
 one line naming the joint, the element and the fix) rather than guessed at: an ``<origin>`` or
 ``<axis>`` without exactly 3 finite numbers, a joint with two ``<parent>``, ``<child>``,
 ``<origin>``, ``<axis>``, ``<limit>`` or ``<mimic>`` elements, a xacro file not yet expanded.
-Links' contents (inertia, geometry) are not read, so not checked. Blank lines before
+Of a link, poekin reads its ``<inertial>``'s ``<mass value>`` and ``<origin xyz>`` only (the
+body's :attr:`~poekin.tree.Tree.body_mass` and :attr:`~poekin.tree.Tree.body_com`, for
+:meth:`~poekin.tree.Tree.com`; a link without ``<inertial>`` is massless, as in MuJoCo and
+Pinocchio), and checks those: one ``<inertial>``, one finite ``<mass value>`` ``>= 0`` (MuJoCo
+and urdfdom refuse an ``<inertial>`` without one), and its ``<origin>``'s numbers. The inertia
+tensor and geometry are not read, so not checked. Every link stays a body, a fixed joint's
+child too, so its mass stays where it is; a root link named ``world`` is the world, whose
+mass MuJoCo and Pinocchio leave out of the centre of mass too. Blank lines before
 ``<?xml ...?>`` are accepted, as MuJoCo and Pinocchio accept them.
 """
 
@@ -101,6 +108,7 @@ _NUMBERS = {
     ("limit", "upper"): "upper",
     ("mimic", "multiplier"): "multiplier",
     ("mimic", "offset"): "offset",
+    ("mass", "value"): "mass",
 }
 # xacro's substitutions, which xacro's output no longer has
 _XACRO_SUBSTITUTION = re.compile(
@@ -169,6 +177,7 @@ def tree_from_urdf(
     unused = [(name, why) for name, (_, why) in zip(names, limits, strict=True) if why]
     if unused:
         warnings.warn(_limits_note(where, unused), URDFLimitsWarning, stacklevel=2)
+    body_mass, body_com = _inertials(urdf_robot.links, order)
     try:
         return Tree(
             body_names=tuple(order),
@@ -184,9 +193,26 @@ def tree_from_urdf(
             joint_limits=np.array([lower_upper for lower_upper, _ in limits]).reshape(-1, 2),
             mimics=_mimics(urdf_joints, urdf_robot.joints, where),
             robot=robot or urdf_robot.name,
+            body_mass=body_mass,
+            body_com=body_com,
         )
     except InputError as exc:  # what Tree refuses: a guard, as the checks above catch all known
         raise URDFError(f"{where}: {exc}") from exc
+
+
+def _inertials(links: Sequence[Any], order: list[str]) -> tuple[FloatArray, FloatArray]:
+    """Each body's mass ``(nb,)`` and centre of mass in its frame ``(nb, 3)``: its link's
+    ``<inertial>`` ``<mass value>`` and ``<origin xyz>`` (0 without them), checked by
+    :func:`_check_inertial`."""
+    inertial = {link.name: link.inertial for link in links}
+    mass, com = np.zeros(len(order)), np.zeros((len(order), 3))
+    for b, name in enumerate(order):
+        found = inertial[name]
+        if found is not None:
+            mass[b] = found.mass
+            if found.origin is not None:
+                com[b] = found.origin[:3, 3]
+    return mass, com
 
 
 def _free_name(name: str, taken: list[str]) -> str:
@@ -260,15 +286,20 @@ def parse_urdf(path: str, *, visuals: bool = False) -> Any:
 
 
 def _keep_kinematics(root: ET.Element) -> None:
-    """Remove from ``root`` all that poekin does not read: links' contents (inertia, geometry,
-    whose flaws MuJoCo and Pinocchio may let pass or not), joints' elements other than those
+    """Remove from ``root`` all that poekin does not read: links' contents but their
+    ``<inertial>``'s ``<origin>`` and ``<mass>`` (the inertia tensor and geometry, whose flaws
+    MuJoCo and Pinocchio may let pass or not), joints' elements other than those
     :func:`_check_joint` checks, and other top-level elements (materials, transmissions...)."""
     for elem in list(root):
         if elem.tag not in ("link", "joint"):
             root.remove(elem)
             continue
         for child in list(elem):
-            if elem.tag == "link" or child.tag not in _AT_MOST_ONCE:
+            if elem.tag == "link" and child.tag == "inertial":
+                for part in list(child):
+                    if part.tag not in ("origin", "mass"):
+                        child.remove(part)
+            elif elem.tag == "link" or child.tag not in _AT_MOST_ONCE:
                 elem.remove(child)
 
 
@@ -289,8 +320,9 @@ def _check_structure(root: ET.Element, path: str) -> None:
     """What poekin reads of the file, checked before yourdfpy reads it (which would fail with a
     bare KeyError, or take the first of several elements or numbers): required names and
     attributes; in each joint, one ``<parent>`` and one ``<child>``, at most one ``<origin>``,
-    ``<axis>``, ``<limit>`` and ``<mimic>``, and their numbers. Links' contents (inertia,
-    geometry) are not read, so not checked."""
+    ``<axis>``, ``<limit>`` and ``<mimic>``, and their numbers; each link's ``<inertial>``
+    (:func:`_check_inertial`). The rest of links' contents (inertia tensors, geometry) is not
+    read, so not checked."""
     if root.tag != "robot":
         hint = "; load an MJCF file with poekin.load_tree" if root.tag == "mujoco" else ""
         raise URDFError(f"{path}: not a URDF: the root element is <{root.tag}>, not <robot>{hint}")
@@ -300,6 +332,8 @@ def _check_structure(root: ET.Element, path: str) -> None:
     for elem in [root, *root.findall("link")]:
         if not elem.get("name"):
             raise URDFError(f"{path}: a <{elem.tag}> has no 'name' attribute; add it")
+    for link in root.findall("link"):
+        _check_inertial(link, path)
     for joint in root.findall("joint"):
         _check_joint(joint, path)
 
@@ -350,6 +384,7 @@ def _check_joint(joint: ET.Element, path: str) -> None:
     kind = joint.get("type")
     if not kind:
         raise URDFError(f"{path}: joint {name!r} has no 'type' attribute; add it")
+    where = f"joint {name!r}"
     for tag in _AT_MOST_ONCE:
         found = joint.findall(tag)
         if len(found) > 1:
@@ -363,8 +398,8 @@ def _check_joint(joint: ET.Element, path: str) -> None:
             raise URDFError(f"{path}: joint {name!r} has no <{tag} link=...>; add it")
     origin = joint.find("origin")
     if origin is not None:
-        _check_numbers(origin, "xyz", name, path)
-        _check_numbers(origin, "rpy", name, path)
+        _check_numbers(origin, "xyz", where, path)
+        _check_numbers(origin, "rpy", where, path)
     axis = joint.find("axis")
     if axis is not None and kind in _AXIS_TYPES:
         if axis.get("xyz") is None:
@@ -372,11 +407,11 @@ def _check_joint(joint: ET.Element, path: str) -> None:
                 f'{path}: joint {name!r}: <axis> has no xyz; give <axis xyz="x y z">, or remove '
                 "<axis> for the default 1 0 0"
             )
-        _check_numbers(axis, "xyz", name, path)
+        _check_numbers(axis, "xyz", where, path)
     limit = joint.find("limit")
     if limit is not None:
-        _check_numbers(limit, "lower", name, path)
-        _check_numbers(limit, "upper", name, path)
+        _check_numbers(limit, "lower", where, path)
+        _check_numbers(limit, "upper", where, path)
     mimic = joint.find("mimic")
     if mimic is not None:
         if not mimic.get("joint"):
@@ -384,19 +419,57 @@ def _check_joint(joint: ET.Element, path: str) -> None:
                 f"{path}: joint {name!r}: <mimic> has no joint; name the joint it follows: "
                 '<mimic joint="...">'
             )
-        _check_numbers(mimic, "multiplier", name, path)
-        _check_numbers(mimic, "offset", name, path)
+        _check_numbers(mimic, "multiplier", where, path)
+        _check_numbers(mimic, "offset", where, path)
 
 
-def _check_numbers(elem: ET.Element, attribute: str, joint: str, path: str) -> None:
-    """``elem``'s ``attribute``, if given, is as many finite numbers as URDF says."""
+def _check_inertial(link: ET.Element, path: str) -> None:
+    """A link's ``<inertial>``, if it has one: only one, with at most one ``<origin>`` and its
+    numbers, and one ``<mass value>``, a finite number ``>= 0`` (what poekin reads of it)."""
+    where = f"link {link.get('name')!r}"
+    inertials = link.findall("inertial")
+    if len(inertials) > 1:
+        raise URDFError(
+            f"{path}: {where} has {len(inertials)} <inertial> elements; keep one (MuJoCo "
+            "refuses such a file, other readers take the first)"
+        )
+    if not inertials:
+        return
+    inertial = inertials[0]
+    for tag in ("origin", "mass"):
+        found = inertial.findall(tag)
+        if len(found) > 1:
+            raise URDFError(
+                f"{path}: {where}: <inertial> has {len(found)} <{tag}> elements; keep one"
+            )
+    origin = inertial.find("origin")
+    if origin is not None:
+        _check_numbers(origin, "xyz", where, path)
+        _check_numbers(origin, "rpy", where, path)
+    mass = inertial.find("mass")
+    if mass is None or mass.get("value") is None:
+        raise URDFError(
+            f'{path}: {where}: <inertial> has no <mass value="...">; give the link\'s mass '
+            "(kg), as MuJoCo and urdfdom require, or remove <inertial> for a massless link"
+        )
+    _check_numbers(mass, "value", where, path)
+    if float(mass.get("value", "0")) < 0:
+        raise URDFError(
+            f'{path}: {where}: <mass value="{mass.get("value")}"> is negative; give a mass '
+            ">= 0 (kg)"
+        )
+
+
+def _check_numbers(elem: ET.Element, attribute: str, where: str, path: str) -> None:
+    """``elem``'s ``attribute``, if given, is as many finite numbers as URDF says; ``where``
+    names the element's joint or link in messages."""
     text = elem.get(attribute)
     if text is None:
         return
     meaning = _NUMBERS[elem.tag, attribute]
     count = len(meaning.split())
     words = text.split()
-    given = f'{path}: joint {joint!r}: <{elem.tag} {attribute}="{text}">'
+    given = f'{path}: {where}: <{elem.tag} {attribute}="{text}">'
     fix = f"give {count} numbers ({meaning})" if count > 1 else "give one number"
     bad = next(
         (word for word in words if not _NUMBER.fullmatch(word) or not math.isfinite(float(word))),

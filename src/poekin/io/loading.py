@@ -65,7 +65,9 @@ def load_tree(
         )
     else:
         loaded = source if isinstance(source, LoadedModel) else load_model(source)
-        tree = tree_from_model(loaded.model, robot=loaded.robot)
+        tree = tree_from_model(
+            loaded.model, robot=loaded.robot, unknown_masses=loaded.unknown_masses
+        )
     return tree if base is None else tree.with_base(base)
 
 

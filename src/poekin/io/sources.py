@@ -12,11 +12,15 @@ poekin looks for every mesh, height field, skin and texture file where MuJoCo wo
 (``meshdir``, ``texturedir`` and ``assetdir``, ``strippath``, absolute paths, assets declared in
 ``<include>`` files or in sub-models attached with ``<model file=...>``). Then it turns each
 geom or site that names a mesh or height field it does not read into a tiny sphere, drops
-those assets, and floors body mass and inertia so that bodies whose geometry is gone still
-compile. A missing texture is dropped and unlinked from materials and lights; a texture whose
-files exist stays, as a one-pixel flat colour, so materials keep their links. Body and site
-frames, joint axes and anchors, and hence every pose, are unchanged by this; only collision,
-rendering and inertia differ. Files that are missing are named once (an
+those assets, and, only if the model does not compile so, floors body mass and inertia so that
+bodies whose geometry is gone still compile. A missing texture is dropped and unlinked from
+materials and lights; a texture whose files exist stays, as a one-pixel flat colour, so
+materials keep their links. Body and site frames, joint axes and anchors, and hence every
+pose, are unchanged by this; only collision, rendering and inertia differ. Masses and centres
+of mass are the complete model's wherever the XML gives them (an explicit ``<inertial>``, as
+most Menagerie robots have) or primitive geoms do; the bodies whose mass MuJoCo would compute
+from a mesh or height field not read are listed in :attr:`LoadedModel.unknown_masses`, and
+:func:`poekin.load_tree` leaves their masses unknown. Files that are missing are named once (an
 :class:`AssetsStrippedWarning`); files that exist and were merely not read are not. One case
 cannot keep its poses and is refused with a :class:`ModelError`: a free body that MuJoCo aligns
 with its inertial frame when missing geometry shaped that frame. A missing ``<include>`` or
@@ -94,6 +98,12 @@ class LoadedModel:
         origin: where a Menagerie robot's files came from, in words (empty for a path given):
             a clone at ``MENAGERIE_ROOT``, the ``mujoco_menagerie`` download cache, or poekin's
             built-in copy.
+        unknown_masses: the MuJoCo ids of the bodies whose ``body_mass`` and ``body_ipos`` may
+            not be the complete model's, which :func:`poekin.load_tree` leaves unknown (NaN):
+            those whose mass MuJoCo computes from mesh or height field files that were not read
+            (missing, or not read without ``read_assets``), and any raised by the mass floor.
+            Every other body's are the complete model's: those of an explicit ``<inertial>``
+            or of primitive geoms.
     """
 
     model: mujoco.MjModel
@@ -103,6 +113,7 @@ class LoadedModel:
     files: tuple[pathlib.Path, ...]
     stripped: tuple[str, ...] = ()
     origin: str = ""
+    unknown_masses: tuple[int, ...] = ()
 
 
 def _looks_like_path(source: str) -> bool:
@@ -455,13 +466,14 @@ def _asset_key(asset: _Asset) -> tuple[str, str]:
 
 def _strip_for_kinematics(
     spec: mujoco.MjSpec, missing: list[_Asset], skipped: list[_Asset]
-) -> tuple[tuple[str, ...], list[_Stub]]:
+) -> tuple[tuple[str, ...], list[_Stub], bool]:
     """Remove the ``missing`` assets, and the ``skipped`` ones whose files exist but are not to be
     read, and every reference to them; a skipped texture stays, as a flat placeholder.
 
     Returns:
-        The note's parts (what was missing, per kind; empty if nothing was), and the geoms made
-        tiny spheres that counted towards their body's inertia.
+        The note's parts (what was missing, per kind; empty if nothing was), the geoms made
+        tiny spheres that counted towards their body's inertia, and whether any asset other
+        than a texture was removed (then bodies may need :func:`_compile_stripped`'s floor).
     """
     import mujoco
 
@@ -499,8 +511,6 @@ def _strip_for_kinematics(
         spec.delete(asset)
     for texture in placeholders:
         _flat_texture(texture)
-    if gone:
-        _floor_inertia(spec)
     parts = [
         (meshes, "missing mesh file", _spheres_note(n_mesh_geoms, n_mesh_sites)),
         (hfields, "missing height field file", _spheres_note(n_hfield_geoms, 0)),
@@ -508,7 +518,7 @@ def _strip_for_kinematics(
         (skins, "missing skin file", ""),
     ]
     note = tuple(_count(len(assets), noun) + more for assets, noun, more in parts if assets)
-    return note, stubs
+    return note, stubs, bool(gone)
 
 
 def _aligned_bodies(spec: mujoco.MjSpec, model: mujoco.MjModel) -> set[int]:
@@ -632,25 +642,63 @@ def _compile(spec: mujoco.MjSpec, xml_path: pathlib.Path) -> mujoco.MjModel:
         raise ModelError(f"MuJoCo rejected {xml_path}: {_reason(e)}") from e
 
 
+def _compile_stripped(
+    spec: mujoco.MjSpec, xml_path: pathlib.Path, stripped: bool
+) -> tuple[mujoco.MjModel, bool]:
+    """Compile a spec whose assets were ``stripped`` (or not), and say whether masses were
+    floored: only where it does not compile as it is (a moving body whose stand-in spheres
+    weigh too little) are body mass and inertia floored (:func:`_floor_inertia`), and the spec
+    compiled again. Masses stay the model's own wherever the floor is not needed: a massless
+    body keeps its zero mass, as in the complete model."""
+    if stripped:
+        try:
+            return spec.compile(), False
+        except Exception:  # the floor's compile below says why if it is not the floor
+            _floor_inertia(spec)
+            return _compile(spec, xml_path), True
+    return _compile(spec, xml_path), False
+
+
+def _unknown_masses(
+    spec: mujoco.MjSpec, model: mujoco.MjModel, stubs: list[_Stub], floored: bool
+) -> tuple[int, ...]:
+    """Ids of the bodies whose mass and centre of mass in ``model`` may not be the complete
+    model's: those whose inertia the stand-ins of unread meshes or height fields shaped; with a
+    floor (``floored``), those at or under it (their own mass may have been lower); and with
+    compiler ``settotalmass``, which scales every body by the total, all bodies if any."""
+    bodies = {stub.geom.parent.id for stub in stubs}  # after compiling: the fused body's
+    if floored:
+        bodies |= {b for b in range(1, model.nbody) if model.body_mass[b] <= _MIN_MASS}
+    bodies.discard(0)  # the world has no mass
+    if bodies and any(b.compiler.settotalmass > 0 for b in spec.bodies):
+        return tuple(range(1, model.nbody))
+    return tuple(sorted(bodies))
+
+
 def _kinematics(
     xml_path: pathlib.Path, free_root: str | None, read_assets: bool
-) -> tuple[mujoco.MjSpec, mujoco.MjModel, tuple[str, ...], tuple[pathlib.Path, ...]]:
+) -> tuple[
+    mujoco.MjSpec, mujoco.MjModel, tuple[str, ...], tuple[pathlib.Path, ...], tuple[int, ...]
+]:
     """The spec as compiled for kinematics (see :func:`load_model`), the model, what was
-    stripped, and the model's files."""
+    stripped, the model's files, and the bodies whose masses the model does not know
+    (:func:`_unknown_masses`)."""
     xml = _model_xml(xml_path)
     spec = _read_spec(xml_path, free_root)
+    urdf = xml_path.suffix.lower() == ".urdf"  # floored already: _read_spec
     found, missing, present = _scan_assets(spec, xml)
     files = tuple(sorted({p.resolve() for p in [*xml.files, *found]}))
-    stripped, stubs = _strip_for_kinematics(spec, missing, [] if read_assets else present)
-    model = _compile(spec, xml_path)
+    stripped, stubs, gone = _strip_for_kinematics(spec, missing, [] if read_assets else present)
+    model, floored = _compile_stripped(spec, xml_path, gone)
     needed = _check_alignment(spec, model, stubs, xml_path)
     if needed:  # read those files after all: compile again, with them
         spec = _read_spec(xml_path, free_root)
         _, missing, present = _scan_assets(spec, xml)
         kept = [a for a in present if _asset_key(a) not in needed]
-        _strip_for_kinematics(spec, missing, kept)
-        model = _compile(spec, xml_path)
-    return spec, model, stripped, files
+        _, stubs, gone = _strip_for_kinematics(spec, missing, kept)
+        model, floored = _compile_stripped(spec, xml_path, gone)
+    unknown = _unknown_masses(spec, model, stubs, floored or urdf)
+    return spec, model, stripped, files, unknown
 
 
 def kinematics_spec(source: str | os.PathLike[str]) -> mujoco.MjSpec:
@@ -659,7 +707,7 @@ def kinematics_spec(source: str | os.PathLike[str]) -> mujoco.MjSpec:
     its model (:mod:`poekin.calibration.simulate`). MuJoCo's warnings are dropped; load the
     model with :func:`load_model` to see them."""
     with _mujoco_warnings():
-        spec, _, _, _ = _kinematics(resolve_source(source).path, None, False)
+        spec, _, _, _, _ = _kinematics(resolve_source(source).path, None, False)
     return spec
 
 
@@ -697,7 +745,7 @@ def load_model(
     resolved = resolve_source(source)
     xml_path = resolved.path
     with _mujoco_warnings() as said:
-        _, model, stripped, files = _kinematics(xml_path, free_root, read_assets)
+        _, model, stripped, files, unknown = _kinematics(xml_path, free_root, read_assets)
     for message in dict.fromkeys(said):
         warnings.warn(f"{xml_path.name}: MuJoCo: {message}", MuJoCoWarning, stacklevel=2)
     if stripped and not resolved.builtin:  # the built-in copy has no meshes by design, and says so
@@ -707,5 +755,5 @@ def load_model(
             stacklevel=2,
         )
     return LoadedModel(
-        model, resolved.robot, xml_path.stem, xml_path, files, stripped, resolved.origin
+        model, resolved.robot, xml_path.stem, xml_path, files, stripped, resolved.origin, unknown
     )
