@@ -118,7 +118,7 @@ LAYERS = (
     ("poekin.errors", "poekin._extras", "poekin.arrays", "poekin._pose", "poekin.lie"),
     ("poekin.kernel",),
     ("poekin._poe", "poekin._levels"),
-    ("poekin.ik",),
+    ("poekin.ik", "poekin.wholebody"),
     ("poekin.chain", "poekin.tree", "poekin.dh"),
     ("poekin.io",),
     ("poekin.verification",),

@@ -24,8 +24,8 @@ Frames: every body, then every site. A site sits at a fixed pose in its body (or
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Sequence
-from typing import TYPE_CHECKING, Any, Literal, NamedTuple
+from collections.abc import Collection, Mapping, Sequence
+from typing import Any, Literal, NamedTuple
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -49,9 +49,6 @@ from poekin.chain import (
 from poekin.errors import InputError, ModelError, UnknownFrameError, did_you_mean
 from poekin.kernel import _fast
 from poekin.kernel._fast import Form
-
-if TYPE_CHECKING:
-    from poekin.ik.numerical import IKResult
 
 __all__ = ["Mimic", "Tree", "TreeJointType", "TreeParams"]
 
@@ -1111,52 +1108,79 @@ class Tree:
 
     def ik(
         self,
-        T: ArrayLike,
-        frame: str,
+        T: ArrayLike | Mapping[str, ArrayLike],
+        frame: Any = None,
         qpos: ArrayLike | None = None,
         *,
         warm_start: bool = False,
         seed: int = 0,
         pos_tol: float = 1e-10,
         ori_tol: float = 1e-10,
-        position_only: bool = False,
+        position_only: Any = False,
+        orientation_only: Any = None,
         orientation_weight: float = 0.3,
         max_iterations: int = 50,
-        max_attempts: int = 100,
-    ) -> IKResult:
-        """The ``qpos`` that puts ``frame`` at ``T``: numerical inverse kinematics over the
-        hinge and slide joints on the path to ``frame``, every other joint held at ``qpos``.
+        max_attempts: int | None = None,
+        hold: Any = None,
+        weights: Mapping[str, float] | None = None,
+        posture: float | ArrayLike = 0.0,
+        freeze: Collection[str] = (),
+    ) -> Any:
+        """Inverse kinematics: the ``qpos`` that puts one frame, or many at once, at targets.
 
+        **One frame**, ``tree.ik(T, frame, qpos)``: numerical inverse kinematics over the
+        hinge and slide joints on the path to ``frame``, every other joint held at ``qpos``.
         One arm of a two-armed robot or one leg of a quadruped: the other arm, the other legs
         and a floating base keep their values. A ball or free joint on the path is held too,
         and the joints below it are solved in its body's frame. The options, the algorithm and
-        the result are those of :meth:`poekin.Chain.ik`.
+        the result (an :class:`~poekin.ik.IKResult`, ``q`` the whole ``(..., nq)`` qpos) are
+        those of :meth:`poekin.Chain.ik`.
+
+        **Many frames**, ``tree.ik(targets, qpos, hold=..., ...)`` with a dict of frame names
+        to targets (:mod:`poekin.wholebody`): every joint is solved for at once, a floating
+        base and ball joints too (on their group: quaternions stay unit). ``hold`` names
+        frames that are constraints, met to ``pos_tol``/``ori_tol`` whenever they can be, the
+        others are weighted least squares in their null space, and ``posture`` pulls toward
+        ``qpos`` in what redundancy is left. Limits are constraints: every iterate is inside
+        them. The first attempt starts at ``qpos``; further ones (up to ``max_attempts``,
+        default 20) from drawn starts, as the module's docstring says. Returns a
+        :class:`~poekin.wholebody.WholeBodyResult`.
 
         Args:
-            T: ``(..., 4, 4)`` targets ``T_world_frame`` (world frame).
-            frame: the body or site to place.
+            T: ``(..., 4, 4)`` targets ``T_world_frame`` (world frame); or a dict of frame
+                names (bodies, sites, or ``"com"``, the centre of mass) to targets: a pose
+                ``(..., 4, 4)``, a point ``(..., 3)`` for a frame in ``position_only`` (and the
+                CoM), a rotation ``(..., 3, 3)`` for one in ``orientation_only``.
+            frame: the body or site to place (one frame); with a dict, ``qpos`` may come here.
             qpos: ``(..., nq)`` the values of every joint (MuJoCo's layout), broadcast against
                 the targets; default :attr:`qpos0`.
-            warm_start: start the first attempt at ``qpos``'s values of the solved joints
-                (a trajectory stays on its branch), rather than at a random configuration; a
-                start outside the joint limits gets a :class:`~poekin.JointLimitsWarning`.
-            seed: the random starts' seed, as for :meth:`poekin.Chain.ik`.
-            pos_tol: success: position within this (m), as for :meth:`poekin.Chain.ik`.
-            ori_tol: and orientation within this (rad).
-            position_only: reach the position only, whatever the orientation.
+            warm_start: one frame: start the first attempt at ``qpos``'s values of the solved
+                joints, rather than at a random configuration.
+            seed: the random starts' seed.
+            pos_tol: success: position within this (m) ...
+            ori_tol: ... and orientation within this (rad), for every frame.
+            position_only: one frame: True to reach its position only; many: the names of the
+                frames placed by position only.
+            orientation_only: many: the names of the frames placed by orientation only.
             orientation_weight: metres per radian in the least-squares residual.
             max_iterations: iterations per attempt.
-            max_attempts: attempts per target.
+            max_attempts: attempts per target (default 100 for one frame, 20 for many).
+            hold: many: the names of the frames met exactly (contacts, e.g. the feet).
+            weights: many: frame name to weight (default 1) of a soft frame's cost.
+            posture: many: a gain from 0 to 1 (or one per ``qvel`` entry) toward ``qpos`` in
+                the null space of the targets; the floating base is never pulled.
+            freeze: many: names of joints kept at ``qpos`` (a humanoid's fingers).
 
         Returns:
-            An :class:`~poekin.ik.IKResult` whose ``q`` is the whole ``(..., nq)`` qpos: the
-            solved joints' values (within their limits), every other entry as given.
+            One frame: an :class:`~poekin.ik.IKResult` whose ``q`` is the whole ``(..., nq)``
+            qpos. Many: a :class:`~poekin.wholebody.WholeBodyResult`.
 
         Raises:
-            UnknownFrameError: no such frame.
-            InputError: bad targets, ``qpos`` or options; a mimic joint on the path, or a ball
-                or free joint below a hinge or slide one (Tree.ik solves independent hinge and
-                slide joints below the last ball or free joint only).
+            UnknownFrameError: no such frame (the message suggests one).
+            InputError: bad targets, ``qpos`` or options; for one frame, a mimic joint on the
+                path, or a ball or free joint below a hinge or slide one; for many, a frame
+                both held and weighted, options naming frames without a target.
+            HeldFramesError: held frames whose targets cannot be met together.
 
         Example:
             >>> tree = poekin.load_tree("aloha")
@@ -1167,17 +1191,131 @@ class Tree:
             (True, (16,))
         """
         from poekin.ik.numerical import settings
+
+        if isinstance(T, Mapping):
+            from poekin.wholebody import solve
+
+            if frame is not None and qpos is not None:
+                raise InputError(
+                    "with a dict of targets, give qpos once: tree.ik(targets, qpos) or "
+                    "tree.ik(targets, qpos=qpos)"
+                )
+            if warm_start:
+                raise InputError(
+                    "warm_start is for one frame; with a dict of targets the first attempt "
+                    "always starts at qpos"
+                )
+            options = settings(
+                pos_tol=pos_tol,
+                ori_tol=ori_tol,
+                orientation_weight=orientation_weight,
+                max_iterations=max_iterations,
+                max_attempts=20 if max_attempts is None else max_attempts,
+            )
+            return solve(
+                self,
+                T,
+                qpos if frame is None else frame,
+                hold=hold,
+                position_only=None if position_only is False else position_only,
+                orientation_only=orientation_only,
+                weights=weights,
+                posture=posture,
+                freeze=freeze,
+                seed=seed,
+                options=options,
+            )
         from poekin.ik.trees import solve_tree
 
+        many = {
+            "hold": hold is not None,
+            "orientation_only": orientation_only is not None,
+            "weights": weights is not None,
+            "posture": not (isinstance(posture, int | float) and posture == 0),
+            "freeze": bool(freeze),
+        }
+        used = [name for name, given in many.items() if given]
+        if used or not isinstance(frame, str):
+            what = f"{used[0]}= is" if used else "a frame name is needed"
+            raise InputError(
+                f"{what} for a dict of targets: tree.ik({{frame: T, ...}}, qpos, ...); one "
+                "frame is tree.ik(T, frame, qpos)"
+            )
         options = settings(
             pos_tol=pos_tol,
             ori_tol=ori_tol,
             position_only=position_only,
             orientation_weight=orientation_weight,
             max_iterations=max_iterations,
-            max_attempts=max_attempts,
+            max_attempts=100 if max_attempts is None else max_attempts,
         )
         return solve_tree(self, T, frame, qpos, warm_start=warm_start, seed=seed, options=options)
+
+    def ik_step(
+        self,
+        targets: Mapping[str, ArrayLike],
+        qpos: ArrayLike,
+        dt: float,
+        *,
+        hold: Any = None,
+        position_only: Any = None,
+        orientation_only: Any = None,
+        weights: Mapping[str, float] | None = None,
+        posture: float | ArrayLike = 0.0,
+        velocity_limits: ArrayLike | None = None,
+        gain: float = 1.0,
+        damping: float = 1e-12,
+        orientation_weight: float = 0.3,
+        freeze: Collection[str] = (),
+    ) -> FloatArray:
+        """One control tick of differential IK: the joint velocity toward the targets.
+
+        The least-squares step of :mod:`poekin.wholebody.step` from ``qpos``: the held
+        frames' velocity exactly zero, the soft frames moved ``gain`` of the way to their
+        targets (weighted, damped by ``damping``), the posture (a gain toward
+        :attr:`qpos0`) in what redundancy is left, and every hinge and slide joint within its
+        limits at ``qpos + qvel dt`` and within ``velocity_limits``. Integrate the answer as
+        MuJoCo does (``mj_integratePos``: a free joint's linear part in the world frame, its
+        angular part and a ball joint's about the body's own axes).
+
+        Args:
+            targets: frame names (or ``"com"``) to targets, as for :meth:`ik`.
+            qpos: ``(..., nq)`` the configuration now (MuJoCo's layout); the batch broadcasts
+                against the targets' (4,096 environments in one call).
+            dt: the tick (s).
+            hold, position_only, orientation_only, weights, posture, freeze: as for
+                :meth:`ik`.
+            velocity_limits: the largest speed of each ``qvel`` entry (rad/s, m/s): one
+                number, or ``(nv,)`` with ``inf`` for none; default none.
+            gain: the fraction of each soft frame's error removed in one tick (1: all of it).
+            damping: the step's Tikhonov damping (m^2).
+            orientation_weight: metres per radian in the residual.
+
+        Returns:
+            ``(..., nv)`` joint velocities (MuJoCo's ``qvel`` layout; frozen joints 0).
+
+        Raises:
+            UnknownFrameError, InputError: as for :meth:`ik`; a bad ``dt``, ``gain``,
+                ``damping`` or ``velocity_limits``.
+        """
+        from poekin.wholebody.step import ik_step
+
+        return ik_step(
+            self,
+            targets,
+            qpos,
+            dt,
+            hold=hold,
+            position_only=position_only,
+            orientation_only=orientation_only,
+            weights=weights,
+            posture=posture,
+            velocity_limits=velocity_limits,
+            gain=gain,
+            damping=damping,
+            orientation_weight=orientation_weight,
+            freeze=freeze,
+        )
 
     def _path_joints_of_body(self, body: int) -> tuple[int, ...]:
         path = []

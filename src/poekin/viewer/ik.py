@@ -182,7 +182,7 @@ def _solve(
         )
     if subject.tool is not None:  # the tree solves for the frame that carries the tool
         target = target @ np.asarray(lie.inverse(subject.tool), dtype=np.float64)
-    return subject.tree.ik(
+    found: IKResult = subject.tree.ik(
         target,
         subject.frame,
         x,
@@ -191,6 +191,7 @@ def _solve(
         max_attempts=attempts,
         seed=0,
     )
+    return found
 
 
 def reach(

@@ -1,0 +1,121 @@
+"""A differential step for control loops: :meth:`poekin.Tree.ik_step`.
+
+One tick: the joint velocity ``qvel (..., nv)`` (MuJoCo's layout) that, applied for ``dt``,
+moves each soft target's frame toward its target, from the residuals and Jacobians at
+``qpos`` (:mod:`poekin.wholebody.tasks`), by :func:`poekin.wholebody.qp.step` with ``x =
+qvel dt``:
+
+1. the held frames' velocity is zero: ``J_held x = 0`` exactly (whatever the targets ask);
+2. the soft rows ``min sum w |J x - gain e|^2 + damping |x|^2`` in that null space;
+3. the posture (a gain toward the reference configuration) in what null space is left;
+4. every hinge and slide joint within its limits at ``qpos + qvel dt`` and within its
+   velocity limit: ``max(lower - q, -v_max dt) <= x <= min(upper - q, v_max dt)``.
+
+It is the problem mink's ``solve_ik`` poses as a general QP (a frame task's cost the same
+rows, its equality constraints the held frames, its ``ConfigurationLimit`` with gain 1 and its
+``VelocityLimit`` the box), solved here by an active set on the box.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Collection, Mapping
+from typing import TYPE_CHECKING
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from poekin.errors import InputError
+from poekin.ik.numerical import settings
+from poekin.wholebody import qp
+from poekin.wholebody.solve import FLOOR, _problem
+from poekin.wholebody.tasks import parse
+
+if TYPE_CHECKING:
+    from poekin.tree import Tree
+
+__all__ = ["ik_step"]
+
+FloatArray = NDArray[np.float64]
+
+
+def _positive(value: object, name: str, unit: str, *, zero: bool = False) -> float:
+    if isinstance(value, bool) or not isinstance(value, int | float | np.integer | np.floating):
+        raise InputError(f"{name} must be a number ({unit}), got {value!r:.40}")
+    x = float(value)
+    if not (math.isfinite(x) and (x >= 0 if zero else x > 0)):
+        bound = ">= 0" if zero else "> 0"
+        raise InputError(f"{name} must be a finite number {bound} ({unit}), got {x!r}")
+    return x
+
+
+def _velocity_limits(value: ArrayLike | None, nv: int) -> FloatArray:
+    if value is None:
+        return np.full(nv, np.inf)
+    arr = np.asarray(value, dtype=np.float64)
+    if arr.shape not in ((), (nv,)) or np.any(np.isnan(arr)) or np.any(arr <= 0):
+        raise InputError(
+            f"velocity_limits must be one number > 0 or {nv} of them (rad/s or m/s, one per "
+            f"qvel entry; inf for none), got shape {arr.shape}"
+        )
+    limits: FloatArray = np.broadcast_to(arr, (nv,)).copy()
+    return limits
+
+
+def ik_step(
+    tree: Tree,
+    targets: Mapping[str, ArrayLike],
+    qpos: ArrayLike,
+    dt: float,
+    *,
+    hold: object = None,
+    position_only: object = None,
+    orientation_only: object = None,
+    weights: Mapping[str, float] | None = None,
+    posture: float | ArrayLike = 0.0,
+    velocity_limits: ArrayLike | None = None,
+    gain: float = 1.0,
+    damping: float = 1e-12,
+    orientation_weight: float = 0.3,
+    freeze: Collection[str] = (),
+) -> FloatArray:
+    """:meth:`poekin.Tree.ik_step` (its docstring holds the arguments)."""
+    dt = _positive(dt, "dt", "s")
+    gain = _positive(gain, "gain", "1/step", zero=True)
+    damping = _positive(damping, "damping", "m^2", zero=True)
+    tasks = parse(
+        tree,
+        targets,
+        hold=hold,
+        position_only=position_only,
+        orientation_only=orientation_only,
+        weights=weights,
+    )
+    options = settings(orientation_weight=orientation_weight)
+    problem, q, batch = _problem(
+        tree, tasks, qpos, posture, freeze, options, 0, clip=False, starts=False
+    )
+    sp = problem.space
+    limits = _velocity_limits(velocity_limits, tree.nv)[sp.variables] * dt
+    A, _, C, d, _ = problem.residual(q)
+    lo, hi = sp.bounds(q)
+    lo, hi = np.maximum(lo, -limits), np.minimum(hi, limits)
+    B = q.shape[0]
+    posture_step = None
+    if np.any(problem.posture):
+        reference = np.broadcast_to(tree.qpos0, q.shape)
+        posture_step = problem.posture * sp.difference(q, reference)
+    x = qp.step(
+        A,
+        np.zeros(A.shape[:2]),
+        C,
+        gain * d,
+        lo,
+        hi,
+        np.full(B, FLOOR),
+        np.full(B, damping + FLOOR),
+        posture_step,
+    ).x
+    qvel = np.zeros((B, tree.nv))
+    qvel[:, sp.variables] = x / dt
+    return qvel.reshape(*batch, tree.nv)
