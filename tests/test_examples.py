@@ -61,3 +61,17 @@ def test_whole_robot_example() -> None:
         proc.stdout
     )
     assert "aloha: " in proc.stdout and "passed: True" in proc.stdout
+
+
+def test_teleop_step_example_follows_its_targets() -> None:
+    proc = subprocess.run(
+        [sys.executable, str(REPO / "examples" / "teleop_step.py"), "--seconds", "0.2"],
+        capture_output=True,
+        text=True,
+        check=False,
+    )
+    assert proc.returncode == 0, proc.stderr
+    lines = proc.stdout.splitlines()
+    assert [line.split(":")[0] for line in lines] == ["universal_robots_ur5e", "aloha"]
+    for line in lines:  # MuJoCo's frames trail their moving targets by well under 2 mm
+        assert float(line.split("within ")[1].split(" mm")[0]) < 2.0, line

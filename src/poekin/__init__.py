@@ -19,6 +19,7 @@ from poekin.chain import Chain, ChainParams, JointType
 from poekin.dh import DHTable, dh_from_chain
 from poekin.errors import (
     AnalyticIKError,
+    HeldFramesError,
     InputError,
     JointLimitsWarning,
     MenagerieUnavailableError,
@@ -104,6 +105,7 @@ __all__ = [
     "DHTable",
     "Diagnosis",
     "Form",
+    "HeldFramesError",
     "InputError",
     "JointLimitsWarning",
     "JointType",

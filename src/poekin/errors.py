@@ -12,6 +12,7 @@ from collections.abc import Iterable
 __all__ = [
     "AnalyticIKError",
     "CalibrationWarning",
+    "HeldFramesError",
     "InputError",
     "JointLimitsWarning",
     "MenagerieUnavailableError",
@@ -35,6 +36,11 @@ class PoekinError(Exception):
 
 class InputError(PoekinError, ValueError):
     """Numeric input of the wrong shape, type or value (e.g. NaN joint values)."""
+
+
+class HeldFramesError(InputError):
+    """Frames held by a whole-body solve (:meth:`poekin.Tree.ik` with ``hold=``) whose targets
+    no configuration within the limits meets together; the message names them."""
 
 
 class ModelError(PoekinError):

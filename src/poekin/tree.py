@@ -1180,7 +1180,7 @@ class Tree:
             InputError: bad targets, ``qpos`` or options; for one frame, a mimic joint on the
                 path, or a ball or free joint below a hinge or slide one; for many, a frame
                 both held and weighted, options naming frames without a target.
-            HeldFramesError: held frames whose targets cannot be met together.
+            HeldFramesError: held frames whose targets cannot be met together (an InputError).
 
         Example:
             >>> tree = poekin.load_tree("aloha")

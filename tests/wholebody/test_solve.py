@@ -11,7 +11,7 @@ from helpers import MJ_TOL, load_quiet, mj_pose
 
 import poekin
 from poekin.errors import InputError, UnknownFrameError
-from poekin.wholebody import HeldFramesError
+from poekin import HeldFramesError
 from poekin.wholebody.space import space
 
 TOL = 1e-9  # the per-frame goal; the solver's own tolerance is 1e-10

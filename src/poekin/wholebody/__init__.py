@@ -6,6 +6,6 @@
 * :mod:`~poekin.wholebody.solve`: :meth:`poekin.Tree.ik` with a dict of targets.
 """
 
-from poekin.wholebody.solve import HeldFramesError, WholeBodyResult, solve
+from poekin.wholebody.solve import WholeBodyResult, solve
 
-__all__ = ["HeldFramesError", "WholeBodyResult", "solve"]
+__all__ = ["WholeBodyResult", "solve"]

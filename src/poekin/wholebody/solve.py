@@ -34,7 +34,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from poekin import lie
-from poekin.errors import InputError
+from poekin.errors import HeldFramesError, InputError
 from poekin.ik import _rng
 from poekin.ik.numerical import Settings, check_seed
 from poekin.wholebody import qp
@@ -45,7 +45,7 @@ if TYPE_CHECKING:
     from poekin.chain import Chain
     from poekin.tree import Tree
 
-__all__ = ["HeldFramesError", "WholeBodyResult", "solve"]
+__all__ = ["WholeBodyResult", "solve"]
 
 FloatArray = NDArray[np.float64]
 BoolArray = NDArray[np.bool_]
@@ -59,10 +59,6 @@ STALL_ITERATIONS = 8
 DRAWS = 16  # random starts a further attempt draws, of which it keeps the best
 CHAIN_ATTEMPTS = 10  # attempts of each frame's chain solve in a further attempt's start
 POLISH_ITERATIONS = 20  # level 1 alone, after an attempt that misses a held frame
-
-
-class HeldFramesError(InputError):
-    """Held frames whose targets no configuration meets together (within the limits)."""
 
 
 @dataclasses.dataclass(frozen=True)
