@@ -79,8 +79,10 @@ def main() -> None:
         ("aloha", ("left/gripper", "right/gripper")),
     ):
         step, trail = run(robot, frames, args.seconds)
-        print(f"{robot}: {int(args.seconds * RATE)} ticks at {RATE:.0f} Hz, median step "
-              f"{step * 1e6:.0f} us, frames within {trail * 1e3:.3f} mm of their targets")
+        print(
+            f"{robot}: {int(args.seconds * RATE)} ticks at {RATE:.0f} Hz, median step "
+            f"{step * 1e6:.0f} us, frames within {trail * 1e3:.3f} mm of their targets"
+        )
 
 
 if __name__ == "__main__":

@@ -10,8 +10,8 @@ import pytest
 from helpers import MJ_TOL, load_quiet, mj_pose
 
 import poekin
-from poekin.errors import InputError, UnknownFrameError
 from poekin import HeldFramesError
+from poekin.errors import InputError, UnknownFrameError
 from poekin.wholebody.space import space
 
 TOL = 1e-9  # the per-frame goal; the solver's own tolerance is 1e-10
