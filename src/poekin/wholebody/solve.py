@@ -57,7 +57,7 @@ STEP_MAX = 1.5  # rad or m: the largest move of one variable in one iteration
 STALL_FACTOR = 0.5
 STALL_ITERATIONS = 8
 DRAWS = 16  # random starts a further attempt draws, of which it keeps the best
-CHAIN_ATTEMPTS = 10  # attempts of each frame's chain solve in a further attempt's start
+CHAIN_ATTEMPTS = 30  # attempts of each frame's chain solve in a further attempt's start
 POLISH_ITERATIONS = 20  # level 1 alone, after an attempt that misses a held frame
 
 
@@ -332,10 +332,12 @@ def _paths(tree: Tree, tasks: tuple[Task, ...], sp: Space) -> NDArray[np.int64]:
 def _chain_starts(
     tree: Tree, tasks: tuple[Task, ...], sp: Space, anchor: tuple[int, int, int] | None
 ) -> tuple[ChainStart, ...]:
-    """The frames a further attempt's start solves alone, nearest the root first: each with
-    the hinge and slide joints on its path that no earlier frame (nor the anchor's, whose
-    frame the base placement meets) has set, where those form the end of the path and
-    include no mimic joint; frames placed by orientation alone, and the CoM, are left out."""
+    """The frames a further attempt's start solves alone, the longest paths first (poses
+    before points): each with the hinge and slide joints on its path that no earlier frame
+    (nor the anchor's, whose frame the base placement meets) has set, where those form the
+    end of the path and include no mimic joint; frames placed by orientation alone, and the
+    CoM, are left out. So the first arm under a torso solves the torso with it (one of its
+    branches), and the second arm the rest for that torso."""
     solved = {int(a) for a in sp.scalar_q}
     done: set[int] = set()
     if anchor is not None:
@@ -343,7 +345,10 @@ def _chain_starts(
         done.update(tree.path_joints(tree.frame_names[t.index]))
     order = sorted(
         (i for i, t in enumerate(tasks) if t.index >= 0 and t.mode != "orientation"),
-        key=lambda i: len(tree.path_joints(tree.frame_names[tasks[i].index])),
+        key=lambda i: (
+            -len(tree.path_joints(tree.frame_names[tasks[i].index])),
+            tasks[i].rows != 6,
+        ),
     )
     out: list[ChainStart] = []
     for i in order:
