@@ -76,6 +76,11 @@ def _fixtures(folder: pathlib.Path) -> None:
     np.save(folder / "T.npy", ur5e.fk(poekin.sample_joint_values(ur5e, 20, within_limits=True)))
     tree = poekin.load_tree("unitree_go2")
     np.save(folder / "qpos.npy", poekin.sample_qpos(tree, 20))
+    g1 = poekin.load_tree("unitree_g1")  # both feet where they stand, the pelvis 5 cm lower
+    T = g1.fk(g1.qpos0)
+    targets = {f: T[g1.frame_index(f)].tolist() for f in ("left_foot", "right_foot", "pelvis")}
+    targets["pelvis"][2][3] -= 0.05
+    (folder / "g1_targets.json").write_text(__import__("json").dumps(targets))
     (folder / "my_ur5e.json").write_text(
         __import__("json").dumps(poekin.named_params("ur5e-dh").describe())
     )

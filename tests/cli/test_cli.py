@@ -169,6 +169,25 @@ _ON_LINUX = pytest.mark.skipif(
 
 POSE = ["0.4", "0.2", "0.3", "0", "1", "0", "0"]  # x y z qw qx qy qz: a pose the UR5e reaches
 BAD_INPUTS = [
+    (["ik", "universal_robots_ur5e", "--targets", "{tmp}/none.json"], "none.json: no such file"),
+    (["ik", "universal_robots_ur5e", "--targets", "{bad_xml}"], "not JSON"),
+    (
+        [
+            "ik",
+            "universal_robots_ur5e",
+            "--pose",
+            "0.4",
+            "0.2",
+            "0.3",
+            "0",
+            "1",
+            "0",
+            "0",
+            "--hold",
+            "a",
+        ],
+        "--hold goes with --targets",
+    ),
     (["verify", "universal_robots_ur5"], "did you mean 'universal_robots_ur5e'"),
     (["verify", "no/such/robot.xml"], "model file not found"),
     (["verify", "{tmp}"], "is a directory"),

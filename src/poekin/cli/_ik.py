@@ -73,8 +73,16 @@ _ALL_FIELDS = ("q", "valid", "pos_err", "ori_err")
 
 def _check_args(args: argparse.Namespace) -> None:
     """Which target, which files, which options go together; the numbers' ranges."""
+    from poekin.cli._ik_targets import check_targets_args
     from poekin.io.fileio import array_format, check_new_file
 
+    check_targets_args(args)
+    if args.targets is not None:
+        if args.input is not None or args.output is not None or args.json:
+            raise InputError(
+                "--targets prints one JSON object: it takes no --input/--output/--json"
+            )
+        return
     if args.pose is not None and args.input is not None:
         raise InputError(
             "both --pose and --input were given; give one: --pose X Y Z QW QX QY QZ for one "
@@ -114,7 +122,7 @@ def _check_args(args: argparse.Namespace) -> None:
     for flag, value in (("--pos-tol", args.pos_tol), ("--ori-tol", args.ori_tol)):
         if value is not None and not (math.isfinite(value) and value > 0):
             raise InputError(f"{flag} must be a positive number, got {value}")
-    if args.qpos is not None and not args.tree:
+    if args.qpos is not None and not args.tree and args.targets is None:
         raise InputError("--qpos gives a whole model's joint values: pass --tree too")
     if args.all:
         given = [
@@ -591,6 +599,10 @@ def _write_batch(
 
 def _cmd_ik(args: argparse.Namespace, out: TextIO) -> int:
     _check_args(args)
+    if args.targets is not None:
+        from poekin.cli._ik_targets import run_targets
+
+        return run_targets(args, out)
     T, target = _targets(args)
     problem = _tree_problem(args) if args.tree else _chain_problem(args)
     with warnings.catch_warnings():  # --q0 outside the limits: noted once, as it was read
@@ -619,7 +631,9 @@ def register(sub: Any, fmt: type[argparse.HelpFormatter]) -> None:
         "(every Universal Robots arm), or a spherical wrist (axes 4, 5, 6 meeting: PUMA, most "
         "ABB, KUKA, Fanuc arms, the Lite6); any other arm gets an error that names the "
         "condition that fails. --tree solves for any body or site of a model, the joints off "
-        "its path held at qpos0 or --qpos. With --tool the targets are the tool's poses; "
+        "its path held at qpos0 or --qpos; --targets FILE.json places many frames at once, "
+        "every joint of the model solved for (a floating base too), --hold frames met exactly. "
+        "With --tool the targets are the tool's poses; "
         "with --base they are in your world, where the robot's base stands. Exit 0 when every "
         "target is solved, 1 when some "
         "are not (the answers are written all the same: a .npz output keeps success, pos_err, "
@@ -635,7 +649,8 @@ def register(sub: Any, fmt: type[argparse.HelpFormatter]) -> None:
         "0 --tool 0 0 0.15 1 0 0 0\n"
         "  poekin ik franka_emika_panda --frame hand --pose 0.5 0 0.4 0 1 0 0\n"
         "  poekin ik trs_so_arm100 --frame Fixed_Jaw --pose 0.2 0 0.15 --position-only --deg\n"
-        "  poekin ik aloha --tree --frame left/gripper --pose -0.1 0.05 0.25 1 0 0 0 --json",
+        "  poekin ik aloha --tree --frame left/gripper --pose -0.1 0.05 0.25 1 0 0 0 --json\n"
+        "  poekin ik unitree_g1 --targets g1_targets.json --hold left_foot,right_foot",
         formatter_class=fmt,
     )
     add_source(p)
@@ -712,5 +727,24 @@ def register(sub: Any, fmt: type[argparse.HelpFormatter]) -> None:
         help="with --tree: every joint's value (MuJoCo's qpos layout), the others held there",
     )
     p.add_argument("--json", action="store_true", help="print one JSON object (with --pose)")
+    p.add_argument(
+        "--targets",
+        metavar="FILE",
+        help="many frames at once (whole-body IK, every joint of the model): a JSON object of "
+        "frame name to [x, y, z, qw, qx, qy, qz], [x, y, z] (position only) or a 4x4 matrix; "
+        '"com" is the centre of mass. Prints one JSON object with per-frame errors',
+    )
+    p.add_argument(
+        "--hold",
+        metavar="NAMES",
+        help="with --targets: frames met exactly, comma-separated (contacts: the feet)",
+    )
+    p.add_argument(
+        "--posture",
+        type=float,
+        metavar="GAIN",
+        help="with --targets: pull toward the start (--qpos or qpos0), 0 to 1, in the "
+        "redundancy left",
+    )
     add_precision(p)
     p.set_defaults(run=_cmd_ik)
