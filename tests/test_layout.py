@@ -115,7 +115,14 @@ def _cycle(graph: dict[str, set[str]]) -> list[str]:
 # docs/development.md's picture, bottom row first: a module imports from its own row and those
 # below it only (prefixes of module names; the package's __init__, the public names, is none)
 LAYERS = (
-    ("poekin.errors", "poekin._extras", "poekin.arrays", "poekin._pose", "poekin.lie"),
+    (
+        "poekin.errors",
+        "poekin._extras",
+        "poekin._blas",
+        "poekin.arrays",
+        "poekin._pose",
+        "poekin.lie",
+    ),
     ("poekin.kernel",),
     ("poekin._poe", "poekin._levels"),
     ("poekin.ik", "poekin.wholebody"),

@@ -1,4 +1,4 @@
-"""poekin.calibration._blas: calibration's linear algebra runs on one BLAS thread, and the count
+"""poekin._blas: calibration's linear algebra runs on one BLAS thread, and the count
 comes back."""
 
 from __future__ import annotations
@@ -11,7 +11,7 @@ import pytest
 import threadpoolctl
 
 import poekin
-from poekin.calibration import _blas
+from poekin import _blas
 
 
 def _blas_threads() -> list[int]:

@@ -265,3 +265,20 @@ def test_bad_options(g1: tuple[poekin.Tree, mujoco.MjModel]) -> None:
         tree.ik(targets, tree.qpos0, position_only={"pelvis"}, orientation_only={"pelvis"})
     with pytest.raises(InputError, match="qpos values"):
         tree.ik(targets, np.zeros(3))
+
+
+def test_a_mimic_joint_follows_its_leader() -> None:
+    """A planar two-link arm whose elbow mimics its shoulder (-2 q1 + 0.25): one variable, so
+    the tip's position is one curve; a point on it is reached, checked against the hand
+    formula l1 (cos q1, sin q1) + l2 (cos(q1 + q2), sin(q1 + q2))."""
+    from test_tree import _two_link
+
+    from poekin.tree import Mimic
+
+    tree = _two_link((None, Mimic("j1", multiplier=-2.0, offset=0.25)))
+    q1 = 0.7
+    q2 = -2.0 * q1 + 0.25
+    tip = [0.3 * np.cos(q1) + 0.2 * np.cos(q1 + q2), 0.3 * np.sin(q1) + 0.2 * np.sin(q1 + q2), 0.1]
+    found = tree.ik({"tip": np.array(tip)}, [0.5], position_only={"tip"})
+    assert bool(found.success) and found.qpos.shape == (1,)
+    np.testing.assert_allclose(found.qpos, [q1], atol=1e-9)

@@ -26,7 +26,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from poekin.calibration._blas import one_thread
+from poekin._blas import one_thread
 from poekin.calibration.fit import (
     _MAD,
     LOSSES,
@@ -182,7 +182,7 @@ def calibrate(
             data the model cannot fit (joint order, units, frame), or a fit that did not
             converge.
     """
-    with one_thread():  # small matrices: see poekin.calibration._blas
+    with one_thread():  # small matrices: see poekin._blas
         result = _calibrate(
             model,
             q,

@@ -23,7 +23,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 from numpy.typing import NDArray
 
-from poekin.calibration._blas import one_thread
+from poekin._blas import one_thread
 from poekin.calibration.identify import observability, scaled_jacobian
 from poekin.calibration.model import (
     CalibrationModel,
@@ -356,7 +356,7 @@ def make_plan(
     """:func:`plan_poses`, with the constraints and how many candidates were drawn and kept."""
     from poekin.calibration.identify import minimum_poses, recommended_poses
 
-    with one_thread():  # small matrices: see poekin.calibration._blas
+    with one_thread():  # small matrices: see poekin._blas
         chain = as_chain(model, frame)
         if measure not in ("pose", "position"):
             raise InputError(f"measure must be 'pose' or 'position', got {measure!r}")

@@ -50,6 +50,7 @@ __all__ = [
     "place",
     "placement",
     "read_joint_values",
+    "read_values",
 ]
 
 DEFAULT_ROBOT = "universal_robots_ur5e"
@@ -353,3 +354,12 @@ def _note_limits(q: NDArray[np.float64], space: JointSpace) -> None:
     said = outside_limits(q, space.limits, space.names, list(space.angles))
     if said:
         note(f"{said} (computed all the same)")
+
+
+def read_values(values: list[float], space: JointSpace, deg: bool, what: str) -> Any:
+    """``--q0`` or ``--qpos`` in radians (``--deg``: degrees for revolute joints), with the
+    command line's notes (values that look like degrees, values outside the limits)."""
+    from poekin.chain import as_joint_values
+
+    q = read_joint_values(argparse.Namespace(q=values, deg=deg), space)
+    return as_joint_values(q, len(space.names), what=f"{what} values")

@@ -45,7 +45,7 @@ from poekin.cli._args import (
     add_source,
     model_source,
     note,
-    read_joint_values,
+    read_values,
 )
 from poekin.cli._fk import end_chain, tree_base
 from poekin.cli._text import fixed, sig, table
@@ -282,15 +282,6 @@ def _fields(found: Any, names: Sequence[str]) -> Fields:
     return {k: np.asarray(getattr(found, k)) for k in names}
 
 
-def _read_values(values: list[float], space: JointSpace, deg: bool, what: str) -> FloatArray:
-    """``--q0`` or ``--qpos`` in radians (``--deg``: degrees for revolute joints), with the
-    command line's notes (values that look like degrees, values outside the limits)."""
-    from poekin.chain import as_joint_values
-
-    q = read_joint_values(argparse.Namespace(q=values, deg=deg), space)
-    return as_joint_values(q, len(space.names), what=f"{what} values")
-
-
 def _chain_problem(args: argparse.Namespace) -> _Problem:
     from poekin.chain import Chain
 
@@ -324,7 +315,7 @@ def _chain_problem(args: argparse.Namespace) -> _Problem:
             lambda T: _fields(chain.ik_all(T, refine=refine), _ALL_FIELDS),
             description,
         )
-    q0 = None if args.q0 is None else _read_values(args.q0, space, args.deg, "--q0")
+    q0 = None if args.q0 is None else read_values(args.q0, space, args.deg, "--q0")
     options = _options(args)
     return _Problem(
         robot,
@@ -346,10 +337,10 @@ def _tree_problem(args: argparse.Namespace) -> _Problem:
     frame = args.frame if args.frame is not None else default_frame(tree)
     how = plan(tree, frame)
     space = JointSpace.of_tree(tree)
-    qpos = tree.qpos0 if args.qpos is None else _read_values(args.qpos, space, args.deg, "--qpos")
+    qpos = tree.qpos0 if args.qpos is None else read_values(args.qpos, space, args.deg, "--qpos")
     if args.q0 is not None:
         qpos = qpos.copy()
-        qpos[list(how.indices)] = _read_values(args.q0, JointSpace.of(how.chain), args.deg, "--q0")
+        qpos[list(how.indices)] = read_values(args.q0, JointSpace.of(how.chain), args.deg, "--q0")
     options = _options(args)
     warm = args.q0 is not None
 

@@ -21,7 +21,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from poekin.chain import QUAT_TOL
-from poekin.cli._args import EXIT_FAIL, JointSpace, model_source
+from poekin.cli._args import EXIT_FAIL, JointSpace, model_source, read_values
 from poekin.cli._fk import tree_base
 from poekin.errors import InputError
 
@@ -123,9 +123,7 @@ def run_targets(args: argparse.Namespace, out: TextIO) -> int:
     space = JointSpace.of_tree(tree)
     qpos = tree.qpos0
     if args.qpos is not None:
-        from poekin.cli._ik import _read_values
-
-        qpos = _read_values(args.qpos, space, args.deg, "--qpos")
+        qpos = read_values(args.qpos, space, args.deg, "--qpos")
     points = {n for n, T in targets.items() if T.shape == (3,)}
     options: dict[str, Any] = {
         name: value

@@ -26,6 +26,7 @@ frames met first, then the least soft cost.
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 from collections.abc import Collection, Mapping
 from typing import TYPE_CHECKING, Any
@@ -34,6 +35,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from poekin import lie
+from poekin._blas import one_thread
 from poekin.errors import HeldFramesError, InputError
 from poekin.ik import _rng
 from poekin.ik.numerical import Settings, check_seed
@@ -112,8 +114,13 @@ class Problem:
     tolerances: tuple[float, float]  # pos_tol, ori_tol
     # (task, qpos address, body) of the task a random start's floating base is placed by
     anchor: tuple[int, int, int] | None
-    chains: tuple[ChainStart, ...]  # how a further attempt's start solves each frame alone
     seed: int
+
+    @functools.cached_property
+    def chains(self) -> tuple[ChainStart, ...]:
+        """How a further attempt's start solves each frame alone (built at its first use:
+        most solves from a start near the answer need no further attempt)."""
+        return _chain_starts(self.tree, self.tasks, self.space, self.anchor)
 
     def residual(
         self, qpos: FloatArray, rows: IntArray | None = None
@@ -368,7 +375,12 @@ def _chain_starts(
         ):
             continue
         base = None if cut == 0 else int(tree.joint_bodies[path[cut - 1]])
-        chain = tree.chain(frame, base=None if base is None else tree.body_names[base])
+        key = f"wholebody-chain:{frame}:{base}"
+        if key not in tree._ik_cache:
+            tree._ik_cache[key] = tree.chain(
+                frame, base=None if base is None else tree.body_names[base]
+            )
+        chain = tree._ik_cache[key]
         if chain.n_joints != len(rest):
             continue
         done.update(rest)
@@ -526,7 +538,39 @@ def solve(
     seed: int,
     options: Settings,
 ) -> WholeBodyResult:
-    """:meth:`poekin.Tree.ik` with a dict of targets (its docstring holds the arguments)."""
+    """:meth:`poekin.Tree.ik` with a dict of targets (its docstring holds the arguments), on
+    one BLAS thread (:mod:`poekin._blas`: its SVDs are of a few dozen columns, which a busy
+    machine's thread pool slows tenfold)."""
+    with one_thread():
+        return _solve(
+            tree,
+            targets,
+            qpos,
+            hold=hold,
+            position_only=position_only,
+            orientation_only=orientation_only,
+            weights=weights,
+            posture=posture,
+            freeze=freeze,
+            seed=seed,
+            options=options,
+        )
+
+
+def _solve(
+    tree: Tree,
+    targets: Mapping[str, ArrayLike],
+    qpos: ArrayLike | None,
+    *,
+    hold: object,
+    position_only: object,
+    orientation_only: object,
+    weights: Mapping[str, float] | None,
+    posture: float | ArrayLike,
+    freeze: Collection[str],
+    seed: int,
+    options: Settings,
+) -> WholeBodyResult:
     tasks = parse(
         tree,
         targets,
@@ -644,7 +688,6 @@ def _problem(
         _paths(tree, tasks.tasks, sp) if starts else np.zeros((0, 0), dtype=np.int64),
         (options.pos_tol, options.ori_tol),
         anchor,
-        _chain_starts(tree, tasks.tasks, sp, anchor) if starts else (),
         seed,
     )
     return problem, q0, batch

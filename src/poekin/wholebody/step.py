@@ -25,6 +25,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from poekin._blas import one_thread
 from poekin.errors import InputError
 from poekin.ik.numerical import settings
 from poekin.wholebody import qp
@@ -105,17 +106,18 @@ def ik_step(
     if np.any(problem.posture):
         reference = np.broadcast_to(tree.qpos0, q.shape)
         posture_step = problem.posture * sp.difference(q, reference)
-    x = qp.step(
-        A,
-        np.zeros(A.shape[:2]),
-        C,
-        gain * d,
-        lo,
-        hi,
-        np.full(B, FLOOR),
-        np.full(B, damping + FLOOR),
-        posture_step,
-    ).x
+    with one_thread():  # small SVDs: a thread pool only waits (poekin._blas)
+        x = qp.step(
+            A,
+            np.zeros(A.shape[:2]),
+            C,
+            gain * d,
+            lo,
+            hi,
+            np.full(B, FLOOR),
+            np.full(B, damping + FLOOR),
+            posture_step,
+        ).x
     qvel = np.zeros((B, tree.nv))
     qvel[:, sp.variables] = x / dt
     return qvel.reshape(*batch, tree.nv)
