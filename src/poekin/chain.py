@@ -721,6 +721,7 @@ class Chain:
         max_total_iterations: int | None = None,
         params: ChainParams | None = None,
         nearest_branch: bool = False,
+        posture: float | ArrayLike = 0.0,
     ) -> IKResult:
         """Joint values that put the end frame at ``T``: numerical inverse kinematics, inside
         the joint limits, batched (:mod:`poekin.ik.numerical` describes the algorithm).
@@ -765,6 +766,11 @@ class Chain:
                 calibrated arm's refined one too): the valid branch nearest ``q0``, its
                 angles the equivalents nearest ``q0`` (:func:`poekin.wrap`), where a target
                 has one (``iterations`` 0 there), else the numerical solve from ``q0``. NumPy.
+            posture: with ``q0``, for a redundant arm: a gain from 0 to 1 (or one per joint,
+                its weight) pulling toward ``q0`` in the target's null space, so that of the
+                configurations that reach the target the solve prefers those near ``q0``
+                (:mod:`poekin.wholebody.chains`: the whole-body solver's posture level; 0, the
+                default, is the usual solve). NumPy.
 
         Returns:
             An :class:`~poekin.ik.IKResult`: ``q`` ``(..., n)`` (always within the joint
@@ -790,6 +796,20 @@ class Chain:
             >>> bool(found.success), found.q.shape
             (True, (6,))
         """
+        if not (isinstance(posture, int | float) and posture == 0):
+            return self._ik_posture(
+                T,
+                q0,
+                posture,
+                seed,
+                pos_tol,
+                ori_tol,
+                position_only,
+                orientation_weight,
+                max_iterations,
+                max_attempts,
+                (max_total_iterations, params, nearest_branch),
+            )
         if (
             params is None
             and max_total_iterations is None
@@ -865,6 +885,38 @@ class Chain:
             )
         chain = self if params is None else self.with_parameters(params)
         return solve(chain, T, q0, seed=seed, options=settings(**given))
+
+    def _ik_posture(
+        self,
+        T: ArrayLike,
+        q0: ArrayLike | None,
+        posture: float | ArrayLike,
+        seed: int,
+        pos_tol: float,
+        ori_tol: float,
+        position_only: bool,
+        orientation_weight: float,
+        max_iterations: int,
+        max_attempts: int,
+        others: tuple[Any, ...],
+    ) -> IKResult:
+        """:meth:`ik` with a posture (:mod:`poekin.wholebody.chains`)."""
+        from poekin.wholebody.chains import solve_chain
+
+        if others != (None, None, False) or arrays.kind_of(T) is not None:
+            raise InputError(
+                "posture is a NumPy solve of the chain's own parameters: it takes no "
+                "max_total_iterations, params or nearest_branch, and NumPy arrays only"
+            )
+        options = _numerical().settings(
+            pos_tol=pos_tol,
+            ori_tol=ori_tol,
+            position_only=position_only,
+            orientation_weight=orientation_weight,
+            max_iterations=max_iterations,
+            max_attempts=max_attempts,
+        )
+        return solve_chain(self, T, q0, posture=posture, seed=seed, options=options)
 
     def ik_all(
         self, T: ArrayLike, *, near: ArrayLike | None = None, refine: bool = True

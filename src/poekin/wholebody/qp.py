@@ -37,11 +37,12 @@ _RELEASE_TOL = 1e-12  # a held entry's multiplier of the wrong sign beyond this 
 
 
 class Step(NamedTuple):
-    """:func:`step`'s answer: ``x (B, n)`` and ``at_bound (B, n)``, the entries held at a
-    bound."""
+    """:func:`step`'s answer: ``x (B, n)``, ``at_bound (B, n)``, the entries held at a
+    bound, and ``posture_move (B,)``, the size of level 3's part of ``x``."""
 
     x: FloatArray
     at_bound: BoolArray
+    posture_move: FloatArray
 
 
 def _bmv(M: FloatArray, v: FloatArray) -> FloatArray:
@@ -115,10 +116,10 @@ def step(
         release = _to_release(A, C, d, x_soft, x_hold, fixed, value, lo, hi, lam_soft)
         release &= ~released
         if not np.any(release):
-            return Step(x, fixed)
+            return Step(x, fixed, np.sqrt(np.sum((x - x_soft) ** 2, axis=1)))
         released |= release
         fixed &= ~release
-    return Step(x, fixed)
+    return Step(x, fixed, np.sqrt(np.sum((x - x_soft) ** 2, axis=1)))
 
 
 def _levels(

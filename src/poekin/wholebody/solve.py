@@ -60,6 +60,7 @@ STALL_FACTOR = 0.5
 STALL_ITERATIONS = 8
 DRAWS = 16  # random starts a further attempt draws, of which it keeps the best
 CHAIN_ATTEMPTS = 30  # attempts of each frame's chain solve in a further attempt's start
+POSTURE_TOL = 1e-10  # rad (m): a solve with a posture goes on until its pull moves less
 POLISH_ITERATIONS = 20  # level 1 alone, after an attempt that misses a held frame
 
 
@@ -458,6 +459,8 @@ def _iterate(
     mark = np.full(B, np.inf)
     mark_hold = np.full(B, np.inf)
     since = np.zeros(B, dtype=np.int64)
+    pulling = soft and bool(np.any(problem.posture))
+    posture_move = np.full(B, np.inf if pulling else 0.0)  # level 3's last move
     for _ in range(max_iterations + 1):
         live = np.flatnonzero(~done)
         if live.size == 0:
@@ -468,7 +471,12 @@ def _iterate(
         soft_cost = np.sum(d * d, axis=1)
         held_ok = _met(errs, s, held_flags)
         met = _met(errs, s, all_flags)
-        better = _better(held_ok, hold_cost, soft_cost, best_hold[live], best_soft[live])
+        # an iterate that meets every task beats any that does not, and the latest such wins
+        # (the posture moves it on along the solutions)
+        better = met | (
+            ~success[live]
+            & _better(held_ok, hold_cost, soft_cost, best_hold[live], best_soft[live])
+        )
         best_q[live[better]] = ql[better]
         best_hold[live[better]] = np.where(held_ok, 0.0, hold_cost)[better]
         best_soft[live[better]] = soft_cost[better]
@@ -478,8 +486,8 @@ def _iterate(
         soft_drop = soft & (soft_cost < STALL_FACTOR * mark[live])
         mark_hold[live] = np.where(hold_drop, hold_cost, mark_hold[live])
         mark[live] = np.where(soft_drop, soft_cost, mark[live])
-        since[live] = np.where(hold_drop | soft_drop, 0, since[live] + 1)
-        finished = met if soft else held_ok
+        since[live] = np.where(hold_drop | soft_drop | met, 0, since[live] + 1)
+        finished = (met & (posture_move[live] <= POSTURE_TOL)) if soft else held_ok
         stop = finished | (since[live] >= STALL_ITERATIONS) | (iterations[live] >= max_iterations)
         done[live] = stop
         go = ~stop
@@ -492,7 +500,7 @@ def _iterate(
             posture = problem.posture * problem.space.difference(ql[go], reference[rows[g]])
         if not soft:
             C, d = C[:, :0], d[:, :0]
-        x = qp.step(
+        taken = qp.step(
             A[go],
             b[go],
             C[go],
@@ -502,7 +510,9 @@ def _iterate(
             DAMPING * hold_cost[go] + FLOOR,
             DAMPING * soft_cost[go] + FLOOR,
             posture,
-        ).x
+        )
+        x = taken.x
+        posture_move[g] = taken.posture_move
         biggest = np.max(np.abs(x), axis=1, initial=0.0)
         x *= np.where(biggest > STEP_MAX, STEP_MAX / np.maximum(biggest, 1e-300), 1.0)[:, None]
         q[g] = problem.space.clip(problem.space.integrate(ql[go], x))
