@@ -62,7 +62,7 @@ def _tree(chain: Chain) -> Tree:
         joint_axes=axes,
         joint_anchors=anchors,
         joint_refs=np.zeros(n),
-        joint_limits=chain.limits,
+        joint_limits=(np.tile([-np.inf, np.inf], (n, 1)) if chain.limits is None else chain.limits),
         mimics=(None,) * n,
         site_names=(chain.frame or "end",),
         site_bodies=np.array([n - 1]),
