@@ -282,3 +282,20 @@ def test_a_mimic_joint_follows_its_leader() -> None:
     found = tree.ik({"tip": np.array(tip)}, [0.5], position_only={"tip"})
     assert bool(found.success) and found.qpos.shape == (1,)
     np.testing.assert_allclose(found.qpos, [q1], atol=1e-9)
+
+
+def test_rotation_error_is_the_quaternion_vector_of_lie() -> None:
+    """The residual's orientation rows: 2 (x, y, z) of the quaternion with w >= 0, as
+    poekin.lie.rotation_to_quat gives it, at every angle up to pi about every axis."""
+    from poekin.wholebody.solve import _angle, rotation_error
+
+    rng = np.random.default_rng(0)
+    w = rng.normal(size=(3000, 3))
+    w[:1000] *= (np.pi / np.linalg.norm(w[:1000], axis=1) * rng.uniform(0.99, 1.0, 1000))[:, None]
+    w[1000:1003] = np.pi * np.eye(3)  # half turns about each axis
+    w[1003] = 0.0
+    R = poekin.lie.exp_so3(w)
+    quat = poekin.lie.rotation_to_quat(R)
+    expected = 2.0 * np.where(quat[:, :1] < 0, -quat[:, 1:], quat[:, 1:])
+    np.testing.assert_allclose(rotation_error(R), expected, atol=2e-15, rtol=0)
+    np.testing.assert_allclose(_angle(R), poekin.lie.rotation_angle(R), atol=1e-15, rtol=0)

@@ -130,29 +130,33 @@ class Problem:
         rows ``A, b, C, d`` and each task's ``(pos_err, ori_err)``."""
         tree, k = self.tree, self.orientation_weight
         poses = tree.fk(qpos)
+        variables = self.space.variables
+        found = []  # per task: its rotation, its point, Jw, Jv at qpos
+        for t in self.tasks:
+            if t.index < 0:
+                Jv = tree.com_jacobian(qpos)[:, :, variables]
+                found.append(
+                    (np.broadcast_to(np.eye(3), (len(qpos), 3, 3)), tree.com(qpos), 0 * Jv, Jv)
+                )
+                continue
+            T = poses[:, t.index]
+            J = tree.jacobian(qpos, t.name)[:, :, variables]
+            found.append((T[:, :3, :3], T[:, :3, 3], J[:, :3], J[:, 3:]))
+        R_t = np.stack([R if rows is None else R[rows] for R in self.R], axis=1)
+        R_now = np.stack([f[0] for f in found], axis=1)
+        M = (R_t @ np.swapaxes(R_now, -1, -2)).reshape(-1, 3, 3)  # every task's at once
+        e_o_all = rotation_error(M).reshape(len(qpos), -1, 3)
+        angle_all = _angle(M).reshape(len(qpos), -1)
         held_J: list[FloatArray] = []
         held_r: list[FloatArray] = []
         soft_J: list[FloatArray] = []
         soft_r: list[FloatArray] = []
         errs: list[tuple[FloatArray, ...]] = []
-        variables = self.space.variables
-        for t, R_all, p_all in zip(self.tasks, self.R, self.p, strict=True):
-            R_t = R_all if rows is None else R_all[rows]
-            p_t = p_all if rows is None else p_all[rows]
-            if t.index < 0:
-                point = tree.com(qpos)
-                Jv = tree.com_jacobian(qpos)[:, :, variables]
-                Jw = np.zeros_like(Jv)
-                R = np.broadcast_to(np.eye(3), R_t.shape)
-            else:
-                T = poses[:, t.index]
-                R, point = T[:, :3, :3], T[:, :3, 3]
-                J = tree.jacobian(qpos, t.name)[:, :, variables]
-                Jw, Jv = J[:, :3], J[:, 3:]
-            e_p = p_t - point
-            M = R_t @ np.swapaxes(R, 1, 2)
-            quat = lie.rotation_to_quat(M)
-            e_o = 2.0 * np.where(quat[:, :1] < 0, -quat[:, 1:], quat[:, 1:])
+        for i, (t, p_all, (_, point, Jw, Jv)) in enumerate(
+            zip(self.tasks, self.p, found, strict=True)
+        ):
+            e_p = (p_all if rows is None else p_all[rows]) - point
+            e_o = e_o_all[:, i]
             parts_r, parts_J = [], []
             if t.mode != "position":
                 parts_r.append(k * e_o)
@@ -165,7 +169,7 @@ class Problem:
             pos: FloatArray = (
                 np.sqrt(np.sum(e_p * e_p, axis=1)) if t.mode != "orientation" else zero
             )
-            ori: FloatArray = np.asarray(lie.rotation_angle(M)) if t.mode != "position" else zero
+            ori: FloatArray = angle_all[:, i] if t.mode != "position" else zero
             errs.append((pos, ori))
             if t.held:
                 held_J.append(J)
@@ -180,6 +184,44 @@ class Problem:
         C = np.concatenate(soft_J, axis=1) if soft_J else np.zeros((B, 0, n))
         d = np.concatenate(soft_r, axis=1) if soft_r else np.zeros((B, 0))
         return A, b, C, d, errs
+
+
+def rotation_error(M: FloatArray) -> FloatArray:
+    """``(B, 3)``: ``2 (x, y, z)`` of the unit quaternion ``(w >= 0)`` of rotations ``M (B, 3,
+    3)``, by Shepperd's method (the largest of ``w, x, y, z`` from the diagonal, the others
+    from the off-diagonal sums and differences): ``2 sin(theta / 2)`` times the axis, as
+    :mod:`poekin.ik.numerical` defines a frame's orientation error, never zero at pi."""
+    m00, m11, m22 = M[:, 0, 0], M[:, 1, 1], M[:, 2, 2]
+    tr = m00 + m11 + m22
+    sx, sy, sz = M[:, 2, 1] - M[:, 1, 2], M[:, 0, 2] - M[:, 2, 0], M[:, 1, 0] - M[:, 0, 1]
+    ax, ay, az = M[:, 2, 1] + M[:, 1, 2], M[:, 0, 2] + M[:, 2, 0], M[:, 1, 0] + M[:, 0, 1]
+    four = np.stack([1 + tr, 1 + m00 - m11 - m22, 1 - m00 + m11 - m22, 1 - m00 - m11 + m22], axis=1)
+    k = np.argmax(four, axis=1)
+    r = 0.5 * np.sqrt(np.maximum(np.take_along_axis(four, k[:, None], axis=1)[:, 0], 0.0))
+    s = 0.25 / r
+    quat = np.select(
+        [k[:, None] == 0, k[:, None] == 1, k[:, None] == 2],
+        [
+            np.stack([r, sx * s, sy * s, sz * s], axis=1),
+            np.stack([sx * s, r, az * s, ay * s], axis=1),
+            np.stack([sy * s, az * s, r, ax * s], axis=1),
+        ],
+        np.stack([sz * s, ay * s, ax * s, r], axis=1),
+    )
+    vec: FloatArray = 2.0 * np.where(quat[:, :1] < 0, -quat[:, 1:], quat[:, 1:])
+    return vec
+
+
+def _angle(M: FloatArray) -> FloatArray:
+    """The geodesic angle of rotations ``M`` (rad, ``[0, pi]``): ``atan2(|vee(M)|, (tr M - 1)
+    / 2)``, as :func:`poekin.pose_errors`."""
+    vee = np.stack(
+        [M[:, 2, 1] - M[:, 1, 2], M[:, 0, 2] - M[:, 2, 0], M[:, 1, 0] - M[:, 0, 1]], axis=1
+    )
+    angle: FloatArray = np.arctan2(
+        0.5 * np.sqrt(np.sum(vee * vee, axis=1)), 0.5 * (M[:, 0, 0] + M[:, 1, 1] + M[:, 2, 2] - 1)
+    )
+    return angle
 
 
 def _met(errs: list[tuple[FloatArray, ...]], s: Settings, which: list[bool]) -> BoolArray:
@@ -592,7 +634,7 @@ def _solve(
     seed = check_seed(seed)
     problem, q0, batch = _problem(tree, tasks, qpos, posture, freeze, options, seed)
     B = q0.shape[0]
-    keys = _keys(seed, problem, q0)
+    keys: Any = None  # drawn at the first further attempt
     best_q = np.array(q0)
     best_hold = np.full(B, np.inf)
     best_soft = np.full(B, np.inf)
@@ -607,6 +649,8 @@ def _solve(
             start = q0[rows]
         else:
             *_, errs = problem.residual(best_q[rows], rows)
+            if keys is None:
+                keys = _keys(seed, problem, q0)
             start = _restart(problem, keys[rows], attempt, best_q[rows], q0[rows], rows, errs)
         q, hold_c, soft_c, ok, its = _attempt(problem, start, rows, options, q0)
         better = ok | _better(hold_c == 0, hold_c, soft_c, best_hold[rows], best_soft[rows])
