@@ -81,6 +81,17 @@ IDENTITY.flags.writeable = False
 _UNIT_TOL = 1e-6
 
 
+# Chain.as_tree's builder, poekin.tree.tree_of_chain: poekin.tree (which imports this module,
+# and which poekin's __init__ imports) registers it, so that the model's two classes import
+# each other in one direction only
+_TREE_OF_CHAIN: list[Callable[[Chain], Any]] = []
+
+
+def register_tree_of_chain(build: Callable[[Chain], Any]) -> None:
+    """Set :meth:`Chain.as_tree`'s builder (poekin.tree does, when imported)."""
+    _TREE_OF_CHAIN[:] = [build]
+
+
 @functools.cache
 def _numerical() -> types.ModuleType:
     """:mod:`poekin.ik.numerical`, imported at first use (it imports this module's users)."""
@@ -885,6 +896,24 @@ class Chain:
             )
         chain = self if params is None else self.with_parameters(params)
         return solve(chain, T, q0, seed=seed, options=settings(**given))
+
+    def as_tree(self) -> Any:
+        """This chain as a :class:`~poekin.tree.Tree` with the same FK: one body per joint, all
+        at the world frame at ``q = 0``, each joint turning (or sliding) about its space
+        screw's axis, and the end frame a site at the home pose ``M``, so that the site's pose
+        is ``e^[S1]q1 ... e^[Sn]qn M`` (kept with the chain after the first call). The
+        whole-body solver (``tree.ik`` with a dict of targets) then serves the chain.
+
+        Example:
+            >>> chain = poekin.load("universal_robots_ur5e")
+            >>> tree = chain.as_tree()
+            >>> q = [0.3, -1.2, 1.4, -0.5, 1.1, 0.2]
+            >>> bool(np.allclose(tree.pose(q, "attachment_site"), chain.fk(q), atol=1e-14))
+            True
+        """
+        if "tree" not in self._ik_cache:
+            self._ik_cache["tree"] = _TREE_OF_CHAIN[0](self)
+        return self._ik_cache["tree"]
 
     def _ik_posture(
         self,

@@ -42,6 +42,7 @@ from poekin.chain import (
     jacobian_array,
     jacobian_from_world,
     readonly_array,
+    register_tree_of_chain,
     relative_jacobian,
     rigid_transform,
     zeros_like_batch,
@@ -1380,3 +1381,39 @@ class Tree:
                 for n, b in zip(self.site_names, self.site_bodies, strict=True)
             ],
         }
+
+
+def tree_of_chain(chain: Chain) -> Tree:
+    """:meth:`poekin.Chain.as_tree`: ``chain`` as a tree with the same FK."""
+    n = chain.n_joints
+    axes = np.zeros((n, 3))
+    anchors = np.zeros((n, 3))
+    for i, (kind, S) in enumerate(zip(chain.joint_types, chain.screws, strict=True)):
+        if kind == "revolute":
+            axes[i] = S[:3]
+            anchors[i] = np.cross(S[:3], S[3:])  # a point on the axis: v = -w x q
+        else:
+            axes[i] = S[3:]
+    limits = np.tile([-np.inf, np.inf], (n, 1)) if chain.limits is None else chain.limits
+    return Tree(
+        body_names=tuple(f"link{i + 1}" for i in range(n)),
+        body_parents=np.arange(-1, n - 1),
+        body_pos=np.zeros((n, 3)),
+        body_rot=np.broadcast_to(np.eye(3), (n, 3, 3)),
+        joint_names=chain.joint_names,
+        joint_types=chain.joint_types,
+        joint_bodies=np.arange(n),
+        joint_axes=axes,
+        joint_anchors=anchors,
+        joint_refs=np.zeros(n),
+        joint_limits=limits,
+        mimics=(None,) * n,
+        site_names=(chain.frame or "end",),
+        site_bodies=np.array([n - 1]),
+        site_pos=chain.home[None, :3, 3],
+        site_rot=chain.home[None, :3, :3],
+        robot=chain.robot,
+    )
+
+
+register_tree_of_chain(tree_of_chain)

@@ -60,3 +60,14 @@ def test_posture_needs_q0_and_numpy() -> None:
         InputError, match="it takes no max_total_iterations, params or nearest_branch"
     ):
         chain.ik(T, np.zeros(6), posture=0.5, nearest_branch=True)
+
+
+def test_as_tree_example_runs() -> None:
+    import doctest
+
+    runner = doctest.DocTestRunner(optionflags=doctest.ELLIPSIS)
+    tests = doctest.DocTestFinder().find(poekin.Chain.as_tree, globs={"poekin": poekin, "np": np})
+    assert tests and tests[0].examples
+    for test in tests:
+        runner.run(test)
+    assert runner.failures == 0
