@@ -1,7 +1,8 @@
-"""Make the three screenshots of ``poekin view`` that docs/viewer.md shows (README shows the
-first)
+"""Make the screenshots of ``poekin view`` that docs/viewer.md and docs/wholebody.md show
+(README shows the first)
 
-    python docs/screenshots.py       # writes docs/view_ur5e.png, view_lynch_park.png, view_ik.png
+    python docs/screenshots.py       # writes docs/view_ur5e.png, view_lynch_park.png,
+                                     # view_ik.png, view_wholebody.png
     python docs/screenshots.py ik    # only those whose name contains "ik"
 
 Each is a 1280 x 720 page, quantised to 256 colours to stay small.
@@ -13,6 +14,7 @@ import pathlib
 import sys
 import warnings
 
+import numpy as np
 from PIL import Image
 from playwright.sync_api import Page, sync_playwright
 
@@ -25,15 +27,26 @@ Q = [0.5, -1.2, 1.5, -1.9, -1.5708, 0.0]
 # the IK target: the end frame at Q moved 6 cm and turned 0.3 rad, as a drag would
 TARGET_MOVE = [0.04, -0.03, 0.03]
 TARGET_TURN = [0.0, 0.3, 0.0]
+# the G1's whole-body handles: both palms and both feet, the feet held
+G1_HANDS = ("left_elbow_roll_link", "right_elbow_roll_link")
+G1_FEET = ("left_foot", "right_foot")
+# where the palms' handles are dragged: their poses with the arms raised forward (shoulder
+# pitch -0.4 rad, roll 0.15 rad outward), reached in five drags of each
+ARMS_RAISED = {"shoulder_pitch_joint": -0.4, "shoulder_roll_joint": 0.15}
 
 
 def _shoot(
-    page: Page, viewer: poekin.viewer.app.Viewer, tab: str | None, out: pathlib.Path
+    page: Page,
+    viewer: poekin.viewer.app.Viewer,
+    tab: str | None,
+    out: pathlib.Path,
+    ready: str = "geometry: the model's",
 ) -> None:
-    """A screenshot of the page with ``tab`` open (None: the first, Joints)."""
+    """A screenshot of the page with ``tab`` open (None: the first, Joints), once the panel
+    shows ``ready`` (the geometry's note)."""
     page.goto(viewer.url)
     page.wait_for_selector("canvas")
-    page.get_by_text("geometry: the model's").first.wait_for(timeout=120_000)
+    page.get_by_text(ready).first.wait_for(timeout=120_000)
     viewer.frame_view()
     if tab is not None:
         page.get_by_role("tab", name=tab).click()
@@ -78,7 +91,42 @@ def _ik(page: Page) -> None:
         _shoot(page, v, None, HERE / "view_ik.png")
 
 
-SHOTS = {"view_ur5e": _ur5e, "view_lynch_park": _lynch_park, "view_ik": _ik}
+def _wholebody(page: Page) -> None:
+    """Whole-body IK on the G1 (the built-in model has no meshes: the stand-in capsules): a
+    handle on each palm and foot, the palms dragged forward and up, the feet held."""
+    with poekin.view(
+        "unitree_g1", frames=[*G1_HANDS, *G1_FEET], hold=G1_FEET, port=0, open_browser=False
+    ) as v:
+        v.set_option("screw axes", False)
+        v.set_option("home pose M", False)
+        v.set_option("robot opacity", 1.0)  # the stand-in's capsules overlap
+        assert v.wholebody is not None and v.subject.tree is not None
+        tree = v.subject.tree
+        raised = np.array(tree.qpos0)
+        for side, sign in (("left", 1.0), ("right", -1.0)):
+            for joint, value in ARMS_RAISED.items():
+                turn = sign * value if "roll" in joint else value
+                raised[tree.qpos_adr[tree.joint_names.index(f"{side}_{joint}")]] = turn
+        start = {f: v.wholebody.targets[f] for f in G1_HANDS}
+        goal = {f: tree.pose(raised, f) for f in G1_HANDS}
+        for step in range(1, 6):
+            for frame in G1_HANDS:
+                A, B, a = start[frame], goal[frame], step / 5
+                T = np.eye(4)
+                T[:3, 3] = (1 - a) * A[:3, 3] + a * B[:3, 3]
+                T[:3, :3] = A[:3, :3] @ lie.exp_so3(a * lie.log_so3(A[:3, :3].T @ B[:3, :3]))
+                shown = v.drag_handle(frame, T)
+        assert shown.success, shown.frame_errors
+        v.wait_geometry()
+        _shoot(page, v, None, HERE / "view_wholebody.png", ready="geometry: stand-in")
+
+
+SHOTS = {
+    "view_ur5e": _ur5e,
+    "view_lynch_park": _lynch_park,
+    "view_ik": _ik,
+    "view_wholebody": _wholebody,
+}
 
 
 def main() -> None:

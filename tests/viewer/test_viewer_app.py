@@ -17,6 +17,7 @@ from helpers import assert_close, load_quiet, mesh_menagerie
 import poekin
 from poekin import lie
 from poekin.errors import InputError
+from poekin.viewer import panel
 
 pytest.importorskip("viser")
 
@@ -623,3 +624,141 @@ def test_a_base_and_a_tool() -> None:
         assert v.subject.tool is None and v.node("/end/label").text == "T(q): wrist_2_link"
         v.set_option("end frame", "attachment_site")
         assert_close("the tool again", v.node_poses("end")["/end"], chain.fk(v.q), TOL)
+
+
+# --- the whole-body IK mode ---------------------------------------------------------------
+
+HANDS = ("left_elbow_roll_link", "right_elbow_roll_link")
+FEET = ("left_foot", "right_foot")
+
+
+@pytest.fixture(scope="module")
+def g1() -> Iterator[Viewer]:
+    v = view(
+        load_quiet("unitree_g1"), frames=[*HANDS, *FEET], hold=FEET, port=0, open_browser=False
+    )
+    yield v
+    v.close()
+
+
+def _drag_on_page(v: Viewer, i: int, T: np.ndarray) -> None:
+    """What the page does: move handle ``i``; its callback solves."""
+    handle = v.node(f"/wholebody/h{i}")
+    handle.wxyz, handle.position = lie.rotation_to_quat(T[:3, :3]), T[:3, 3]
+    v._on_handle_drag(i)
+
+
+def test_wholebody_handles_sit_on_their_frames_and_a_drag_solves_the_robot(g1: Viewer) -> None:
+    v, tree = g1, g1.subject.tree
+    assert tree is not None
+    v.q = tree.qpos0
+    frames = [*HANDS, *FEET]
+    handles = v.node_poses("wb_handle")
+    assert sorted(handles) == [f"/wholebody/h{i}" for i in range(4)]
+    T_all = tree.fk(v.q)
+    for i, frame in enumerate(frames):
+        assert_close(frame, handles[f"/wholebody/h{i}"], T_all[tree.frame_index(frame)], TOL)
+    labels = [v.node(f"/wholebody/h{i}/label").text for i in range(4)]
+    assert labels == [*HANDS, "left_foot (held)", "right_foot (held)"]
+    colors = [v.node(f"/wholebody/h{i}/marker").color for i in range(4)]
+    assert colors == [(20, 170, 60)] * 2 + [(30, 110, 220)] * 2
+    assert "held (met exactly): `left_foot`, `right_foot`" in v.texts()["wholebody"]
+    assert v.wholebody is not None and v.wholebody.how == "follow"
+    feet = {f: T_all[tree.frame_index(f)] for f in FEET}
+    T = T_all[tree.frame_index(HANDS[0])].copy()
+    T[:3, 3] += [0.04, 0.02, 0.08]
+    _drag_on_page(v, 0, T)
+    shown = v.wholebody
+    assert shown is not None and shown.success and shown.how == "current"
+    assert np.array_equal(v.q, shown.qpos) and not np.array_equal(v.q, tree.qpos0)
+    T_all = tree.fk(v.q)
+    assert_close("the hand at the handle", T_all[tree.frame_index(HANDS[0])], T, 1e-10)
+    for f in FEET:
+        assert_close(f"{f} held", T_all[tree.frame_index(f)], feet[f], 1e-10)
+    bodies = v.node_poses("body")
+    for b in range(len(tree.body_names)):  # viser skips a change within allclose's 1e-5
+        assert_close(f"body {b}", bodies[f"/robot/b{b}"], T_all[b], 2e-5)
+    assert_close("sliders show q", _slider_q(v), v.q[7:], 1e-12)
+    text = v.texts()["wholebody"]
+    assert "**every frame reached**" in text and "solved from the configuration shown" in text
+    before = v.wholebody
+    v._on_handle_drag(0)  # a second update of the same pose: already solved
+    assert v.wholebody is before
+
+
+def test_wholebody_out_of_reach_and_held_frames_that_cannot_be_met(g1: Viewer) -> None:
+    v, tree = g1, g1.subject.tree
+    assert tree is not None and v.wholebody is not None
+    v.q = tree.qpos0
+    far = v.wholebody.targets[HANDS[0]].copy()
+    far[:3, 3] += [0.0, 0.0, 0.6]
+    shown = v.drag_handle(HANDS[0], far)
+    assert not shown.success and shown.how == "best fit"
+    assert_close(
+        "the handle stays at the target", v.node_poses("wb_handle")["/wholebody/h0"], far, TOL
+    )
+    words = panel.residual_words(*shown.frame_errors[HANDS[0]])
+    assert v.node("/wholebody/h0/marker").color == (225, 20, 20)
+    assert v.node("/wholebody/h0/label").text == f"{HANDS[0]}: {words}"
+    assert v.node("/wholebody/h2/marker").color == (30, 110, 220)  # a foot, still met
+    miss = v.node("/wholebody/miss")
+    hand = tree.pose(v.q, HANDS[0])[:3, 3]
+    assert miss.visible and _close_segment(miss.points[0], hand, far[:3, 3])
+    assert not np.any(miss.points[1:])  # no line for the frames met
+    assert f"**NOT REACHED**: `{HANDS[0]}` missed; the held frames met" in v.texts()["wholebody"]
+    # a foot dragged 1.5 m from the other: refused; from the page, the handle goes back
+    q_before, wb_before = v.q, v.wholebody
+    apart = wb_before.targets[FEET[0]].copy()
+    apart[:3, 3] += [0.0, 1.5, 0.0]
+    with pytest.raises(InputError, match="cannot all be met together"):
+        v.drag_handle(FEET[0], apart)
+    assert v.wholebody is wb_before and np.array_equal(v.q, q_before)
+    _drag_on_page(v, 2, apart)
+    assert v.wholebody is wb_before and np.array_equal(v.q, q_before)
+    assert_close(
+        "handle back", v.node_poses("wb_handle")["/wholebody/h2"], wb_before.targets[FEET[0]], TOL
+    )
+    assert "**left_foot not moved:** the held frames" in v.texts()["wholebody"]
+    with pytest.raises(InputError, match="no handle on 'head'"):
+        v.drag_handle("head", np.eye(4))
+
+
+def _close_segment(segment: np.ndarray, a: np.ndarray, b: np.ndarray) -> bool:
+    return bool(np.allclose(segment, [a, b], atol=1e-6))  # float32 on the wire
+
+
+def test_wholebody_targets_follow_a_slider(g1: Viewer) -> None:
+    v, tree = g1, g1.subject.tree
+    assert tree is not None and v.wholebody is not None
+    v.q = tree.qpos0  # every target at its frame, the left hand's out of reach too
+    assert not v.node("/wholebody/miss").visible
+    T = v.wholebody.targets[HANDS[1]].copy()
+    T[:3, 3] += [0.03, -0.02, 0.05]
+    assert v.drag_handle(HANDS[1], T).success
+    v._sliders[0][2].value = 0.2  # the page moves a slider: every target at its frame
+    shown = v.wholebody
+    assert shown is not None and shown.how == "follow" and shown.success
+    T_all = tree.fk(v.q)
+    for i, frame in enumerate((*HANDS, *FEET)):
+        assert_close(frame, shown.targets[frame], T_all[tree.frame_index(frame)], 0.0)
+        assert_close(
+            frame, v.node_poses("wb_handle")[f"/wholebody/h{i}"], shown.targets[frame], TOL
+        )
+    assert not v.node("/wholebody/miss").visible
+
+
+def test_view_starts_in_the_ik_mode_and_checks_its_whole_body_options() -> None:
+    ur5e_model = load_quiet("universal_robots_ur5e")
+    with view(ur5e_model, ik=True, port=0, open_browser=False) as v:
+        assert v.options()["IK target"] is True and v.reach is not None
+        assert v.wholebody is None and "wholebody" not in v.texts()
+        with pytest.raises(InputError, match="no whole-body handles: start the viewer with"):
+            v.drag_handle("attachment_site", np.eye(4))
+    with pytest.raises(InputError, match="no IK mode for the end frame 'base'"):
+        view(load_quiet("unitree_go2"), frame="base", ik=True, port=0, open_browser=False)
+    with pytest.raises(InputError, match="hold names some of the whole-body frames"):
+        view(ur5e_model, hold=["wrist_3_link"], port=0, open_browser=False)
+    with pytest.raises(InputError, match="whole-body IK needs a tree"):
+        view(poekin.lynch_park_ur5_chain(), frames=["x"], port=0, open_browser=False)
+    with pytest.raises(poekin.UnknownFrameError, match="did you mean 'wrist_3_link'"):
+        view(ur5e_model, frames="wrist_3_lnk", port=0, open_browser=False)

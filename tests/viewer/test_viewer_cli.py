@@ -109,3 +109,78 @@ def test_view_in_process_serves_until_ctrl_c(
     out, err = capsys.readouterr()
     assert out.startswith("poekin view: http://127.0.0.1:") and err == "poekin: interrupted\n"
     assert len(opened) <= 1  # the browser is opened from a thread, maybe after the stop
+
+
+G1_FRAMES = "left_elbow_roll_link,right_elbow_roll_link,left_foot,right_foot"
+
+
+@pytest.mark.parametrize(
+    ("argv", "message"),
+    [
+        (
+            ["unitree_g1", "--frames", "left_foot"],
+            "--frames puts whole-body IK handles on frames: give --ik too, e.g. poekin view "
+            "unitree_g1 --ik --frames left_foot,right_foot",
+        ),
+        (
+            ["unitree_g1", "--ik", "--hold", "left_foot"],
+            "--hold names some of the frames of --frames: give --frames too",
+        ),
+        (
+            ["unitree_g1", "--ik", "--frames", G1_FRAMES, "--hold", "left_foot,right_fot"],
+            "--hold 'right_fot' is not among --frames (a held frame needs a handle): did you mean "
+            "'right_foot'? Valid names: 'left_elbow_roll_link', 'right_elbow_roll_link', "
+            "'left_foot', 'right_foot'",
+        ),
+        (
+            ["unitree_g1", "--ik", "--frames", "left_foot,left_foot"],
+            "--frames names 'left_foot' twice: give each frame once",
+        ),
+        (
+            ["unitree_g1", "--ik", "--frames", ","],
+            "--frames names no frame: give names, e.g. --frames left_foot,right_foot",
+        ),
+        (
+            ["unitree_g1", "--ik", "--frames", "left_fot,right_foot", "--hold", "right_foot"],
+            "whole-body IK: no site or body named 'left_fot': did you mean 'left_foot'? Valid "
+            "names: 'pelvis', ",
+        ),
+        (
+            ["unitree_go2", "--ik", "--frame", "base"],
+            "no IK mode for the end frame 'base': no hinge or slide joint moves 'base': nothing "
+            "to solve",
+        ),
+    ],
+    ids=[
+        "frames-without-ik",
+        "hold-without-frames",
+        "hold-not-a-frame",
+        "twice",
+        "none",
+        "unknown-frame",
+        "ik-on-a-frame-it-refuses",
+    ],
+)
+def test_whole_body_options_refused_in_one_line(
+    argv: list[str], message: str, capsys: pytest.CaptureFixture[str]
+) -> None:
+    assert main(["view", "--no-browser", "--port", "0", *argv]) == 2
+    out, err = capsys.readouterr()
+    assert out == "" and err.startswith(f"poekin: error: {message}"), err
+    assert err.count("\n") == 1 and "Traceback" not in err
+
+
+def test_view_with_whole_body_handles_says_so(
+    monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    def interrupt(_: float) -> None:
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr("time.sleep", interrupt)
+    argv = ["view", "unitree_g1", "--no-browser", "--port", "0", "--ik", "--frames", G1_FRAMES]
+    assert main([*argv, "--hold", "left_foot, right_foot"]) == 130
+    out, err = capsys.readouterr()
+    assert out.startswith("poekin view: http://127.0.0.1:") and err == "poekin: interrupted\n"
+    assert out.endswith(
+        "(unitree_g1, whole-body IK: 4 handles, held: left_foot, right_foot); Ctrl-C to stop\n"
+    )

@@ -19,9 +19,38 @@ from poekin.cli._args import (
     placement,
     read_joint_values,
 )
-from poekin.errors import InputError
+from poekin.errors import InputError, did_you_mean
 
 __all__ = ["register"]
+
+
+def _names(text: str | None) -> list[str]:
+    """``a,b,c`` as names (spaces around them and empty pieces dropped)."""
+    return [] if text is None else [n.strip() for n in text.split(",") if n.strip()]
+
+
+def _check_wholebody(args: argparse.Namespace) -> None:
+    """``--frames`` and ``--hold`` make sense together (said before the model is read)."""
+    if args.frames is not None and not args.ik:
+        raise InputError(
+            "--frames puts whole-body IK handles on frames: give --ik too, e.g. poekin view "
+            "unitree_g1 --ik --frames left_foot,right_foot"
+        )
+    if args.hold is not None and args.frames is None:
+        raise InputError("--hold names some of the frames of --frames: give --frames too")
+    frames = _names(args.frames)
+    if args.frames is not None and not frames:
+        raise InputError("--frames names no frame: give names, e.g. --frames left_foot,right_foot")
+    for option, names in (("--frames", frames), ("--hold", _names(args.hold))):
+        twice = [n for k, n in enumerate(names) if n in names[:k]]
+        if twice:
+            raise InputError(f"{option} names {twice[0]!r} twice: give each frame once")
+    for name in _names(args.hold):
+        if name not in frames:
+            raise InputError(
+                f"--hold {name!r} is not among --frames (a held frame needs a handle): "
+                f"{did_you_mean(name, frames)}"
+            )
 
 
 def _cmd_view(args: argparse.Namespace, out: TextIO) -> int:
@@ -29,6 +58,8 @@ def _cmd_view(args: argparse.Namespace, out: TextIO) -> int:
     import time
 
     from poekin._extras import require_view
+
+    _check_wholebody(args)
 
     require_view("'poekin view'")
     from poekin.viewer.app import is_loopback, view
@@ -49,11 +80,18 @@ def _cmd_view(args: argparse.Namespace, out: TextIO) -> int:
         open_browser=not args.no_browser,
         base=base,
         tool=tool,
+        ik=args.ik,
+        frames=None if args.frames is None else _names(args.frames),
+        hold=None if args.hold is None else _names(args.hold),
     )
     try:
+        what = f"end frame {viewer.frame!r}"
+        shown = viewer.wholebody
+        if shown is not None:
+            held = ", ".join(shown.handles.hold) or "none"
+            what = f"whole-body IK: {len(shown.handles.frames)} handles, held: {held}"
         print(
-            f"poekin view: {viewer.url}  ({viewer.subject.name}, end frame {viewer.frame!r}); "
-            "Ctrl-C to stop",
+            f"poekin view: {viewer.url}  ({viewer.subject.name}, {what}); Ctrl-C to stop",
             file=out,
             flush=True,
         )
@@ -105,11 +143,15 @@ def register(sub: Any, fmt: type[argparse.HelpFormatter]) -> None:
         description="Serve an interactive page (viser) with a slider per joint, the screw axes "
         "S_i / B_i at the current q, T(q) and the Jacobian, the PoE step by step and DH frames, "
         "an IK mode (drag a target handle, the arm follows; every closed-form solution a ghost); "
-        "with --params, your parameters as a ghost arm with diagnose's findings. Needs the "
-        "extra poekin[view]. Ctrl-C stops it.",
+        "with --frames, whole-body IK (a handle per frame, the whole robot solved at each drag, "
+        "the --hold frames met exactly); with --params, your parameters as a ghost arm with "
+        "diagnose's findings. Needs the extra poekin[view]. Ctrl-C stops it.",
         epilog="examples:\n  poekin view\n  poekin view unitree_go2 --no-browser --port 8081\n"
         "  poekin view --params lynch-park-ur5\n"
-        "  poekin view --base 0 0 0.8 1 0 0 0 --tool 0 0 0.15 1 0 0 0",
+        "  poekin view --base 0 0 0.8 1 0 0 0 --tool 0 0 0.15 1 0 0 0\n"
+        "  poekin view --ik\n"
+        "  poekin view unitree_g1 --ik --frames left_elbow_roll_link,right_elbow_roll_link,"
+        "left_foot,right_foot --hold left_foot,right_foot",
         formatter_class=fmt,
     )
     add_source(w, DEFAULT_ROBOT)
@@ -124,6 +166,23 @@ def register(sub: Any, fmt: type[argparse.HelpFormatter]) -> None:
         help="interface to serve on (default 127.0.0.1: this machine only)",
     )
     w.add_argument("--no-browser", action="store_true", help="do not open a browser")
+    w.add_argument(
+        "--ik",
+        action="store_true",
+        help="start in the IK mode: a target handle on the end frame (with --frames: on each "
+        "of those frames, the whole robot solved by tree.ik)",
+    )
+    w.add_argument(
+        "--frames",
+        metavar="F,F,...",
+        help="with --ik: whole-body IK, a handle on each of these frames (bodies or sites); "
+        "dragging one solves every joint, the others keep their targets",
+    )
+    w.add_argument(
+        "--hold",
+        metavar="F,F,...",
+        help="some of --frames met exactly whatever the drag (contacts: the feet)",
+    )
     w.set_defaults(run=_cmd_view)
 
     a = sub.add_parser(

@@ -20,7 +20,7 @@ import os
 import threading
 import time
 import webbrowser
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from typing import Any, Literal
 
 import numpy as np
@@ -32,7 +32,7 @@ from poekin.chain import Chain, JacobianConvention
 from poekin.dh import Convention, DHTable
 from poekin.errors import InputError, did_you_mean
 from poekin.tree import Tree
-from poekin.viewer import panel
+from poekin.viewer import panel, wholebody
 from poekin.viewer.geometry import Geometry, Part, mjcf_geometry, stand_in, urdf_geometry
 from poekin.viewer.ik import Reach, follow, ghost_poses, pick, reach, support
 from poekin.viewer.loading import Shown, load_params_comparison, load_shown
@@ -54,6 +54,7 @@ from poekin.viewer.scene import (
     screw_kind,
     snapshot,
 )
+from poekin.viewer.wholebody import Handles, WholeBodyReach
 
 __all__ = ["Viewer", "is_loopback", "view"]
 
@@ -71,6 +72,7 @@ TARGET_COLOR = (20, 170, 60)  # the IK target, reached
 UNREACHABLE_COLOR = (225, 20, 20)  # the IK target, out of reach
 SOLUTION_COLOR = (40, 170, 120)  # the other closed-form solutions, as ghosts
 SOLUTION_OPACITY = 0.28
+HELD_COLOR = (30, 110, 220)  # a whole-body handle's held frame, met
 _SYMBOL = {"space": "S", "body": "B"}
 _NO_SOLUTION = "(pick one)"
 _REVOLUTE_STEP = 1e-4  # rad: four decimals in the number box
@@ -142,10 +144,17 @@ class Viewer:
         *,
         geometry: Callable[[Subject], Geometry],
         comparison: Comparison | None = None,
+        handles: Handles | None = None,
         host: str = "127.0.0.1",
         port: int | None = None,
     ) -> None:
         self.subject = subject
+        if handles is not None and subject.tree is None:
+            raise InputError("whole-body IK needs a tree: a model, not a bare parameter set")
+        self._handles = handles
+        self._wb: WholeBodyReach | None = None
+        self._wb_solve_s: float | None = None
+        self._wb_note = ""
         self.comparison = comparison
         self._tool_on = (subject.frame, subject.tool)  # the tool rides on this frame only
         self._geometry_fn = geometry
@@ -207,6 +216,7 @@ class Viewer:
         x = self.subject.check_qpos(qpos)
         with self._lock:
             self._qpos = x
+            self._wb = None  # the whole-body targets: at their frames
             self._refresh()
             self._sync_controls()
 
@@ -347,6 +357,61 @@ class Viewer:
             self._show(picked, move_target=False)
             return picked
 
+    # --- the whole-body IK mode ---------------------------------------------------------------
+
+    @property
+    def wholebody(self) -> WholeBodyReach | None:
+        """What the whole-body IK mode shows (:class:`poekin.viewer.WholeBodyReach`:
+        every handle's target, the configuration, success, each frame's error), or None
+        without handles (``view(..., frames=...)``)."""
+        return self._wb
+
+    def drag_handle(self, frame: str, T_world_target: ArrayLike) -> WholeBodyReach:
+        """Move the whole-body handle on ``frame`` to ``T_world_target`` ``(4, 4)`` and solve
+        the whole robot, as a drag of that handle does: every other frame keeps its target,
+        the held frames are met exactly; the robot, the sliders and the panel follow.
+
+        Returns:
+            What is shown (:attr:`wholebody`): ``success`` False and the best fit where the
+            targets are out of reach.
+
+        Raises:
+            InputError: no whole-body handles, no handle on ``frame``, a target that is not a
+                rigid transform, or held frames that cannot be met together
+                (:class:`~poekin.errors.HeldFramesError`); nothing changes.
+        """
+        with self._lock:
+            if self._handles is None or self._wb is None:
+                raise InputError(
+                    "no whole-body handles: start the viewer with frames=[...] (poekin view "
+                    "--ik --frames ...)"
+                )
+            shown = self._wb_solve(frame, T_world_target)
+            self._show_wholebody(shown, move_handles=True)
+            return shown
+
+    def _wb_solve(self, frame: str, T: ArrayLike) -> WholeBodyReach:
+        assert self.subject.tree is not None and self._wb is not None
+        start = time.perf_counter()
+        found = wholebody.drag(self.subject.tree, self._wb, frame, T)
+        self._wb_solve_s = time.perf_counter() - start
+        return found
+
+    def _show_wholebody(self, shown: WholeBodyReach, *, move_handles: bool) -> None:
+        """Show ``shown``: its configuration on the robot and the sliders, the handles at its
+        targets when ``move_handles`` (a drag has put the dragged one there already)."""
+        self._wb = shown
+        self._wb_note = ""
+        self._qpos = shown.qpos
+        if move_handles:
+            self._pose_handles(shown)
+        self._refresh()
+        self._sync_controls()
+
+    def _pose_handles(self, shown: WholeBodyReach) -> None:
+        for i, frame in enumerate(shown.handles.frames):
+            self._pose(f"/wholebody/h{i}", shown.targets[frame])
+
     def _check_ik(self) -> None:
         why = self._ik_support.numerical
         if why is not None:
@@ -378,7 +443,8 @@ class Viewer:
 
     def texts(self) -> dict[str, str]:
         """The panel's readouts as sent to the page: ``pose``, ``jacobian``, ``poe``, ``screws``,
-        ``dh``, ``q`` (and ``compare`` with parameters, ``ik`` in the IK mode)."""
+        ``dh``, ``q`` (and ``compare`` with parameters, ``ik`` in the IK mode, ``wholebody``
+        with whole-body handles)."""
         return dict(self._texts)
 
     def node_names(self, kind: str | None = None) -> list[str]:
@@ -386,7 +452,8 @@ class Viewer:
         ``end``, ``home``, ``screw``, ``partial``, ``dh``, ``ghost_link``, ``ghost_screw``,
         ``ghost_end``, ``ghost_home``, ``part``, ``world``; the IK mode's ``ik_target`` (the
         handle), ``ik_marker``, ``ik_miss``, ``solution`` (one batched mesh per part: an
-        instance per ghost) and ``solution_label``)."""
+        instance per ghost) and ``solution_label``; the whole-body mode's ``wb_handle``,
+        ``wb_marker`` and ``wb_miss``)."""
         return [n for n, node in self._nodes.items() if kind is None or node.kind == kind]
 
     def node_poses(self, kind: str | None = None) -> dict[str, FloatArray]:
@@ -501,6 +568,8 @@ class Viewer:
         if self.comparison is not None:
             self._build_ghost_nodes()
         self._build_ik_nodes()
+        if self._handles is not None:
+            self._build_wholebody_nodes()
         position, look_at = self._camera(snapshot(subject, self._qpos))
         self.server.initial_camera.position = position
         self.server.initial_camera.look_at = look_at
@@ -516,6 +585,8 @@ class Viewer:
         if shown is not None and self._ik_input.value:  # the IK target and the ghosts
             _, anchors = ghost_poses(self.subject, shown.solutions[shown.ghosts])
             origins = np.vstack([origins, shown.target[None, :3, 3], *anchors])
+        if self._wb is not None:  # the whole-body handles' targets
+            origins = np.vstack([origins, *(T[None, :3, 3] for T in self._wb.targets.values())])
         lo, hi = origins.min(axis=0), origins.max(axis=0)
         centre, size = (lo + hi) / 2, max(float(np.linalg.norm(hi - lo)), 0.1)
         position = centre + size * np.array([0.52, -0.72, 0.4])  # fills the view left of it
@@ -694,6 +765,56 @@ class Viewer:
             ),
         )
 
+    def _build_wholebody_nodes(self) -> None:
+        """A transform control on each whole-body frame (dragged on the page), with a marker
+        and a label (its name, held or not), and the lines from the frames to the targets they
+        miss."""
+        assert self._handles is not None
+        scene, e = self.server.scene, self._extent
+        for i, frame in enumerate(self._handles.frames):
+            name = f"/wholebody/h{i}"
+            handle = self._add(
+                name,
+                "wb_handle",
+                scene.add_transform_controls(
+                    name, scale=0.16 * e, line_width=2.5, depth_test=False
+                ),
+                i,
+            )
+            handle.on_update(lambda _, i=i: self._on_handle_drag(i))
+            held = frame in self._handles.hold
+            self._add(
+                f"{name}/marker",
+                "wb_marker",
+                scene.add_icosphere(
+                    f"{name}/marker",
+                    radius=0.018 * e,
+                    color=HELD_COLOR if held else TARGET_COLOR,
+                ),
+                i,
+            )
+            self._add(
+                f"{name}/label",
+                "label",
+                scene.add_label(
+                    f"{name}/label",
+                    f"{frame} (held)" if held else frame,
+                    position=(0.0, 0.0, -0.03 * e),
+                    anchor="top-left",
+                ),
+            )
+        self._add(
+            "/wholebody/miss",
+            "wb_miss",
+            scene.add_line_segments(
+                "/wholebody/miss",
+                np.zeros((len(self._handles.frames), 2, 3)),
+                UNREACHABLE_COLOR,
+                thickness=0.004 * e,
+                visible=False,
+            ),
+        )
+
     def _build_solution_meshes(self, geometry: Geometry) -> None:
         """One batched mesh per part of the robot, an instance per ghost solution (posed by its
         body's pose in that solution), clickable; sent once, when the IK mode first shows
@@ -774,6 +895,9 @@ class Viewer:
                 "end frame", list(subject.tree.frame_names), initial_value=subject.frame
             )
             self._frame_input.on_update(lambda _: self._on_frame())
+        if self._handles is not None:
+            with gui.add_folder("Whole-body IK"):
+                self._wb_text = gui.add_markdown("")
         with gui.add_folder("Inverse kinematics"):
             self._build_ik_controls()
         tabs = gui.add_tab_group()
@@ -1078,6 +1202,30 @@ class Viewer:
                 return  # an update already solved
             self._show(self._solve(T), move_target=False)
 
+    def _on_handle_drag(self, i: int) -> None:
+        """A drag of whole-body handle ``i`` (each pose the page sends, in viser's thread
+        pool): solve the whole robot for the handle's pose as it is now, the latest one. Held
+        frames that cannot be met together: the handle goes back, the panel says why."""
+        with self._lock:
+            shown = self._wb
+            if self._closed or shown is None:
+                return
+            frame = shown.handles.frames[i]
+            handle = self._nodes[f"/wholebody/h{i}"].handle
+            T = np.eye(4)
+            T[:3, :3] = lie.quat_to_rotation(lie.quat_normalize(handle.wxyz))
+            T[:3, 3] = handle.position
+            if np.array_equal(T, shown.targets[frame]):
+                return  # an update already solved
+            try:
+                found = self._wb_solve(frame, T)
+            except InputError as exc:
+                self._pose(f"/wholebody/h{i}", shown.targets[frame])
+                self._wb_note = f"**{frame} not moved:** {exc}"
+                self._refresh()
+                return
+            self._show_wholebody(found, move_handles=False)
+
     def _on_set_target(self) -> None:
         try:
             T = _pose_from_text(self._target_input.value)
@@ -1262,6 +1410,8 @@ class Viewer:
             if self.comparison is not None:
                 self._refresh_ghost(snap)
             self._refresh_ik(snap)
+            if self._handles is not None:
+                self._refresh_wholebody(snap)
             self._send_poses()
         self.server.flush()
 
@@ -1375,6 +1525,39 @@ class Viewer:
             ),
         )
         _set(self._target_input, "value", _pose_words(shown.target))
+
+    def _refresh_wholebody(self, snap: Snapshot) -> None:
+        """The whole-body handles' markers, labels, miss lines and text. A configuration set
+        by other means (a slider, a button, ``q``, the one-frame IK mode) puts every target at
+        its frame."""
+        tree, handles = self.subject.tree, self._handles
+        assert tree is not None and handles is not None
+        shown = self._wb
+        if shown is None or not np.array_equal(shown.qpos, snap.qpos):
+            shown = self._wb = wholebody.follow(tree, handles, snap.qpos)
+            self._wb_solve_s = None
+            self._wb_note = ""
+            self._pose_handles(shown)
+        segments = np.zeros((len(handles.frames), 2, 3))
+        for i, frame in enumerate(handles.frames):
+            missed, held = shown.missed(frame), frame in handles.hold
+            color = UNREACHABLE_COLOR if missed else HELD_COLOR if held else TARGET_COLOR
+            _set(self._nodes[f"/wholebody/h{i}/marker"].handle, "color", color)
+            text = f"{frame} (held)" if held else frame
+            if missed:
+                text += f": {panel.residual_words(*shown.frame_errors[frame])}"
+                at = snap.frames[tree.frame_index(frame), :3, 3]
+                segments[i] = [at, shown.targets[frame][:3, 3]]
+            _set(self._nodes[f"/wholebody/h{i}/label"].handle, "text", text)
+        miss = self._nodes["/wholebody/miss"].handle
+        _set(miss, "visible", not shown.success)
+        if miss.visible:
+            miss.points = segments.astype(np.float32)
+        self._set_text(
+            "wholebody",
+            self._wb_text,
+            panel.wholebody_text(shown, solve_s=self._wb_solve_s, note=self._wb_note),
+        )
 
     def _show_solutions(self, snap: Snapshot, shown: Reach | None) -> None:
         """The ghosts of the other closed-form solutions (none for ``shown`` None), their
@@ -1565,6 +1748,9 @@ def view(
     open_browser: bool | None = None,
     base: ArrayLike | None = None,
     tool: ArrayLike | None = None,
+    ik: bool = False,
+    frames: str | Sequence[str] | None = None,
+    hold: str | Sequence[str] | None = None,
 ) -> Viewer:
     """Show a robot in the browser: sliders for its joints, its screw axes, ``T(q)``, its
     Jacobian, the PoE step by step, DH frames, and a parameter set beside it.
@@ -1587,19 +1773,45 @@ def view(
         tool: ``T_frame_tool``, a tool on the end frame, given as ``base`` is: the end frame
             drawn (and dragged in the IK mode) is the tool's, the tool a capsule from the frame
             that carries it (:meth:`Chain.with_tool`).
+        ik: start in the IK mode: the target handle on the end frame (the panel's "IK
+            target" box ticked).
+        frames: whole-body IK (:mod:`poekin.viewer.wholebody`): a handle on each of these
+            frames of a tree (names, or one comma-separated string); a drag of one solves the
+            whole robot with :meth:`Tree.ik` (the others keep their targets).
+        hold: some of ``frames`` met exactly whatever the drag (contacts: the feet).
 
     Returns:
         The :class:`Viewer`; ``viewer.q = ...`` poses the robot, ``viewer.close()`` stops it.
 
     Raises:
-        PoekinError: an unknown robot, frame or parameter set, a port in use, and the like.
+        PoekinError: an unknown robot, frame or parameter set, a port in use, ``hold``
+            without ``frames`` or naming a frame not among them, ``ik`` on an end frame the IK
+            mode does not apply to, and the like.
     """
+    if hold is not None and frames is None:
+        raise InputError("hold names some of the whole-body frames: give frames too")
     shown = load_shown(model, frame, base=base, tool=tool)
     subject = shown.subject
+    handles = None
+    if frames is not None:
+        if subject.tree is None:
+            raise InputError("whole-body IK needs a tree: a model, not a bare parameter set")
+        handles = wholebody.check_handles(subject.tree, frames, hold)
     comparison = load_params_comparison(subject, params)
     viewer = Viewer(
-        subject, geometry=_geometry_loader(shown), comparison=comparison, host=host, port=port
+        subject,
+        geometry=_geometry_loader(shown),
+        comparison=comparison,
+        handles=handles,
+        host=host,
+        port=port,
     )
+    if ik and handles is None:
+        try:
+            viewer.set_option("IK target", True)
+        except BaseException:
+            viewer.close()
+            raise
     if open_browser is None:
         open_browser = not _in_jupyter()
     if open_browser:

@@ -26,6 +26,7 @@ from poekin.viewer.scene import (
     pose_summary,
     screw_kind,
 )
+from poekin.viewer.wholebody import WholeBodyReach
 
 __all__ = [
     "JACOBIAN_DIGITS",
@@ -40,6 +41,7 @@ __all__ = [
     "residual_words",
     "screws_text",
     "solution_label",
+    "wholebody_text",
 ]
 
 FloatArray = NDArray[np.float64]
@@ -266,3 +268,46 @@ def solution_label(index: int, q: FloatArray, kinds: Sequence[str], unit: Unit =
         for v, k in zip(q, kinds, strict=True)
     ]
     return f"{index + 1}: " + " ".join(values)
+
+
+_WHOLEBODY_HOW = {
+    "current": "solved from the configuration shown",
+    "restart": "solved after a restart: the first attempt, from the configuration shown, missed",
+    "follow": "the targets are at their frames: drag a handle",
+    "best fit": "the robot shows the first attempt's best fit, from where it was",
+}
+
+
+def wholebody_text(shown: WholeBodyReach, *, solve_s: float | None = None, note: str = "") -> str:
+    """The whole-body IK mode's status: the frames and which are held, reached or not, the
+    worst frame's error, how the robot got there, and each frame's error."""
+    handles = shown.handles
+    held = ", ".join(f"`{f}`" for f in handles.hold) or "none"
+    lines = [f"**{len(handles.frames)}** handles; held (met exactly): {held}"]
+    if shown.success:
+        lines.append("**every frame reached**")
+    else:
+        missed = [f for f in handles.frames if shown.missed(f)]
+        held_ok = all(not shown.missed(f) for f in handles.hold)
+        kept = "; the held frames met" if handles.hold and held_ok else ""
+        lines.append(f"**NOT REACHED**: {', '.join(f'`{f}`' for f in missed)} missed{kept}")
+    frame, pos, ori = shown.worst
+    lines.append(f"worst: `{frame}` `{residual_words(pos, ori)}`")
+    took = "" if solve_s is None else f" ({solve_s * 1e3:.3g} ms)"
+    runs = (
+        ""
+        if not shown.attempts
+        else (
+            f"; {shown.attempts} attempt{'s' if shown.attempts > 1 else ''}, "
+            f"{shown.iterations} iterations"
+        )
+    )
+    lines.append(_WHOLEBODY_HOW[shown.how] + runs + took)
+    if note:
+        lines.append(note)
+    rows = ["| frame | error |", "|---|---|"]
+    for f in handles.frames:
+        name = f"`{f}` (held)" if f in handles.hold else f"`{f}`"
+        rows.append(f"| {name} | {residual_words(*shown.frame_errors[f])} |")
+    lines.append("\n".join(rows))
+    return "\n\n".join(lines)
