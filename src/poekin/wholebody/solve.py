@@ -666,7 +666,7 @@ def _solve(
     if held:
         missed = ~_met(errs, options, [t.held for t in problem.tasks])
         if np.any(missed):
-            _raise_held(problem, errs, missed, batch)
+            _raise_held(problem, errs, missed, batch, options.max_attempts)
     shape = batch
     return WholeBodyResult(
         qpos=best_q.reshape(*shape, tree.nq),
@@ -685,6 +685,7 @@ def _raise_held(
     errs: list[tuple[FloatArray, ...]],
     missed: BoolArray,
     batch: tuple[int, ...],
+    attempts: int,
 ) -> None:
     i = int(np.flatnonzero(missed)[0])
     where = f" at index {tuple(int(v) for v in np.unravel_index(i, batch))}" if batch else ""
@@ -694,8 +695,9 @@ def _raise_held(
     t, (pos, ori) = worst
     raise HeldFramesError(
         f"the held frames {names} cannot all be met together{where}: the best configuration "
-        f"within the limits leaves {t.name!r} {float(pos[i]):.3g} m and {float(ori[i]):.3g} rad "
-        "from its target; move their targets closer together, or hold fewer frames"
+        f"of {attempts} attempt{'s' if attempts != 1 else ''} within the limits leaves "
+        f"{t.name!r} {float(pos[i]):.3g} m and {float(ori[i]):.3g} rad from its target; move "
+        "their targets closer together, hold fewer frames, or allow more max_attempts"
     )
 
 
