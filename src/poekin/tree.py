@@ -176,6 +176,9 @@ class Tree:
             where it is not known; empty (the default): no mass known. :meth:`com` needs them.
         body_com: ``(nb, 3)`` each body's centre of mass in its own frame (m; MuJoCo's
             ``body_ipos``), finite where the mass is known; empty with ``body_mass``.
+        joint_velocity_limits: ``(nj,)`` each joint's largest speed (rad/s, m/s; a URDF's
+            ``<limit velocity>``), ``inf`` for none (MuJoCo has none); empty: none. What
+            :meth:`ik_step` keeps the step within when it is given no ``velocity_limits``.
         qpos_adr: ``(nj,)`` where each joint's numbers start in ``qpos`` (a mimic joint: its
             leader's) (derived).
     """
@@ -200,6 +203,7 @@ class Tree:
     robot: str = ""
     body_mass: FloatArray = dataclasses.field(default_factory=lambda: np.zeros(0))
     body_com: FloatArray = dataclasses.field(default_factory=lambda: np.zeros((0, 3)))
+    joint_velocity_limits: FloatArray = dataclasses.field(default_factory=lambda: np.zeros(0))
     qpos_adr: IntArray = dataclasses.field(init=False, repr=False)
     _slots: IntArray = dataclasses.field(init=False, repr=False)
     _slot_scale: FloatArray = dataclasses.field(init=False, repr=False)
@@ -249,6 +253,15 @@ class Tree:
         set_(self, "site_pos", readonly_array(self.site_pos, (ns, 3), "site_pos"))
         set_(self, "site_rot", readonly_array(self.site_rot, (ns, 3, 3), "site_rot"))
         self._check_masses()
+        speeds = np.array(self.joint_velocity_limits, dtype=np.float64)
+        if speeds.size == 0:
+            speeds = np.full(nj, np.inf)
+        if speeds.shape != (nj,) or np.any(np.isnan(speeds)) or np.any(speeds <= 0):
+            raise InputError(
+                f"joint_velocity_limits must be ({nj},) numbers > 0 (inf for none), or empty"
+            )
+        speeds.flags.writeable = False
+        set_(self, "joint_velocity_limits", speeds)
         if self._base is not None:
             base = rigid_transform(self._base, "base")
             base.flags.writeable = False
@@ -1287,7 +1300,9 @@ class Tree:
             hold, position_only, orientation_only, weights, posture, freeze: as for
                 :meth:`ik`.
             velocity_limits: the largest speed of each ``qvel`` entry (rad/s, m/s): one
-                number, or ``(nv,)`` with ``inf`` for none; default none.
+                number, or ``(nv,)`` with ``inf`` for none; default the model's
+                (:attr:`joint_velocity_limits`: a URDF's ``<limit velocity>``; an MJCF has
+                none).
             gain: the fraction of each soft frame's error removed in one tick (1: all of it).
             damping: the step's Tikhonov damping (m^2).
             orientation_weight: metres per radian in the residual.

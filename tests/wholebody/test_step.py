@@ -178,3 +178,25 @@ def test_bad_step_options() -> None:
         tree.ik_step(targets, tree.qpos0, DT, velocity_limits=[1.0, 2.0])
     with pytest.raises(InputError, match="gain must be"):
         tree.ik_step(targets, tree.qpos0, DT, gain=-1.0)
+
+
+def test_a_urdfs_velocity_limits_bound_the_step() -> None:
+    """<limit velocity> read as Pinocchio reads it (model.velocityLimit), and the step within
+    it when no velocity_limits are given; a continuous joint has none."""
+    import pathlib
+
+    pin = pytest.importorskip("pinocchio")
+    path = pathlib.Path(__file__).parents[1] / "data" / "urdf" / "serial_arm.urdf"
+    tree = poekin.load_tree(path)
+    model = pin.buildModelFromUrdf(str(path))
+    by_name = {
+        name: float(model.velocityLimit[model.joints[model.getJointId(name)].idx_v])
+        for name in tree.joint_names
+    }
+    for name, speed in zip(tree.joint_names, tree.joint_velocity_limits, strict=True):
+        assert speed == by_name[name] or (np.isinf(speed) and name == "j4"), name
+    frame = tree.frame_names[-1]
+    far = tree.pose(np.full(tree.nq, 1.0), frame)
+    qvel = tree.ik_step({frame: far}, np.zeros(tree.nq), 0.01)
+    assert np.all(np.abs(qvel) <= tree.joint_velocity_limits * (1 + 1e-12))
+    assert np.any(np.isclose(np.abs(qvel), tree.joint_velocity_limits, rtol=1e-12))

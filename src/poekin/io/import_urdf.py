@@ -195,6 +195,7 @@ def tree_from_urdf(
             robot=robot or urdf_robot.name,
             body_mass=body_mass,
             body_com=body_com,
+            joint_velocity_limits=np.array([_speed(joint) for joint in urdf_joints]),
         )
     except InputError as exc:  # what Tree refuses: a guard, as the checks above catch all known
         raise URDFError(f"{where}: {exc}") from exc
@@ -607,6 +608,16 @@ def _limits(joint: Any | None) -> tuple[tuple[float, float], str]:
     if lower == upper:
         return unlimited, given
     return (float(lower), float(upper)), ""
+
+
+def _speed(joint: Any | None) -> float:
+    """A revolute or prismatic joint's ``<limit velocity>`` (rad/s, m/s), ``inf`` where it
+    gives none or one that is not > 0."""
+    limit = None if joint is None else joint.limit
+    velocity = None if limit is None else getattr(limit, "velocity", None)
+    if velocity is None or not math.isfinite(float(velocity)) or float(velocity) <= 0:
+        return math.inf
+    return float(velocity)
 
 
 def _limits_note(where: str, unused: list[tuple[str, str]]) -> str:

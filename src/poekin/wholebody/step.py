@@ -50,9 +50,17 @@ def _positive(value: object, name: str, unit: str, *, zero: bool = False) -> flo
     return x
 
 
-def _velocity_limits(value: ArrayLike | None, nv: int) -> FloatArray:
+def _velocity_limits(value: ArrayLike | None, tree: Tree) -> FloatArray:
+    """``(nv,)`` each qvel entry's largest speed: ``value``, or the model's
+    (:attr:`poekin.Tree.joint_velocity_limits` on hinge and slide entries, none on ball and
+    free ones)."""
+    nv = tree.nv
     if value is None:
-        return np.full(nv, np.inf)
+        out = np.full(nv, np.inf)
+        for k, (kind, mimic) in enumerate(zip(tree.joint_types, tree.mimics, strict=True)):
+            if mimic is None and kind in ("revolute", "prismatic"):
+                out[tree._dof_adr[k]] = tree.joint_velocity_limits[k]
+        return out
     arr = np.asarray(value, dtype=np.float64)
     if arr.shape not in ((), (nv,)) or np.any(np.isnan(arr)) or np.any(arr <= 0):
         raise InputError(
@@ -97,7 +105,7 @@ def ik_step(
         tree, tasks, qpos, posture, freeze, options, 0, clip=False, starts=False
     )
     sp = problem.space
-    limits = _velocity_limits(velocity_limits, tree.nv)[sp.variables] * dt
+    limits = _velocity_limits(velocity_limits, tree)[sp.variables] * dt
     A, _, C, d, _ = problem.residual(q)
     lo, hi = sp.bounds(q)
     lo, hi = np.maximum(lo, -limits), np.minimum(hi, limits)
