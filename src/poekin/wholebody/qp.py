@@ -137,10 +137,15 @@ def _levels(
     and 2 only, and of level 1 only."""
     free = ~fixed
     fixed_value = np.where(fixed, value, 0.0)
-    M = np.concatenate([A * free[:, None, :], fixed[:, :, None] * np.eye(A.shape[2])], axis=1)
-    r = np.concatenate([b - _bmv(A, fixed_value), np.zeros(fixed.shape)], axis=1)
-    x1, Z, _ = _damped_solve(M, r, lam_hold)
-    x_hold = x1 + fixed_value
+    if A.shape[1] == 0:  # no held rows: level 1 is the held entries alone, its null space theirs
+        x_hold = fixed_value
+        Z = free[:, None, :] * np.eye(A.shape[2])
+    else:
+        eye = fixed[:, :, None] * np.eye(A.shape[2])
+        M = np.concatenate([A * free[:, None, :], eye], axis=1)
+        r = np.concatenate([b - _bmv(A, fixed_value), np.zeros(fixed.shape)], axis=1)
+        x1, Z, _ = _damped_solve(M, r, lam_hold)
+        x_hold = x1 + fixed_value
     Y = C @ Z
     z, N, _ = _damped_solve(Y, d - _bmv(C, x_hold), lam_soft)
     x_soft = x_hold + _bmv(Z, z)
