@@ -8,8 +8,10 @@ MuJoCo::
 
     python examples/teleop_step.py --seconds 2
 
-The targets are 1 cm circles at 0.5 Hz: a frame that follows within a tick trails by the
-distance its target moves in one tick, about 0.06 mm.
+The targets are 1 cm circles at 0.5 Hz, each tick's target the one for the end of that tick:
+with the step's gain of 1 a frame lands within nanometres of it (the step is first order in
+the 0.06 mm its target moves a tick) as long as the velocity limits allow; the arms start
+bent, away from the singular straight pose.
 """
 
 from __future__ import annotations
@@ -39,6 +41,14 @@ def _frame_pose(model: mujoco.MjModel, data: mujoco.MjData, frame: str) -> np.nd
     return T
 
 
+# Starts away from the arms' singular poses (both arms straight at qpos0 = 0 lose a direction):
+# the UR5e's elbow and wrist bent, each ALOHA arm's shoulder, elbow and wrist
+STARTS = {
+    "universal_robots_ur5e": [0.0, -1.2, 1.4, -1.8, -1.57, 0.0],
+    "aloha": [0.0, -0.6, 0.6, 0.0, 0.6, 0.0, 0.02, 0.02] * 2,
+}
+
+
 def run(robot: str, frames: tuple[str, ...], seconds: float) -> tuple[float, float]:
     """The median step time (s) and the largest distance a frame trailed its target (m)."""
     with warnings.catch_warnings():
@@ -46,7 +56,7 @@ def run(robot: str, frames: tuple[str, ...], seconds: float) -> tuple[float, flo
         loaded = poekin.load_model(robot)
     tree, model = poekin.load_tree(loaded), loaded.model
     data = mujoco.MjData(model)
-    data.qpos[:] = tree.qpos0
+    data.qpos[:] = STARTS[robot]
     mujoco.mj_forward(model, data)
     start = {f: _frame_pose(model, data, f) for f in frames}
     dt = 1.0 / RATE
@@ -81,7 +91,7 @@ def main() -> None:
         step, trail = run(robot, frames, args.seconds)
         print(
             f"{robot}: {int(args.seconds * RATE)} ticks at {RATE:.0f} Hz, median step "
-            f"{step * 1e6:.0f} us, frames within {trail * 1e3:.3f} mm of their targets"
+            f"{step * 1e6:.0f} us, frames within {trail * 1e3:.1e} mm of their targets"
         )
 
 
