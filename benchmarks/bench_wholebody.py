@@ -630,7 +630,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         epilog=__doc__[__doc__.index("examples:") :] if __doc__ else None,
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
-    parser.add_argument("--quick", action="store_true", help="small sizes, seconds: a check that it runs")
+    parser.add_argument(
+        "--quick", action="store_true", help="small sizes, seconds: a check that it runs"
+    )
     parser.add_argument("--profile", action="store_true", help="cProfile of ik_step calls")
     parser.add_argument(
         "--blas-threads", type=int, help="run everything with BLAS and LAPACK on this many threads"
