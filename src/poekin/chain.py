@@ -777,11 +777,12 @@ class Chain:
                 calibrated arm's refined one too): the valid branch nearest ``q0``, its
                 angles the equivalents nearest ``q0`` (:func:`poekin.wrap`), where a target
                 has one (``iterations`` 0 there), else the numerical solve from ``q0``. NumPy.
-            posture: with ``q0``, for a redundant arm: a gain from 0 to 1 (or one per joint,
-                its weight) pulling toward ``q0`` in the target's null space, so that of the
-                configurations that reach the target the solve prefers those near ``q0``
-                (:mod:`poekin.wholebody.chains`: the whole-body solver's posture level; 0, the
-                default, is the usual solve). NumPy.
+            posture: with ``q0``, for a redundant arm: a weight ``> 0`` (or one ``>= 0`` per
+                joint) of the pull toward ``q0`` in the target's null space, so that of the
+                configurations that reach the target the solve returns the one nearest ``q0``
+                (in the norm ``sum w_i dq_i^2``: only the weights' ratios matter, the target
+                comes first; :mod:`poekin.wholebody.chains`); 0, the default, is the usual
+                solve. NumPy.
 
         Returns:
             An :class:`~poekin.ik.IKResult`: ``q`` ``(..., n)`` (always within the joint

@@ -1181,8 +1181,10 @@ class Tree:
             max_attempts: attempts per target (default 100 for one frame, 20 for many).
             hold: many: the names of the frames met exactly (contacts, e.g. the feet).
             weights: many: frame name to weight (default 1) of a soft frame's cost.
-            posture: many: a gain from 0 to 1 (or one per ``qvel`` entry) toward ``qpos`` in
-                the null space of the targets; the floating base is never pulled.
+            posture: many: a weight ``> 0`` (or one ``>= 0`` per ``qvel`` entry) of the pull
+                toward ``qpos`` in the null space of the targets: the solution nearest
+                ``qpos`` in the norm ``sum w_i dq_i^2`` (only the ratios matter: the targets
+                come first); the floating base is never pulled.
             freeze: many: names of joints kept at ``qpos`` (a humanoid's fingers).
 
         Returns:
@@ -1286,7 +1288,7 @@ class Tree:
 
         The least-squares step of :mod:`poekin.wholebody.step` from ``qpos``: the held
         frames' velocity exactly zero, the soft frames moved ``gain`` of the way to their
-        targets (weighted, damped by ``damping``), the posture (a gain toward
+        targets (weighted, damped by ``damping``), the posture (toward
         :attr:`qpos0`) in what redundancy is left, and every hinge and slide joint within its
         limits at ``qpos + qvel dt`` and within ``velocity_limits``. Integrate the answer as
         MuJoCo does (``mj_integratePos``: a free joint's linear part in the world frame, its

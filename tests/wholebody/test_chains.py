@@ -54,7 +54,7 @@ def test_posture_needs_q0_and_numpy() -> None:
     T = chain.fk(np.zeros(6))
     with pytest.raises(InputError, match="posture pulls toward q0: give q0"):
         chain.ik(T, posture=0.5)
-    with pytest.raises(InputError, match="posture must be a gain from 0 to 1, or 6 of them"):
+    with pytest.raises(InputError, match="posture must be a weight >= 0, or 6 of them"):
         chain.ik(T, np.zeros(6), posture=[0.5, 0.5])
     with pytest.raises(
         InputError, match="it takes no max_total_iterations, params or nearest_branch"

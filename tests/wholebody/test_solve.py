@@ -255,8 +255,8 @@ def test_bad_options(g1: tuple[poekin.Tree, mujoco.MjModel]) -> None:
     targets = _g1_targets(tree)
     with pytest.raises(InputError, match="freeze names 'left_knee', which is no joint"):
         tree.ik(targets, tree.qpos0, freeze={"left_knee"})
-    with pytest.raises(InputError, match="posture must be a gain from 0 to 1"):
-        tree.ik(targets, tree.qpos0, posture=2.0)
+    with pytest.raises(InputError, match="posture must be a weight >= 0"):
+        tree.ik(targets, tree.qpos0, posture=-1.0)
     with pytest.raises(InputError, match="non-empty dict"):
         tree.ik({}, tree.qpos0)
     with pytest.raises(InputError, match="hold= is for a dict of targets"):
@@ -299,3 +299,24 @@ def test_rotation_error_is_the_quaternion_vector_of_lie() -> None:
     expected = 2.0 * np.where(quat[:, :1] < 0, -quat[:, 1:], quat[:, 1:])
     np.testing.assert_allclose(rotation_error(R), expected, atol=2e-15, rtol=0)
     np.testing.assert_allclose(_angle(R), poekin.lie.rotation_angle(R), atol=1e-15, rtol=0)
+
+
+def test_a_weak_posture_is_the_same_level_as_a_strong_one(
+    g1: tuple[poekin.Tree, mujoco.MjModel],
+) -> None:
+    """posture=0.01 (the size mink's examples use) and posture=1 pull the G1 to the same
+    configuration: the posture is the last level, its weights' ratios only matter; both meet
+    every target, checked by MuJoCo."""
+    tree, model = g1
+    q_true = _near(tree, 8, 0.2, seed=9)
+    targets = _targets(tree, q_true, ("left_elbow_roll_link", "right_elbow_roll_link", *FEET))
+    weak = tree.ik(targets, tree.qpos0, hold=FEET, posture=0.01)
+    strong = tree.ik(targets, tree.qpos0, hold=FEET, posture=1.0)
+    assert weak.success.all() and strong.success.all()
+    np.testing.assert_array_equal(weak.qpos, strong.qpos)
+    for frame, err in _mj_errors(model, weak.qpos, targets, {}).items():
+        assert err.max() <= TOL, frame
+    plain = tree.ik(targets, tree.qpos0, hold=FEET)
+    arms = slice(7, tree.nq)
+    pulled = np.linalg.norm(weak.qpos[:, arms] - tree.qpos0[arms], axis=1)
+    assert np.all(pulled <= np.linalg.norm(plain.qpos[:, arms] - tree.qpos0[arms], axis=1) + 1e-9)

@@ -85,7 +85,7 @@ def test_an_unreachable_soft_frame_exits_1_with_the_feet_held(
             ["--pose", "1", "2", "3"],
             "--targets places every frame the file names: it takes no --pose",
         ),
-        ({}, ["--posture", "3"], "--posture must be a gain from 0 to 1"),
+        ({}, ["--posture", "-1"], "--posture must be a weight >= 0"),
     ],
 )
 def test_bad_targets_are_one_line(

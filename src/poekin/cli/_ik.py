@@ -733,9 +733,9 @@ def register(sub: Any, fmt: type[argparse.HelpFormatter]) -> None:
     p.add_argument(
         "--posture",
         type=float,
-        metavar="GAIN",
-        help="with --targets: pull toward the start (--qpos or qpos0), 0 to 1, in the "
-        "redundancy left",
+        metavar="WEIGHT",
+        help="with --targets: pull toward the start (--qpos or qpos0) in the redundancy "
+        "left, weight > 0 (0: none)",
     )
     add_precision(p)
     p.set_defaults(run=_cmd_ik)

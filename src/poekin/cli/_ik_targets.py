@@ -58,8 +58,8 @@ def check_targets_args(args: argparse.Namespace) -> None:
             f"--targets places every frame the file names: it takes no {', '.join(given)} "
             "(a frame is placed by position only when its target is three numbers)"
         )
-    if args.posture is not None and not (math.isfinite(args.posture) and 0 <= args.posture <= 1):
-        raise InputError(f"--posture must be a gain from 0 to 1, got {args.posture}")
+    if args.posture is not None and not (math.isfinite(args.posture) and args.posture >= 0):
+        raise InputError(f"--posture must be a weight >= 0, got {args.posture}")
 
 
 def _target(name: str, value: Any, where: str) -> FloatArray:

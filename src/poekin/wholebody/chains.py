@@ -51,7 +51,7 @@ def solve_chain(
     arr = np.asarray(posture, dtype=np.float64) if not isinstance(posture, bool) else None
     if arr is None or arr.shape not in ((), (chain.n_joints,)):
         raise InputError(
-            f"posture must be a gain from 0 to 1, or {chain.n_joints} of them (one per joint), "
+            f"posture must be a weight >= 0, or {chain.n_joints} of them (one per joint), "
             f"got {posture!r:.60}"
         )
     if options.max_total_iterations is not None:

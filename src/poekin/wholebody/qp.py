@@ -7,8 +7,10 @@ each batch entry it finds ``x (n,)`` that
 1. meets the held rows ``A x = b`` (in the least-squares sense where they cannot all be met,
    damped by ``lam_hold``): the particular solution of least norm;
 2. then minimises ``|C x - d|^2 + lam_soft |x - x_hold|^2`` over the null space of ``A``;
-3. then moves toward ``posture`` in what null space of ``A`` and ``C`` is left (its
-   orthogonal projection there: it changes neither level above);
+3. then moves toward ``posture`` in what null space of ``A`` and ``C`` is left, as far as that
+   space allows: the move there nearest ``posture`` in the norm ``sum w_i x_i^2`` of the
+   posture's weights (equal weights: the orthogonal projection), which changes neither level
+   above;
 4. with every bounded entry within ``lo <= x <= hi``: an active set. An entry that leaves its
    box is held at its bound (a row ``x_i = bound`` joins level 1) and the levels are solved
    again; an entry held where the first-order optimality condition (the Lagrangian's
@@ -84,6 +86,7 @@ def step(
     lam_hold: FloatArray,
     lam_soft: FloatArray,
     posture: FloatArray | None = None,
+    posture_weights: FloatArray | None = None,
 ) -> Step:
     """The step of the levels above, batched.
 
@@ -93,6 +96,7 @@ def step(
         lo, hi: ``(B, n)`` bounds on ``x`` (``-inf``/``inf`` where none), ``lo <= 0 <= hi``.
         lam_hold, lam_soft: ``(B,)`` damping of levels 1 and 2.
         posture: ``(B, n)`` the move level 3 wants, or None.
+        posture_weights: ``(n,)`` weights ``>= 0`` of its entries, or None (all equal).
 
     Returns:
         :class:`Step`.
@@ -102,7 +106,9 @@ def step(
     value = np.zeros((B, n))
     released = np.zeros((B, n), dtype=bool)
     for _ in range(2 * n + 1):
-        x, x_soft, x_hold = _levels(A, b, C, d, fixed, value, lam_hold, lam_soft, posture)
+        x, x_soft, x_hold = _levels(
+            A, b, C, d, fixed, value, lam_hold, lam_soft, posture, posture_weights
+        )
         below = ~fixed & (x < lo - _BOUND_TOL)
         above = ~fixed & (x > hi + _BOUND_TOL)
         outside = below | above
@@ -132,6 +138,7 @@ def _levels(
     lam_hold: FloatArray,
     lam_soft: FloatArray,
     posture: FloatArray | None,
+    weights: FloatArray | None,
 ) -> tuple[FloatArray, FloatArray, FloatArray]:
     """Levels 1 to 3 with the ``fixed`` entries at ``value``: ``x``, and that of levels 1
     and 2 only, and of level 1 only."""
@@ -151,8 +158,13 @@ def _levels(
     x_soft = x_hold + _bmv(Z, z)
     if posture is None:
         return x_soft, x_soft, x_hold
-    ZN = Z @ N
-    return x_soft + _bmv(ZN, _bmtv(ZN, np.where(fixed, 0.0, posture))), x_soft, x_hold
+    ZN = Z @ N  # an orthonormal basis of what is left (and zero columns)
+    p = np.where(fixed, 0.0, posture)
+    if weights is None or np.all(weights == weights[0]):
+        return x_soft + _bmv(ZN, _bmtv(ZN, p)), x_soft, x_hold
+    root = np.sqrt(weights)
+    c = _lstsq(root[None, :, None] * ZN, root * p)  # min |W^1/2 (ZN c - p)|
+    return x_soft + _bmv(ZN, c), x_soft, x_hold
 
 
 def _to_release(

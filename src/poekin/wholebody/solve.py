@@ -60,7 +60,7 @@ STALL_FACTOR = 0.5
 STALL_ITERATIONS = 8
 DRAWS = 16  # random starts a further attempt draws, of which it keeps the best
 CHAIN_ATTEMPTS = 30  # attempts of each frame's chain solve in a further attempt's start
-POSTURE_TOL = 1e-10  # rad (m): a solve with a posture goes on until its pull moves less
+POSTURE_TOL = 1e-9  # rad (m): a solve with a posture goes on until its pull moves less
 POLISH_ITERATIONS = 20  # level 1 alone, after an attempt that misses a held frame
 
 
@@ -539,7 +539,7 @@ def _iterate(
         lo, hi = problem.space.bounds(ql[go])
         posture = None
         if soft and np.any(problem.posture):
-            posture = problem.posture * problem.space.difference(ql[go], reference[rows[g]])
+            posture = problem.space.difference(ql[go], reference[rows[g]])
         if not soft:
             C, d = C[:, :0], d[:, :0]
         taken = qp.step(
@@ -552,6 +552,7 @@ def _iterate(
             DAMPING * hold_cost[go] + FLOOR,
             DAMPING * soft_cost[go] + FLOOR,
             posture,
+            problem.posture,
         )
         x = taken.x
         posture_move[g] = taken.posture_move
@@ -750,11 +751,11 @@ def _problem(
 
 
 def _posture(posture: float | ArrayLike, sp: Space) -> FloatArray:
-    """Per-variable gains in ``[0, 1]``: one number for every joint, or ``(nv,)``."""
+    """Per-variable weights ``>= 0``: one number for every joint, or ``(nv,)``."""
     arr = np.asarray(posture, dtype=np.float64) if not isinstance(posture, bool) else None
-    if arr is None or arr.shape not in ((), (sp.nv,)) or not np.all((arr >= 0) & (arr <= 1)):
+    if arr is None or arr.shape not in ((), (sp.nv,)) or not np.all(np.isfinite(arr) & (arr >= 0)):
         raise InputError(
-            f"posture must be a gain from 0 to 1, or {sp.nv} of them (one per qvel entry), "
+            f"posture must be a weight >= 0, or {sp.nv} of them (one per qvel entry), "
             f"got {posture!r:.60}"
         )
     gains: FloatArray = np.broadcast_to(arr, (sp.nv,))[sp.variables].copy()

@@ -7,7 +7,7 @@ qvel dt``:
 
 1. the held frames' velocity is zero: ``J_held x = 0`` exactly (whatever the targets ask);
 2. the soft rows ``min sum w |J x - gain e|^2 + damping |x|^2`` in that null space;
-3. the posture (a gain toward the reference configuration) in what null space is left;
+3. the posture (toward the reference configuration, weighted) in what null space is left;
 4. every hinge and slide joint within its limits at ``qpos + qvel dt`` and within its
    velocity limit: ``max(lower - q, -v_max dt) <= x <= min(upper - q, v_max dt)``.
 
@@ -113,7 +113,7 @@ def ik_step(
     posture_step = None
     if np.any(problem.posture):
         reference = np.broadcast_to(tree.qpos0, q.shape)
-        posture_step = problem.posture * sp.difference(q, reference)
+        posture_step = sp.difference(q, reference)
     with one_thread():  # small SVDs: a thread pool only waits (poekin._blas)
         x = qp.step(
             A,
@@ -125,6 +125,7 @@ def ik_step(
             np.full(B, FLOOR),
             np.full(B, damping + FLOOR),
             posture_step,
+            problem.posture,
         ).x
     qvel = np.zeros((B, tree.nv))
     qvel[:, sp.variables] = x / dt
