@@ -256,16 +256,26 @@ def _restart(
     slide joints that move a frame still missed drawn anew (uniform within their limits),
     the rest kept (a humanoid whose feet are placed retries its arms and torso). Odd
     attempts, and entries that miss nothing the draw could move: :func:`_best_drawn`."""
-    sp = problem.space
-    paths = problem.paths  # (tasks, h): the joints that move each task's frame
     t_pos, t_ori = problem.tolerances
     missed = np.stack([(pos > t_pos) | (ori > t_ori) for pos, ori in errs], axis=1)
-    moves_missed = (missed.astype(np.int64) @ paths) > 0
-    redraw = moves_missed
+    redraw = (missed.astype(np.int64) @ problem.paths) > 0  # joints that move a missed frame
     partial = np.any(redraw, axis=1) & (attempt % 2 == 0)  # odd attempts redraw all
-    redraw = np.where(partial[:, None], redraw, np.any(paths, axis=0)[None, :])
-    q = np.where(partial[:, None], best, q0)
-    counter = np.full(len(rows), attempt, dtype=np.int64)
+    q = np.array(best)
+    some = np.flatnonzero(partial)
+    if some.size:
+        counter = np.full(some.size, attempt, dtype=np.int64)
+        q[some] = _drawn(problem.space, q[some], redraw[some], keys[some], counter)
+    full = np.flatnonzero(~partial)
+    if full.size:
+        q[full] = _best_drawn(problem, keys[full], attempt, q0[full], rows[full])
+    return q
+
+
+def _drawn(sp: Space, q: FloatArray, redraw: BoolArray, keys: Any, counter: IntArray) -> FloatArray:
+    """``q (B, nq)`` with each solved hinge or slide joint ``j`` where ``redraw[:, j]`` drawn
+    uniform within its limits (an unlimited hinge in ``[-pi, pi)``, an unlimited slide kept),
+    from the keys at their counters (:func:`poekin.ik._rng.uniform`)."""
+    q = np.array(q)
     for j, a in enumerate(sp.scalar_q):
         lo, hi = sp.lower[j], sp.upper[j]
         if not (math.isfinite(lo) and math.isfinite(hi)):
@@ -274,9 +284,6 @@ def _restart(
             lo, hi = -math.pi, math.pi
         u = _rng.uniform(keys, counter, j)
         q[:, a] = np.where(redraw[:, j], lo + u * (hi - lo), q[:, a])
-    full = np.flatnonzero(~partial)
-    if full.size:
-        q[full] = _best_drawn(problem, keys[full], attempt, q0[full], rows[full])
     return q
 
 
@@ -287,20 +294,13 @@ def _best_drawn(
     placed (:func:`_placed`) and each frame then solved alone (:func:`_by_chains`), the one
     of least cost (held frames first): where frames share joints (a torso under both arms),
     the draws are the search over those joints."""
-    sp = problem.space
-    movers = np.any(problem.paths, axis=0)
     B = len(rows)
-    many = np.repeat(q0, DRAWS, axis=0)
     many_rows = np.repeat(rows, DRAWS)
     counter = (attempt * DRAWS + np.tile(np.arange(DRAWS), B)).astype(np.int64)
-    many_keys = np.repeat(keys, DRAWS)
-    for j, a in enumerate(sp.scalar_q):
-        lo, hi = sp.lower[j], sp.upper[j]
-        if not movers[j] or not (math.isfinite(lo) and math.isfinite(hi)):
-            if not (movers[j] and sp.revolute[j]):
-                continue
-            lo, hi = -math.pi, math.pi
-        many[:, a] = lo + _rng.uniform(many_keys, counter, j) * (hi - lo)
+    movers = np.broadcast_to(np.any(problem.paths, axis=0), (B * DRAWS, problem.paths.shape[1]))
+    many = _drawn(
+        problem.space, np.repeat(q0, DRAWS, axis=0), movers, np.repeat(keys, DRAWS), counter
+    )
     many = _by_chains(problem, _placed(problem, many, many_rows), many_rows, attempt)
     _, b, _, d, _ = problem.residual(many, many_rows)
     hold = np.sum(b * b, axis=1).reshape(B, DRAWS)
@@ -595,90 +595,61 @@ def solve(
     one BLAS thread (:mod:`poekin._blas`: its SVDs are of a few dozen columns, which a busy
     machine's thread pool slows tenfold)."""
     with one_thread():
-        return _solve(
+        tasks = parse(
             tree,
             targets,
-            qpos,
             hold=hold,
             position_only=position_only,
             orientation_only=orientation_only,
             weights=weights,
-            posture=posture,
-            freeze=freeze,
-            seed=seed,
-            options=options,
         )
-
-
-def _solve(
-    tree: Tree,
-    targets: Mapping[str, ArrayLike],
-    qpos: ArrayLike | None,
-    *,
-    hold: object,
-    position_only: object,
-    orientation_only: object,
-    weights: Mapping[str, float] | None,
-    posture: float | ArrayLike,
-    freeze: Collection[str],
-    seed: int,
-    options: Settings,
-) -> WholeBodyResult:
-    tasks = parse(
-        tree,
-        targets,
-        hold=hold,
-        position_only=position_only,
-        orientation_only=orientation_only,
-        weights=weights,
-    )
-    seed = check_seed(seed)
-    problem, q0, batch = _problem(tree, tasks, qpos, posture, freeze, options, seed)
-    B = q0.shape[0]
-    keys: Any = None  # drawn at the first further attempt
-    best_q = np.array(q0)
-    best_hold = np.full(B, np.inf)
-    best_soft = np.full(B, np.inf)
-    success = np.zeros(B, dtype=bool)
-    iterations = np.zeros(B, dtype=np.int64)
-    attempts = np.zeros(B, dtype=np.int64)
-    for attempt in range(options.max_attempts):
-        rows = np.flatnonzero(~success)
-        if rows.size == 0:
-            break
-        if attempt == 0:
-            start = q0[rows]
-        else:
-            *_, errs = problem.residual(best_q[rows], rows)
-            if keys is None:
-                keys = _keys(seed, problem, q0)
-            start = _restart(problem, keys[rows], attempt, best_q[rows], q0[rows], rows, errs)
-        q, hold_c, soft_c, ok, its = _attempt(problem, start, rows, options, q0)
-        better = ok | _better(hold_c == 0, hold_c, soft_c, best_hold[rows], best_soft[rows])
-        best_q[rows[better]] = q[better]
-        best_hold[rows[better]] = hold_c[better]
-        best_soft[rows[better]] = soft_c[better]
-        success[rows] = ok
-        iterations[rows] += its
-        attempts[rows] += 1
-    *_, errs = problem.residual(best_q)
-    success = _met(errs, options, [True] * len(problem.tasks))
-    held = [t for t in problem.tasks if t.held]
-    if held:
-        missed = ~_met(errs, options, [t.held for t in problem.tasks])
-        if np.any(missed):
-            _raise_held(problem, errs, missed, batch, options.max_attempts)
-    shape = batch
-    return WholeBodyResult(
-        qpos=best_q.reshape(*shape, tree.nq),
-        success=success.reshape(shape),
-        frame_errors={
-            t.name: (pos.reshape(shape), ori.reshape(shape))
-            for t, (pos, ori) in zip(problem.tasks, errs, strict=True)
-        },
-        iterations=iterations.reshape(shape),
-        attempts=attempts.reshape(shape),
-    )
+        seed = check_seed(seed)
+        problem, q0, batch = _problem(tree, tasks, qpos, posture, freeze, options, seed)
+        B = q0.shape[0]
+        keys: Any = None  # drawn at the first further attempt
+        best_q = np.array(q0)
+        best_hold = np.full(B, np.inf)
+        best_soft = np.full(B, np.inf)
+        success = np.zeros(B, dtype=bool)
+        iterations = np.zeros(B, dtype=np.int64)
+        attempts = np.zeros(B, dtype=np.int64)
+        for attempt in range(options.max_attempts):
+            rows = np.flatnonzero(~success)
+            if rows.size == 0:
+                break
+            if attempt == 0:
+                start = q0[rows]
+            else:
+                *_, errs = problem.residual(best_q[rows], rows)
+                if keys is None:
+                    keys = _keys(seed, problem, q0)
+                start = _restart(problem, keys[rows], attempt, best_q[rows], q0[rows], rows, errs)
+            q, hold_c, soft_c, ok, its = _attempt(problem, start, rows, options, q0)
+            better = ok | _better(hold_c == 0, hold_c, soft_c, best_hold[rows], best_soft[rows])
+            best_q[rows[better]] = q[better]
+            best_hold[rows[better]] = hold_c[better]
+            best_soft[rows[better]] = soft_c[better]
+            success[rows] = ok
+            iterations[rows] += its
+            attempts[rows] += 1
+        *_, errs = problem.residual(best_q)
+        success = _met(errs, options, [True] * len(problem.tasks))
+        held = [t for t in problem.tasks if t.held]
+        if held:
+            missed = ~_met(errs, options, [t.held for t in problem.tasks])
+            if np.any(missed):
+                _raise_held(problem, errs, missed, batch, options.max_attempts)
+        shape = batch
+        return WholeBodyResult(
+            qpos=best_q.reshape(*shape, tree.nq),
+            success=success.reshape(shape),
+            frame_errors={
+                t.name: (pos.reshape(shape), ori.reshape(shape))
+                for t, (pos, ori) in zip(problem.tasks, errs, strict=True)
+            },
+            iterations=iterations.reshape(shape),
+            attempts=attempts.reshape(shape),
+        )
 
 
 def _raise_held(

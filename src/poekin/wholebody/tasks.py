@@ -73,14 +73,6 @@ class Tasks:
     tasks: tuple[Task, ...]
     batch: tuple[int, ...]
 
-    @property
-    def held(self) -> tuple[Task, ...]:
-        return tuple(t for t in self.tasks if t.held)
-
-    @property
-    def soft(self) -> tuple[Task, ...]:
-        return tuple(t for t in self.tasks if not t.held)
-
 
 def _names(value: object, what: str) -> frozenset[str]:
     if value is None:
