@@ -125,7 +125,7 @@ LAYERS = (
     ),
     ("poekin.kernel",),
     ("poekin._poe", "poekin._levels"),
-    ("poekin.ik", "poekin.wholebody"),
+    ("poekin.ik", "poekin.wholebody", "poekin.motion"),
     ("poekin.chain", "poekin.tree", "poekin.dh"),
     ("poekin.io",),
     ("poekin.verification",),

@@ -1,0 +1,17 @@
+"""Motion through time: paths, time scaling, IK along a path, retiming, whole clips.
+
+* :mod:`~poekin.motion.scaling`: time scalings ``s(t)`` (cubic, quintic, trapezoid);
+* :mod:`~poekin.motion.paths`: pose paths (screw motion, straight line) and their twists;
+* :mod:`~poekin.motion.retime`: the fastest timing of a joint path within limits;
+* :mod:`~poekin.motion.follow`: IK along a pose path, the branch kept (:meth:`poekin.Chain.follow`);
+* :mod:`~poekin.motion.track`: a whole clip of targets solved as one problem.
+
+Maths only: no file or terminal I/O here (the CLI, plots and the viewer sit at the edge).
+"""
+
+from poekin.motion.paths import line_path, screw_path
+from poekin.motion.retime import retime
+from poekin.motion.scaling import scaling
+from poekin.motion.track import track
+
+__all__ = ["line_path", "retime", "scaling", "screw_path", "track"]
