@@ -73,5 +73,5 @@ def line_path(T0: ArrayLike, T1: ArrayLike, s: ArrayLike) -> FloatArray:
     w = lie.log_so3(np.swapaxes(R0, -1, -2) @ b[..., :3, :3])
     R = R0 @ lie.exp_so3(w * u[..., None])
     p = a[..., :3, 3] + u[..., None] * (b[..., :3, 3] - a[..., :3, 3])
-    out: FloatArray = lie.homogeneous(R, p)
+    out: FloatArray = np.asarray(lie.homogeneous(R, p), dtype=np.float64)
     return out
