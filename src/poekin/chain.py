@@ -916,6 +916,73 @@ class Chain:
             self._ik_cache["tree"] = _TREE_OF_CHAIN[0](self)
         return self._ik_cache["tree"]
 
+    def ik_step(
+        self,
+        T: ArrayLike,
+        q: ArrayLike,
+        dt: float,
+        *,
+        velocity_limits: ArrayLike | None = None,
+        gain: float = 1.0,
+        damping: float = 1e-12,
+        position_only: bool = False,
+        orientation_weight: float = 0.3,
+    ) -> Any:
+        """One control tick of differential IK: the joint velocity that moves the end frame
+        toward ``T`` in one ``dt``, every joint within its limits at ``q + qvel dt`` and
+        within its velocity limit (:mod:`poekin.ik.step`: the box-constrained damped least
+        squares that mink's ``solve_ik`` poses as a QP, solved by an active set).
+
+        NumPy arrays, JAX arrays (under ``jax.jit`` and ``jax.vmap`` too) and PyTorch tensors;
+        under JAX and PyTorch the velocity is differentiable with respect to ``T`` and ``q``
+        (for the limits that are active). The same inputs give the same bits, whatever the
+        batch.
+
+        Args:
+            T: ``(..., 4, 4)`` targets ``T_world_frame`` (rigid transforms).
+            q: ``(..., n)`` the joint values now (rad, m); the batch broadcasts against the
+                targets' (4,096 environments in one call).
+            dt: the tick (s, > 0).
+            velocity_limits: each joint's largest speed (rad/s, m/s): one number or ``(n,)``,
+                ``inf`` for none (the default: a chain has no velocity limits of its own).
+            gain: the fraction of the frame's error removed in one tick (1: all of it, as far
+                as the limits allow).
+            damping: the step's Tikhonov damping ``lam |qvel dt|^2`` (m^2).
+            position_only: move the frame's origin only, whatever its orientation.
+            orientation_weight: metres per radian in the residual.
+
+        Returns:
+            ``(..., n)`` joint velocities (rad/s, m/s), in the inputs' library.
+
+        Raises:
+            InputError: targets of the wrong shape or not rigid transforms, ``q`` of the wrong
+                length, NaN (NumPy values are checked), a bad ``dt``, ``gain``, ``damping`` or
+                ``velocity_limits``.
+
+        Example:
+            >>> chain = poekin.load("universal_robots_ur5e")
+            >>> q = np.array([0.3, -1.2, 1.4, -0.5, 1.1, 0.2])
+            >>> T = chain.fk(q + 0.01)
+            >>> qvel = chain.ik_step(T, q, 0.002, velocity_limits=np.pi)
+            >>> bool(np.all(np.abs(qvel) <= np.pi))
+            True
+        """
+        from poekin.ik import step
+
+        s = _numerical().settings(
+            position_only=position_only, orientation_weight=orientation_weight
+        )
+        return step.step(
+            self,
+            T,
+            q,
+            dt,
+            velocity_limits=velocity_limits,
+            gain=gain,
+            damping=damping,
+            s=s,
+        )
+
     def _ik_posture(
         self,
         T: ArrayLike,

@@ -144,19 +144,8 @@ def _solve_arrays(
         got = type(params).__name__
         raise InputError(f"params must be a ChainParams (see chain.parameters()), got {got}")
     leaves = () if params is None else tuple(params)
-    given = [x for x in (T, q0, *leaves) if x is not None]
     xp = arrays.namespace(kind)
-    anchor = next(x for x in given if arrays.kind_of(x) is not None)
-    try:
-        dtype = arrays.float_dtype(xp, given)
-        T = arrays.convert(T, xp, dtype, anchor)
-        q0 = None if q0 is None else arrays.convert(q0, xp, dtype, anchor)
-    except (TypeError, ValueError) as e:
-        if isinstance(e, InputError):
-            raise
-        raise InputError(f"targets and q0 must be arrays of numbers: {e}") from e
-    if dtype not in (xp.float32, xp.float64):
-        raise InputError(f"IK computes in float32 or float64, got {dtype}; cast the inputs")
+    dtype, T, q0 = _converted(xp, T, q0, leaves, "q0")
     check_shape(T, (4, 4), "targets")
     n = chain.n_joints
     shapes = [tuple(T.shape[:-2])]
@@ -188,6 +177,43 @@ def _solve_arrays(
     if kind == "jax":
         _register_result_pytree()
     return IKResult(q_star, *out[1:])
+
+
+def _converted(xp: Any, T: Any, q: Any, leaves: Sequence[Any], name: str) -> tuple[Any, Any, Any]:
+    """The float dtype of targets ``T``, joint values ``q`` (``name``; or None) and other
+    arrays ``leaves``, and ``T`` and ``q`` converted to it, in ``xp``'s arrays on the device of
+    the first of them that is one."""
+    given = [x for x in (T, q, *leaves) if x is not None]
+    anchor = next(x for x in given if arrays.kind_of(x) is not None)
+    try:
+        dtype = arrays.float_dtype(xp, given)
+        T = arrays.convert(T, xp, dtype, anchor)
+        q = None if q is None else arrays.convert(q, xp, dtype, anchor)
+    except (TypeError, ValueError) as e:
+        if isinstance(e, InputError):
+            raise
+        raise InputError(f"targets and {name} must be arrays of numbers: {e}") from e
+    if dtype not in (xp.float32, xp.float64):
+        raise InputError(f"IK computes in float32 or float64, got {dtype}; cast the inputs")
+    return dtype, T, q
+
+
+def as_arrays(T: Any, q: Any, n: int, kind: arrays.Kind) -> tuple[Any, Any, bool]:
+    """Targets ``(..., 4, 4)`` and joint values ``(..., n)`` of a JAX or PyTorch call
+    (:meth:`poekin.Chain.ik_step`) in one float dtype, broadcast to one batch shape, and
+    whether that dtype is float32 (values are not checked: they may be traced)."""
+    xp = arrays.namespace(kind)
+    dtype, T, q = _converted(xp, T, q, (), "q")
+    check_shape(T, (4, 4), "targets")
+    check_shape(q, (n,), "q")
+    try:
+        batch = np.broadcast_shapes(tuple(T.shape[:-2]), tuple(q.shape[:-1]))
+    except ValueError:
+        raise InputError(
+            f"the batch axes of targets {tuple(T.shape)} and q {tuple(q.shape)} do not "
+            "broadcast together"
+        ) from None
+    return xp.broadcast_to(T, (*batch, 4, 4)), xp.broadcast_to(q, (*batch, n)), dtype == xp.float32
 
 
 # --- what the solve needs ---------------------------------------------------------------------

@@ -373,19 +373,31 @@ def _cholesky_solve(A: list[Entries], b: Entries, tiny: float, xp: Any) -> Entri
 
 def damped_step(J: list[Entries], r: Entries, lam: Entry, tiny: float, xp: Any) -> Entries:
     """``d = (J^T J + lam I)^-1 J^T r`` for ``J`` (``m x n`` entries): in this form when
-    ``n <= m``, else as ``J^T (J J^T + lam I)^-1 r`` (the same ``d``; a system of size ``m``,
-    well conditioned for a redundant chain as ``lam -> 0``). Sums run over the shared index in
-    ascending order, starting with its first product."""
+    ``n <= m`` (:func:`damped_step_primal`), else as ``J^T (J J^T + lam I)^-1 r``
+    (:func:`damped_step_dual`: the same ``d``; a system of size ``m``, well conditioned for a
+    redundant chain as ``lam -> 0``). Sums run over the shared index in ascending order,
+    starting with its first product."""
+    if len(J[0]) <= len(J):
+        return damped_step_primal(J, r, lam, tiny, xp)
+    return damped_step_dual(J, r, lam, tiny, xp)
+
+
+def damped_step_primal(J: list[Entries], r: Entries, lam: Entry, tiny: float, xp: Any) -> Entries:
+    """:func:`damped_step` by the ``n x n`` system ``(J^T J + lam I) d = J^T r``."""
     m, n = len(J), len(J[0])
-    if n <= m:
-        A = [
-            [_dot([J[k][i] for k in range(m)], [J[k][j] for k in range(m)]) for j in range(i + 1)]
-            for i in range(n)
-        ]
-        for i in range(n):
-            A[i][i] = A[i][i] + lam
-        g = [_dot([J[k][i] for k in range(m)], r) for i in range(n)]
-        return _cholesky_solve(A, g, tiny, xp)
+    A = [
+        [_dot([J[k][i] for k in range(m)], [J[k][j] for k in range(m)]) for j in range(i + 1)]
+        for i in range(n)
+    ]
+    for i in range(n):
+        A[i][i] = A[i][i] + lam
+    g = [_dot([J[k][i] for k in range(m)], r) for i in range(n)]
+    return _cholesky_solve(A, g, tiny, xp)
+
+
+def damped_step_dual(J: list[Entries], r: Entries, lam: Entry, tiny: float, xp: Any) -> Entries:
+    """:func:`damped_step` by the ``m x m`` system: ``d = J^T z``, ``(J J^T + lam I) z = r``."""
+    m, n = len(J), len(J[0])
     B = [[_dot(J[a], J[b]) for b in range(a + 1)] for a in range(m)]
     for a in range(m):
         B[a][a] = B[a][a] + lam

@@ -1,0 +1,313 @@
+"""A chain's differential IK step for control loops: :meth:`poekin.Chain.ik_step`.
+
+One control tick: the joint velocity ``qvel = x / dt`` whose step ``x`` solves the box-constrained
+damped least squares
+
+    minimize ``|J x - gain r|^2 + lam |x|^2``  subject to  ``lo <= x <= hi``,
+
+with ``r`` and ``J`` the residual and its Jacobian of :mod:`poekin.ik.numerical` (steps 1 and 2:
+the same rows, ``[k e_o; e_p]``, the same orientation weight ``k``), ``lam`` the damping, and the
+box ``lo_j = clamp(lower_j - q_j, -v_j dt, v_j dt)``, ``hi_j = clamp(upper_j - q_j, -v_j dt, v_j
+dt)``: every joint within its limits at ``q + x`` and within its velocity limit ``v_j``. (A
+joint that starts outside its limits moves back toward them, at most at its velocity limit: the
+box is then on one side of zero.) It is the problem mink's ``solve_ik`` poses as a general QP
+for one frame task, a ``ConfigurationLimit`` of gain 1 and a ``VelocityLimit``
+(``tests/ik/test_ik_step.py`` checks the two against each other), and :meth:`poekin.Tree.ik_step`
+poses for a tree (by a null-space method with SVDs, which also takes held frames and posture).
+
+**The active set** (the primal method for bounds, Nocedal and Wright's algorithm 16.3): from
+``x = clamp(0, lo, hi)``, each round either
+
+* solves the problem for the free joints with the fixed ones at their bounds (the damped
+  normal equations, :func:`~poekin.ik.numerical.damped_step`'s systems: the ``n x n`` form, or,
+  for a chain whose free joints outnumber the residual's rows, the dual ``m x m`` form, each
+  well conditioned where it is used) and moves toward that answer as far as the box allows,
+  fixing the joint that stops it; or, at a subspace optimum,
+* releases the fixed joint whose multiplier has the wrong sign (the cost falls if it leaves its
+  bound), or stops when there is none (the KKT conditions hold: the step is optimal).
+
+Every round keeps ``x`` inside the box, so a step cut short by :data:`MAX_ROUNDS` is still
+within every limit. The rounds run in lock-step over the batch with masks, with the array
+library's namespace ``xp`` (entries, as :mod:`poekin.ik.numerical`): NumPy runs rounds until
+every step is done, JAX (``jax.lax.fori_loop``) and PyTorch run all of them, and a finished step
+keeps its bits, so each step's answer depends on its own numbers only. Under JAX and PyTorch
+the step is differentiable with respect to the target and ``q`` for the active set it ends
+with.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from typing import TYPE_CHECKING, Any, NamedTuple
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from poekin import _pose, arrays
+from poekin._poe import as_joint_values, chain_terms, pose_of
+from poekin.errors import InputError
+from poekin.ik import fixed
+from poekin.ik.numerical import (
+    Settings,
+    broadcast_together,
+    check_targets,
+    damped_step_dual,
+    damped_step_primal,
+    evaluate,
+    jacobian_rows,
+    residual,
+)
+from poekin.kernel import _sincos
+
+if TYPE_CHECKING:
+    from poekin.chain import Chain
+
+__all__ = ["max_rounds", "step", "step_entries"]
+
+FloatArray = NDArray[np.float64]
+Entry = Any
+Entries = list[Any]
+
+FLOOR = 1e-18  # m^2: the damping's floor, which keeps the systems positive definite
+RELEASE = 1e-12  # a multiplier below -RELEASE |J_j| |gain r| releases its joint (rounding)
+
+
+def max_rounds(n: int) -> int:
+    """The active set's rounds at most, for ``n`` joints: room for each joint to be fixed,
+    released and fixed again, and two more to stop."""
+    return 3 * n + 2
+
+
+class _Round(NamedTuple):
+    """The active set's state: the step ``x``, the fixed joints (each at its bound), whether
+    ``x`` is the optimum of the free joints (then the next round tests the multipliers), and
+    whether the step is done."""
+
+    x: Entries
+    fixed: Entries
+    optimal: Entry
+    done: Entry
+
+
+def step_entries(
+    chain: Chain,
+    q: Entries,
+    target: _pose.Pose,
+    bounds: tuple[Entries, Entries],
+    gain: float,
+    lam: float,
+    s: Settings,
+    xp: Any,
+    trig: Any = _sincos.sincos,
+    loop: Any = None,
+) -> Entries:
+    """The step ``x`` (entries, ``(...)`` each) from ``q`` toward ``target`` within ``bounds``
+    (``lo``, ``hi`` entries, ``lo <= 0 <= hi`` where ``q`` is inside its limits); ``loop(rounds,
+    body, state)`` runs the rounds (default: until every step is done, NumPy's)."""
+    pose, columns = evaluate(chain, q, xp, None, trig)
+    r, _, _, _, quat = residual(pose, target, s, xp)
+    J = jacobian_rows(columns, quat, s)
+    b = [gain * rk for rk in r]
+    lo, hi = bounds
+    n, m = len(q), len(J)
+    zero = xp.zeros_like(q[0])
+    never = zero > 1.0  # False, of q's shape
+    size_b = xp.sqrt(_sum_squares(b))
+    size_J = [xp.sqrt(_sum_squares([J[k][j] for k in range(m)])) for j in range(n)]
+    # a joint whose bounds meet cannot move: fixed from the start, and never released
+    pinned = [lo[j] >= hi[j] for j in range(n)]
+    start = _Round(
+        x=[xp.minimum(xp.maximum(zero, lo[j]), hi[j]) for j in range(n)],
+        fixed=list(pinned),
+        optimal=never,
+        done=never,
+    )
+
+    def solve_free(state: _Round) -> Entries:
+        """The free joints' optimum with the fixed ones where they are (entries, ``n``)."""
+        x, fx = state.x, state.fixed
+        J_free = [[xp.where(f, 0.0, v) for f, v in zip(fx, row, strict=True)] for row in J]
+        b_free = [
+            bk - _dot(row, [xp.where(f, xj, 0.0) for f, xj in zip(fx, x, strict=True)])
+            for bk, row in zip(b, J, strict=True)
+        ]
+        d = damped_step_primal(J_free, b_free, lam, FLOOR, xp)
+        if n > m:  # more free joints than rows: the dual form where they are
+            free = _count([~f for f in fx], xp)
+            dual = damped_step_dual(J_free, b_free, lam, FLOOR, xp)
+            d = [xp.where(free > m, u, v) for u, v in zip(dual, d, strict=True)]
+        return [xp.where(f, xj, dj) for f, xj, dj in zip(fx, x, d, strict=True)]
+
+    def body(state: _Round) -> _Round:
+        x, fx = state.x, state.fixed
+        # (1) not at an optimum: toward the free joints' optimum, as far as the box allows
+        target_x = solve_free(state)
+        p = [t - xj for t, xj in zip(target_x, x, strict=True)]
+        alpha = xp.ones_like(zero)
+        block = [never] * n
+        for j in range(n):
+            room = xp.where(p[j] < 0.0, lo[j] - x[j], hi[j] - x[j])
+            moving = (~fx[j]) & (p[j] != 0.0)
+            ratio = xp.where(moving, room / xp.where(moving, p[j], 1.0), 2.0)
+            first = ratio < alpha  # the first joint that stops the move
+            block = [first if k == j else bk & ~first for k, bk in enumerate(block)]
+            alpha = xp.where(first, ratio, alpha)
+        full = alpha >= 1.0
+        moved = [
+            xp.where(
+                full,
+                t,
+                xp.where(block[j], xp.where(p[j] < 0.0, lo[j], hi[j]), x[j] + alpha * p[j]),
+            )
+            for j, t in enumerate(target_x)
+        ]
+        moved = [xp.minimum(xp.maximum(v, lo[j]), hi[j]) for j, v in enumerate(moved)]
+        fixed_moved = [f | (bk & ~full) for f, bk in zip(fx, block, strict=True)]
+        # (2) at an optimum: the multipliers of the fixed joints, the most negative released
+        residual_x = [_dot(row, x) - bk for row, bk in zip(J, b, strict=True)]
+        worst = -RELEASE * xp.ones_like(zero)
+        release = [never] * n
+        for j in range(n):
+            g = _dot([J[k][j] for k in range(m)], residual_x) + lam * x[j]
+            mu = xp.where(x[j] <= lo[j], g, -g) / xp.where(
+                size_J[j] * size_b > 0, size_J[j] * size_b, 1.0
+            )
+            candidate = fx[j] & ~pinned[j] & (mu < worst)
+            release = [candidate if k == j else rk & ~candidate for k, rk in enumerate(release)]
+            worst = xp.where(candidate, mu, worst)
+        released = _any(release)
+        opt = state.optimal
+        new_x = [xp.where(opt, xj, v) for xj, v in zip(x, moved, strict=True)]
+        new_fixed = [
+            xp.where(opt, f & ~rl, fm) for f, rl, fm in zip(fx, release, fixed_moved, strict=True)
+        ]
+        new_optimal = xp.where(opt, never, full)
+        new_done = opt & ~released
+        keep = state.done
+        return _Round(
+            x=[xp.where(keep, a, c) for a, c in zip(x, new_x, strict=True)],
+            fixed=[xp.where(keep, a, c) for a, c in zip(fx, new_fixed, strict=True)],
+            optimal=xp.where(keep, state.optimal, new_optimal),
+            done=keep | new_done,
+        )
+
+    rounds = max_rounds(n)
+    if loop is None:
+        state = start
+        for _ in range(rounds):
+            if bool(np.all(state.done)):
+                break
+            state = body(state)
+    else:
+        state = loop(rounds, body, start)
+    return state.x
+
+
+def _sum_squares(v: Sequence[Entry]) -> Entry:
+    total = v[0] * v[0]
+    for x in v[1:]:
+        total = total + x * x
+    return total
+
+
+def _dot(a: Sequence[Entry], b: Sequence[Entry]) -> Entry:
+    total = a[0] * b[0]
+    for x, y in zip(a[1:], b[1:], strict=True):
+        total = total + x * y
+    return total
+
+
+def _any(v: Sequence[Entry]) -> Entry:
+    out = v[0]
+    for x in v[1:]:
+        out = out | x
+    return out
+
+
+def _count(v: Sequence[Entry], xp: Any) -> Entry:
+    total = xp.where(v[0], 1, 0)
+    for x in v[1:]:
+        total = total + xp.where(x, 1, 0)
+    return total
+
+
+def _number(value: object, name: str, unit: str, *, zero: bool) -> float:
+    if isinstance(value, bool) or not isinstance(value, int | float | np.integer | np.floating):
+        raise InputError(f"{name} must be a number ({unit}), got {value!r:.40}")
+    x = float(value)
+    if not (math.isfinite(x) and (x >= 0 if zero else x > 0)):
+        raise InputError(
+            f"{name} must be a finite number {'>= 0' if zero else '> 0'} ({unit}), got {x!r}"
+        )
+    return x
+
+
+def _velocity_limits(value: ArrayLike | None, n: int) -> tuple[float, ...]:
+    if value is None:
+        return (math.inf,) * n
+    arr = np.asarray(value, dtype=np.float64)
+    if arr.shape not in ((), (n,)) or np.any(np.isnan(arr)) or np.any(arr <= 0):
+        raise InputError(
+            f"velocity_limits must be one number > 0 or {n} of them (rad/s or m/s, one per "
+            f"joint; inf for none), got {np.array2string(arr, threshold=8)}"
+        )
+    return tuple(float(v) for v in np.broadcast_to(arr, (n,)))
+
+
+def step(
+    chain: Chain,
+    T: Any,
+    q: Any,
+    dt: float,
+    *,
+    velocity_limits: ArrayLike | None,
+    gain: float,
+    damping: float,
+    s: Settings,
+) -> Any:
+    """:meth:`poekin.Chain.ik_step` (its docstring holds the arguments): ``(..., n)`` joint
+    velocities, NumPy arrays, or the JAX arrays or PyTorch tensors given."""
+    dt = _number(dt, "dt", "s", zero=False)
+    gain = _number(gain, "gain", "1/step", zero=True)
+    lam = _number(damping, "damping", "m^2", zero=True) + FLOOR
+    n = chain.n_joints
+    if n == 0:
+        raise InputError("the chain has no joints: there is nothing to move")
+    vmax = _velocity_limits(velocity_limits, n)
+    xp, kind = arrays.namespace_of([T, q], "targets and q")
+    if kind is None:
+        T_arr, q_arr = broadcast_together(
+            check_targets(T), as_joint_values(q, n, what="q values"), "q"
+        )
+        terms, trig, loop = chain_terms(chain), _sincos.sincos, None
+    else:
+        T_arr, q_arr, single = fixed.as_arrays(T, q, n, kind)
+        terms, trig, loop = chain_terms(chain, single), _pose.sincos, _loop(kind)
+    q_e = [q_arr[..., j] for j in range(n)]
+    lo, hi = [], []
+    for j, ((lower, upper), v) in enumerate(zip(terms.bounds, vmax, strict=True)):
+        reach = v * dt
+        lo.append(xp.minimum(xp.maximum(lower - q_e[j], -reach), reach))
+        hi.append(xp.minimum(xp.maximum(upper - q_e[j], -reach), reach))
+    x = step_entries(chain, q_e, pose_of(T_arr), (lo, hi), gain, lam, s, xp, trig, loop)
+    return xp.stack(x, axis=-1) / dt
+
+
+def _loop(kind: str) -> Any:
+    """The rounds under JAX (``jax.lax.fori_loop``: one round traced) and PyTorch (all of
+    them, with no test of the values: no synchronisation with a GPU)."""
+    if kind == "jax":
+        import jax
+
+        def run(rounds: int, body: Any, state: Any) -> Any:
+            return jax.lax.fori_loop(0, rounds, lambda _, st: body(st), state)
+
+        return run
+
+    def run_all(rounds: int, body: Any, state: Any) -> Any:
+        for _ in range(rounds):
+            state = body(state)
+        return state
+
+    return run_all
