@@ -87,14 +87,18 @@ def _limit(value: float | None, name: str, unit: str, func: str) -> float | None
 
 
 def _duration(value: float | None, func: str) -> float | None:
-    if value is None:
-        return None
+    """A duration in seconds, or None for none."""
+    return None if value is None else _seconds(value, "duration", func)
+
+
+def _seconds(value: float, name: str, func: str) -> float:
+    """A finite time > 0 (s)."""
     try:
         x = float(value)
     except (TypeError, ValueError):
-        raise InputError(f"{func}: duration must be a number of seconds, got {value!r}") from None
+        raise InputError(f"{func}: {name} must be a number of seconds, got {value!r}") from None
     if not math.isfinite(x) or x <= 0.0:
-        raise InputError(f"{func}: duration must be finite and > 0 (s), got {x:g}")
+        raise InputError(f"{func}: {name} must be finite and > 0 (s), got {x:g}")
     return x
 
 
