@@ -192,6 +192,10 @@ def test_trapezoid_from_a_duration() -> None:
         (lambda: scaling("cubic", 0.5, vel_limit=-1.0), "vel_limit must be > 0 (1/s)"),
         (lambda: scaling("quintic", 0.5, acc_limit=0.0), "acc_limit must be > 0 (1/s^2)"),
         (lambda: scaling("cubic", 0.5, vel_limit=math.nan), "vel_limit must be > 0"),
+        (
+            lambda: scaling("cubic", 0.5, acc_limit="fast"),
+            "acc_limit must be a number (1/s^2) or None",
+        ),
         (lambda: scaling("quintic", 0.5, 1.0, vel_limit=1.0), "quintic needs at least 1.875 s"),
         (lambda: scaling("trapezoid", 0.5), "trapezoid needs acc_limit (and vel_limit, if any)"),
         (lambda: scaling("trapezoid", 0.5, vel_limit=1.0), "needs acc_limit"),
