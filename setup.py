@@ -29,7 +29,9 @@ setup(
             ["src/poekin/kernel/_kernel.c"],
             depends=[
                 f"src/poekin/kernel/{name}.h"
-                for name in ("_kernel_core", "_ik_all", "_ik_common", "_ik_core", "_ik_type")
+                for name in (
+                    "_kernel_core", "_ik_all", "_ik_common", "_ik_core", "_ik_step", "_ik_type"
+                )
             ],
             include_dirs=[np.get_include()],
             define_macros=[("NPY_TARGET_VERSION", "NPY_1_24_API_VERSION")],

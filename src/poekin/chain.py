@@ -969,6 +969,12 @@ class Chain:
         """
         from poekin.ik import step
 
+        if type(T) is np.ndarray and type(q) is np.ndarray:  # the kernel, with the least around it
+            quick = step.step_quick(
+                self, T, q, dt, velocity_limits, gain, damping, position_only, orientation_weight
+            )
+            if quick is not None:
+                return quick
         s = _numerical().settings(
             position_only=position_only, orientation_weight=orientation_weight
         )

@@ -279,3 +279,69 @@ def test_arrays_differentiate_the_step(name: str, ur5e: Chain) -> None:
         ]
     )
     np.testing.assert_allclose(grad, fd, rtol=1e-5, atol=1e-5)
+
+
+@pytest.mark.skipif(not poekin.compiled_kernel(), reason="needs the compiled kernel")
+@pytest.mark.parametrize("robot", ["ur5e", "fr3"])
+@pytest.mark.parametrize("position_only", [False, True])
+def test_the_kernel_gives_the_references_bits(
+    robot: str, position_only: bool, ur5e: Chain, fr3: Chain, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The compiled twin (_ik_step.h) against the NumPy reference (step_entries), bit for bit:
+    small and far targets, limits and velocity limits active, the FR3's dual systems, at this
+    machine's width (CI runs this file at the narrower ones too)."""
+    from poekin.ik import step
+
+    chain = ur5e if robot == "ur5e" else fr3
+    rng = np.random.default_rng(14)
+    q = np.concatenate([_configs(chain, 40, 15), _configs(chain, 20, 16, margin=0.0)])
+    q[-10:, 1] = chain.limits[1, 1]  # on a limit
+    T = chain.fk(q + rng.normal(0.0, 1.0, q.shape) * rng.choice([1e-4, 1e-2, 1.0], (len(q), 1)))
+    options = {
+        "velocity_limits": rng.uniform(0.5, 3.0, chain.n_joints),
+        "position_only": position_only,
+    }
+    quick = chain.ik_step(T, q, DT, **options)
+    usual = step.step(
+        chain,
+        T,
+        q,
+        DT,
+        velocity_limits=options["velocity_limits"],
+        gain=0.9,
+        damping=1e-6,
+        s=numerical.settings(position_only=position_only),
+    )
+    monkeypatch.setattr(step, "_ik_kernel", lambda chain: None)
+    reference = chain.ik_step(T, q, DT, **options)
+    assert np.array_equal(quick, reference)
+    reference_usual = step.step(
+        chain,
+        T,
+        q,
+        DT,
+        velocity_limits=options["velocity_limits"],
+        gain=0.9,
+        damping=1e-6,
+        s=numerical.settings(position_only=position_only),
+    )
+    assert np.array_equal(usual, reference_usual)
+
+
+def test_the_quick_path_leaves_bad_input_to_the_usual_one(ur5e: Chain) -> None:
+    """Arrays the kernel takes as they are give the usual path's bits; a NaN, a target that is
+    not rigid or a wrong shape goes to the validation and its message."""
+    from poekin.ik import step
+
+    q = _configs(ur5e, 3, 17)
+    T = ur5e.fk(q + 0.01)
+    usual = step.step(
+        ur5e, T, q, DT, velocity_limits=None, gain=1.0, damping=1e-12, s=numerical.settings()
+    )
+    assert np.array_equal(ur5e.ik_step(T, q, DT), usual)
+    sheared = T.copy()
+    sheared[0, 0, 1] += 0.01
+    with pytest.raises(InputError, match="not a rigid transform"):
+        ur5e.ik_step(sheared, q, DT)
+    with pytest.raises(InputError, match="expected 6 q values"):
+        ur5e.ik_step(T, q[:, :4].copy(), DT)

@@ -37,6 +37,7 @@ with.
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Sequence
 from typing import TYPE_CHECKING, Any, NamedTuple
@@ -50,6 +51,8 @@ from poekin.errors import InputError
 from poekin.ik import fixed
 from poekin.ik.numerical import (
     Settings,
+    _ik_kernel,
+    _kernel_options,
     broadcast_together,
     check_targets,
     damped_step_dual,
@@ -57,13 +60,14 @@ from poekin.ik.numerical import (
     evaluate,
     jacobian_rows,
     residual,
+    settings,
 )
 from poekin.kernel import _sincos
 
 if TYPE_CHECKING:
     from poekin.chain import Chain
 
-__all__ = ["max_rounds", "step", "step_entries"]
+__all__ = ["max_rounds", "step", "step_entries", "step_quick"]
 
 FloatArray = NDArray[np.float64]
 Entry = Any
@@ -284,14 +288,75 @@ def step(
     else:
         T_arr, q_arr, single = fixed.as_arrays(T, q, n, kind)
         terms, trig, loop = chain_terms(chain, single), _pose.sincos, _loop(kind)
+    reach = [v * dt for v in vmax]
+    if kind is None and (kernel := _ik_kernel(chain)) is not None:
+        options = _kernel_options(chain, s)
+        x = kernel.step(
+            T_arr, q_arr, np.array(reach), options, gain, lam, -RELEASE, max_rounds(n), True
+        )
+        if x is not None:  # the compiled twin (a chain of at most 16 joints)
+            return x / dt
     q_e = [q_arr[..., j] for j in range(n)]
     lo, hi = [], []
-    for j, ((lower, upper), v) in enumerate(zip(terms.bounds, vmax, strict=True)):
-        reach = v * dt
-        lo.append(xp.minimum(xp.maximum(lower - q_e[j], -reach), reach))
-        hi.append(xp.minimum(xp.maximum(upper - q_e[j], -reach), reach))
-    x = step_entries(chain, q_e, pose_of(T_arr), (lo, hi), gain, lam, s, xp, trig, loop)
-    return xp.stack(x, axis=-1) / dt
+    for j, (lower, upper) in enumerate(terms.bounds):
+        lo.append(xp.minimum(xp.maximum(lower - q_e[j], -reach[j]), reach[j]))
+        hi.append(xp.minimum(xp.maximum(upper - q_e[j], -reach[j]), reach[j]))
+    x_e = step_entries(chain, q_e, pose_of(T_arr), (lo, hi), gain, lam, s, xp, trig, loop)
+    return xp.stack(x_e, axis=-1) / dt
+
+
+def step_quick(
+    chain: Chain,
+    T: FloatArray,
+    q: FloatArray,
+    dt: float,
+    velocity_limits: Any,
+    gain: float,
+    damping: float,
+    position_only: bool,
+    orientation_weight: float,
+) -> FloatArray | None:
+    """:func:`step` for NumPy arrays, as it runs them, with less around the kernel: the
+    options validated and turned into the kernel's once per chain and values
+    (:func:`_quick_options`), the kernel taking the arrays as they are. None where that does
+    not serve (no kernel, an unhashable option, arguments the kernel leaves to the
+    validation): the caller then runs :func:`step`, which says what is wrong."""
+    kernel = _ik_kernel(chain)
+    if kernel is None:
+        return None
+    try:
+        options = _quick_options(
+            chain, dt, velocity_limits, gain, damping, position_only, orientation_weight
+        )
+    except (TypeError, InputError):  # unhashable or bad: step says what is wrong
+        return None
+    reach, kernel_options, lam, rounds = options
+    x = kernel.step(T, q, reach, kernel_options, gain, lam, -RELEASE, rounds, False)
+    if x is None:
+        return None
+    out: FloatArray = x / dt
+    return out
+
+
+@functools.lru_cache(maxsize=64, typed=True)
+def _quick_options(
+    chain: Chain,
+    dt: float,
+    velocity_limits: Any,
+    gain: float,
+    damping: float,
+    position_only: bool,
+    orientation_weight: float,
+) -> tuple[FloatArray, tuple[float, ...], float, int]:
+    """The kernel's arguments of :func:`step_quick` for these options, validated: each
+    joint's reach ``v dt`` (read-only), the kernel's options, the damping and the rounds."""
+    dt = _number(dt, "dt", "s", zero=False)
+    _number(gain, "gain", "1/step", zero=True)
+    lam = _number(damping, "damping", "m^2", zero=True) + FLOOR
+    s = settings(position_only=position_only, orientation_weight=orientation_weight)
+    reach = np.array([v * dt for v in _velocity_limits(velocity_limits, chain.n_joints)])
+    reach.flags.writeable = False
+    return reach, _kernel_options(chain, s), lam, max_rounds(chain.n_joints)
 
 
 def _loop(kind: str) -> Any:

@@ -6,6 +6,8 @@
  * NumPy reference this code repeats operation for operation.
  */
 
+#define IK_STEP_MAX_JOINTS 16 /* the differential step (_ik_step.h); more: the NumPy reference */
+#define IK_STEP_FLOOR 1e-18  /* poekin.ik.step.FLOOR */
 #define IK_MAX_JOINTS 4096 /* the random starts' counter has 16 bits for the joint */
 #define IK_PI 3.141592653589793116     /* numpy.pi */
 #define IK_TWO_PI 6.283185307179586232 /* 2 * numpy.pi */

@@ -453,6 +453,8 @@ TARGET static void ik_run_task(IKTask *task) {
     aligned_free((unsigned char *)S);
 }
 
+#include "_ik_step.h" /* the differential step (poekin/ik/step.py) */
+
 #undef IKState
 #undef ik_state
 #undef ik_dot_rows

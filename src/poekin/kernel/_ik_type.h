@@ -283,10 +283,109 @@ static PyObject *IKSolver_solve(IKSolverObject *self, PyObject *const *args, Py_
     return result;
 }
 
+/* One thread's share of a step's batch (IKSolver_step). */
+typedef struct {
+    IKStepFn fn;
+    const IKModel *m;
+    const IKOptions *o;
+    const double *T, *q, *reach;
+    double gain, lam, release;
+    int rounds;
+    npy_intp first, last;
+    double *x;
+    int status;
+} IKStepShare;
+
+static void ik_step_share(void *arg) {
+    IKStepShare *a = arg;
+    a->status = a->fn(a->m, a->o, a->T, a->q, a->reach, a->gain, a->lam, a->release, a->rounds,
+                      a->first, a->last, a->x);
+}
+
+/* Steps per thread below which another thread does not pay for its start (about 0.15 ms). */
+#define IK_STEP_MIN_PER_THREAD 256
+
+/* step(T, q, reach, options, gain, lam, release, rounds, checked) -> x: poekin.ik.step's step
+ * (the bounds from the limits and each joint's reach, v dt) for (..., 4, 4) targets and (..., n)
+ * q of one batch shape, plain float64 arrays, and (n,) reach; None if the arguments need
+ * validating first (not such arrays, or, unless checked, targets that are not finite rigid
+ * transforms or q that is not finite), or if the chain has more joints than the twin takes. One
+ * thread: a control tick's batch is small work. */
+static PyObject *IKSolver_step(IKSolverObject *self, PyObject *const *args, Py_ssize_t nargs) {
+    if (nargs != 9) {
+        PyErr_SetString(PyExc_TypeError,
+                        "step(T, q, reach, options, gain, lam, release, rounds, checked)");
+        return NULL;
+    }
+    const IKModel *m = &self->model;
+    const int n = m->n;
+    if (n > IK_STEP_MAX_JOINTS) Py_RETURN_NONE;
+    IKOptions opt;
+    if (ik_read_options(args[3], &opt) < 0) return NULL;
+    const double gain = PyFloat_AsDouble(args[4]), lam = PyFloat_AsDouble(args[5]),
+                 release = PyFloat_AsDouble(args[6]);
+    const long rounds = PyLong_AsLong(args[7]);
+    const int checked = PyObject_IsTrue(args[8]);
+    if (PyErr_Occurred() || checked < 0) return NULL;
+    PyArrayObject *T = ik_plain(args[0]), *q = ik_plain(args[1]), *reach = ik_plain(args[2]);
+    if (T == NULL || q == NULL || reach == NULL) Py_RETURN_NONE;
+    const int nd = PyArray_NDIM(T);
+    if (nd < 2 || PyArray_DIM(T, nd - 1) != 4 || PyArray_DIM(T, nd - 2) != 4) Py_RETURN_NONE;
+    if (PyArray_NDIM(reach) != 1 || PyArray_DIM(reach, 0) != n) Py_RETURN_NONE;
+    npy_intp dims[NPY_MAXDIMS], N = 1;
+    for (int i = 0; i < nd - 2; ++i) {
+        dims[i] = PyArray_DIM(T, i);
+        N *= dims[i];
+    }
+    dims[nd - 2] = n;
+    if (PyArray_NDIM(q) != nd - 1 || !PyArray_CompareLists(PyArray_DIMS(q), dims, nd - 1))
+        Py_RETURN_NONE;
+    const double *Td = PyArray_DATA(T), *qd = PyArray_DATA(q), *rd = PyArray_DATA(reach);
+    if (!checked) {
+        for (npy_intp t = 0; t < N; ++t)
+            if (!ik_rigid(Td + 16 * t)) Py_RETURN_NONE;
+        for (npy_intp k = 0; k < N * n; ++k)
+            if (!isfinite(qd[k])) Py_RETURN_NONE;
+    }
+    PyObject *out = PyArray_SimpleNew(nd - 1, dims, NPY_FLOAT64);
+    if (out == NULL) return NULL;
+    int status = 0;
+    if (N > 0) {
+        /* a few steps on the narrowest width that holds them: a block costs about the same
+         * whatever it holds (every width gives the same bits) */
+        IKStepFn fn = g_ik_step_task;
+#ifdef X86_DISPATCH
+        if (N <= 4 && g_lanes >= 4) fn = ik_step_task_4;
+#endif
+        IKStepShare tasks[MAX_THREADS];
+        Share shares[MAX_THREADS];
+        npy_intp chunk;
+        const int nt = split_batch(N, IK_STEP_MIN_PER_THREAD, g_threads, &chunk);
+        for (int k = 0; k < nt; ++k) {
+            const npy_intp first = k * chunk < N ? k * chunk : N;
+            tasks[k] = (IKStepShare){fn, m, &opt, Td, qd, rd, gain, lam, release, (int)rounds,
+                                     first, first + chunk < N ? first + chunk : N,
+                                     PyArray_DATA((PyArrayObject *)out), 0};
+            shares[k] = (Share){ik_step_share, &tasks[k]};
+        }
+        Py_BEGIN_ALLOW_THREADS run_shares(shares, nt);
+        Py_END_ALLOW_THREADS
+        for (int k = 0; k < nt; ++k) status |= tasks[k].status;
+    }
+    if (status != 0) {
+        Py_DECREF(out);
+        return PyErr_NoMemory();
+    }
+    return out;
+}
+
 static PyMethodDef IKSolver_methods[] = {
     {"solve", (PyCFunction)(void (*)(void))IKSolver_solve, METH_FASTCALL,
      "solve(T, q0, seed, options, checked) -> (q, success, pos_err, ori_err, iterations, "
      "attempts), or None if the arguments need validating first"},
+    {"step", (PyCFunction)(void (*)(void))IKSolver_step, METH_FASTCALL,
+     "step(T, q, reach, options, gain, lam, release, rounds, checked) -> x, the differential "
+     "step of poekin.ik.step, or None if the arguments need validating first"},
     {"__reduce__", (PyCFunction)IKSolver_reduce, METH_NOARGS, NULL},
     {NULL, NULL, 0, NULL},
 };

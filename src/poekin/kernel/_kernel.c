@@ -296,6 +296,10 @@ typedef void (*IkAllTaskFn)(IkAllTask *);
 static IkAllTaskFn g_ik_all_task = ik_all_task_2;
 typedef void (*IKTaskFn)(IKTask *);
 static IKTaskFn g_ik_run_task = ik_run_task_2;
+typedef int (*IKStepFn)(const IKModel *, const IKOptions *, const double *, const double *,
+                        const double *, double, double, double, int, npy_intp, npy_intp,
+                        double *);
+static IKStepFn g_ik_step_task = ik_step_task_2;
 static int g_lanes = 2;
 
 /* The widest kernel this CPU runs; widest = 0 picks the best, else 2, 4 or 8. -1: not here. */
@@ -316,6 +320,7 @@ static int choose_width(int widest) {
     g_run_task = w == 8 ? run_task_8 : w == 4 ? run_task_4 : run_task_2;
     g_ik_all_task = w == 8 ? ik_all_task_8 : w == 4 ? ik_all_task_4 : ik_all_task_2;
     g_ik_run_task = w == 8 ? ik_run_task_8 : w == 4 ? ik_run_task_4 : ik_run_task_2;
+    g_ik_step_task = w == 8 ? ik_step_task_8 : w == 4 ? ik_step_task_4 : ik_step_task_2;
 #endif
     return w;
 }

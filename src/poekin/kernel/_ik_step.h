@@ -1,0 +1,248 @@
+/*
+ * The differential IK step of a chain for one vector width: the compiled twin of
+ * poekin/ik/step.py (step_entries), included by _ik_core.h with its LANES, TARGET and names. The
+ * residual and its Jacobian are the solver's (ik_residual); the active set repeats the
+ * reference's rounds operation for operation and in the same order, LANES targets side by side,
+ * so that both give the same bits. A lane whose step is done keeps it while the others run.
+ */
+#define ik_step_primal GLUE(ik_step_primal, LANES)
+#define ik_step_dual GLUE(ik_step_dual, LANES)
+#define ik_step_cholesky GLUE(ik_step_cholesky, LANES)
+#define ik_step_block GLUE(ik_step_block, LANES)
+#define ik_step_task GLUE(ik_step_task, LANES)
+#define ik_vmax GLUE(ik_vmax, LANES)
+#define ik_vmin GLUE(ik_vmin, LANES)
+#define ik_lselect GLUE(ik_lselect, LANES)
+
+/* numpy.maximum and numpy.minimum of two lanes' values (no NaN reaches them) */
+AI vd ik_vmax(vd a, vd b) { return vselect(a >= b, a, b); }
+AI vd ik_vmin(vd a, vd b) { return vselect(a <= b, a, b); }
+/* numpy.where of masks */
+AI vl ik_lselect(vl mask, vl a, vl b) { return (mask & a) | (~mask & b); }
+
+/* _cholesky_solve for s <= IK_STEP_MAX_JOINTS */
+AI void ik_step_cholesky(vd A[IK_STEP_MAX_JOINTS][IK_STEP_MAX_JOINTS], const vd *b, vd *x, int s,
+                         double tiny) {
+    vd L[IK_STEP_MAX_JOINTS][IK_STEP_MAX_JOINTS], y[IK_STEP_MAX_JOINTS];
+    const vd t0 = (vd){0} + tiny;
+    for (int j = 0; j < s; ++j) {
+        for (int i = j; i < s; ++i) {
+            vd acc = A[i][j];
+            for (int k = 0; k < j; ++k) acc = acc - L[i][k] * L[j][k];
+            if (i == j) {
+                acc = vselect(acc > tiny, acc, t0);
+                for (int l = 0; l < LANES; ++l) acc[l] = sqrt(acc[l]);
+                L[j][j] = acc;
+            } else {
+                L[i][j] = acc / L[j][j];
+            }
+        }
+    }
+    for (int i = 0; i < s; ++i) {
+        vd acc = b[i];
+        for (int k = 0; k < i; ++k) acc = acc - L[i][k] * y[k];
+        y[i] = acc / L[i][i];
+    }
+    for (int i = s - 1; i >= 0; --i) {
+        vd acc = y[i];
+        for (int k = i + 1; k < s; ++k) acc = acc - L[k][i] * x[k];
+        x[i] = acc / L[i][i];
+    }
+}
+
+/* damped_step_primal: (J^T J + lam I) d = J^T r, n x n */
+AI void ik_step_primal(vd J[6][IK_STEP_MAX_JOINTS], const vd *r, double lam, double tiny, int m,
+                       int n, vd *d) {
+    vd A[IK_STEP_MAX_JOINTS][IK_STEP_MAX_JOINTS], g[IK_STEP_MAX_JOINTS];
+    for (int i = 0; i < n; ++i)
+        for (int j = 0; j <= i; ++j) {
+            vd t = J[0][i] * J[0][j];
+            for (int k = 1; k < m; ++k) t = t + J[k][i] * J[k][j];
+            A[i][j] = t;
+        }
+    for (int i = 0; i < n; ++i) A[i][i] = A[i][i] + lam;
+    for (int i = 0; i < n; ++i) {
+        vd t = J[0][i] * r[0];
+        for (int k = 1; k < m; ++k) t = t + J[k][i] * r[k];
+        g[i] = t;
+    }
+    ik_step_cholesky(A, g, d, n, tiny);
+}
+
+/* damped_step_dual: d = J^T z, (J J^T + lam I) z = r, m x m */
+AI void ik_step_dual(vd J[6][IK_STEP_MAX_JOINTS], const vd *r, double lam, double tiny, int m,
+                     int n, vd *d) {
+    vd B[IK_STEP_MAX_JOINTS][IK_STEP_MAX_JOINTS], z[6];
+    for (int a = 0; a < m; ++a)
+        for (int c = 0; c <= a; ++c) {
+            vd t = J[a][0] * J[c][0];
+            for (int i = 1; i < n; ++i) t = t + J[a][i] * J[c][i];
+            B[a][c] = t;
+        }
+    for (int a = 0; a < m; ++a) B[a][a] = B[a][a] + lam;
+    ik_step_cholesky(B, r, z, m, tiny);
+    for (int i = 0; i < n; ++i) {
+        vd t = J[0][i] * z[0];
+        for (int a = 1; a < m; ++a) t = t + J[a][i] * z[a];
+        d[i] = t;
+    }
+}
+
+/* step_entries for the lanes of S (their q, Rt, pt loaded) with bounds lo, hi: x */
+AI void ik_step_block(IKState *S, const IKModel *m, const IKOptions *o, const vd *lo,
+                      const vd *hi, double gain, double lam, double release, int rounds, vd *x) {
+    const int n = m->n, rows = o->position_only ? 3 : 6;
+    const vl magnitude = (vl){0} + INT64_MAX;
+    const vd huge_q = (vd){0} + m->prog->huge_q;
+    vl below = (vl){0} - 1;
+    for (int j = 0; j < n; ++j) below &= (vd)((vl)S->q[j] & magnitude) < huge_q;
+    int huge = 0;
+    for (int l = 0; l < LANES; ++l) huge |= below[l] == 0;
+    Pose cur;
+    run_ops(m->prog, NULL, S->q, S->ang, S->jac, NULL, FORM_4X4, LANES, huge, &cur);
+    vd r[6], ep2, eo2, b[6];
+    (void)ik_residual(S, &cur, o, n, r, &ep2, &eo2);
+    vd J[6][IK_STEP_MAX_JOINTS], Jf[6][IK_STEP_MAX_JOINTS];
+    for (int k = 0; k < rows; ++k)
+        for (int j = 0; j < n; ++j) J[k][j] = S->J[k][j];
+    for (int k = 0; k < rows; ++k) b[k] = gain * r[k];
+    const vd zero = {0}, one = (vd){0} + 1.0, two = (vd){0} + 2.0;
+    const vl never = (vl){0};
+    vd size_b = b[0] * b[0];
+    for (int k = 1; k < rows; ++k) size_b = size_b + b[k] * b[k];
+    for (int l = 0; l < LANES; ++l) size_b[l] = sqrt(size_b[l]);
+    vd size_J[IK_STEP_MAX_JOINTS];
+    vl pinned[IK_STEP_MAX_JOINTS], fixed[IK_STEP_MAX_JOINTS];
+    for (int j = 0; j < n; ++j) {
+        vd t = J[0][j] * J[0][j];
+        for (int k = 1; k < rows; ++k) t = t + J[k][j] * J[k][j];
+        for (int l = 0; l < LANES; ++l) t[l] = sqrt(t[l]);
+        size_J[j] = t;
+        pinned[j] = lo[j] >= hi[j];
+        fixed[j] = pinned[j];
+        x[j] = ik_vmin(ik_vmax(zero, lo[j]), hi[j]);
+    }
+    vl optimal = never, done = never;
+    for (int round = 0; round < rounds; ++round) {
+        int all = 1;
+        for (int l = 0; l < LANES; ++l) all &= done[l] != 0;
+        if (all) break;
+        /* solve_free */
+        vd bf[6], d[IK_STEP_MAX_JOINTS], target[IK_STEP_MAX_JOINTS];
+        for (int k = 0; k < rows; ++k) {
+            for (int j = 0; j < n; ++j) Jf[k][j] = vselect(fixed[j], zero, J[k][j]);
+            vd t = J[k][0] * vselect(fixed[0], x[0], zero);
+            for (int j = 1; j < n; ++j) t = t + J[k][j] * vselect(fixed[j], x[j], zero);
+            bf[k] = b[k] - t;
+        }
+        ik_step_primal(Jf, bf, lam, IK_STEP_FLOOR, rows, n, d);
+        if (n > rows) {
+            vd dual[IK_STEP_MAX_JOINTS];
+            ik_step_dual(Jf, bf, lam, IK_STEP_FLOOR, rows, n, dual);
+            vl free = (vl){0}; /* a mask is -1 where true */
+            for (int j = 0; j < n; ++j) free = free - ~fixed[j];
+            const vl wide = free > rows;
+            for (int j = 0; j < n; ++j) d[j] = vselect(wide, dual[j], d[j]);
+        }
+        for (int j = 0; j < n; ++j) target[j] = vselect(fixed[j], x[j], d[j]);
+        /* (1) toward the free joints' optimum, as far as the box allows */
+        vd p[IK_STEP_MAX_JOINTS], alpha = one;
+        vl block[IK_STEP_MAX_JOINTS];
+        for (int j = 0; j < n; ++j) {
+            p[j] = target[j] - x[j];
+            block[j] = never;
+        }
+        for (int j = 0; j < n; ++j) {
+            const vl down = p[j] < 0.0;
+            const vd room = vselect(down, lo[j] - x[j], hi[j] - x[j]);
+            const vl moving = ~fixed[j] & (p[j] != 0.0);
+            const vd ratio = vselect(moving, room / vselect(moving, p[j], one), two);
+            const vl first = ratio < alpha;
+            for (int k = 0; k < n; ++k) block[k] = k == j ? first : block[k] & ~first;
+            alpha = vselect(first, ratio, alpha);
+        }
+        const vl full = alpha >= 1.0;
+        vd moved[IK_STEP_MAX_JOINTS];
+        vl fixed_moved[IK_STEP_MAX_JOINTS];
+        for (int j = 0; j < n; ++j) {
+            const vd at = vselect(p[j] < 0.0, lo[j], hi[j]);
+            const vd v = vselect(full, target[j], vselect(block[j], at, x[j] + alpha * p[j]));
+            moved[j] = ik_vmin(ik_vmax(v, lo[j]), hi[j]);
+            fixed_moved[j] = fixed[j] | (block[j] & ~full);
+        }
+        /* (2) at an optimum: the most negative multiplier's joint released */
+        vd res[6];
+        for (int k = 0; k < rows; ++k) {
+            vd t = J[k][0] * x[0];
+            for (int j = 1; j < n; ++j) t = t + J[k][j] * x[j];
+            res[k] = t - b[k];
+        }
+        vd worst = (vd){0} + release;
+        vl rel[IK_STEP_MAX_JOINTS];
+        for (int j = 0; j < n; ++j) rel[j] = never;
+        for (int j = 0; j < n; ++j) {
+            vd g = J[0][j] * res[0];
+            for (int k = 1; k < rows; ++k) g = g + J[k][j] * res[k];
+            g = g + lam * x[j];
+            const vd scale = size_J[j] * size_b;
+            const vd mu = vselect(x[j] <= lo[j], g, -g) / vselect(scale > 0.0, scale, one);
+            const vl candidate = fixed[j] & ~pinned[j] & (mu < worst);
+            for (int k = 0; k < n; ++k) rel[k] = k == j ? candidate : rel[k] & ~candidate;
+            worst = vselect(candidate, mu, worst);
+        }
+        vl released = rel[0];
+        for (int j = 1; j < n; ++j) released = released | rel[j];
+        for (int j = 0; j < n; ++j) {
+            const vd new_x = vselect(optimal, x[j], moved[j]);
+            const vl new_fixed = ik_lselect(optimal, fixed[j] & ~rel[j], fixed_moved[j]);
+            x[j] = vselect(done, x[j], new_x);
+            fixed[j] = ik_lselect(done, fixed[j], new_fixed);
+        }
+        const vl new_optimal = ik_lselect(optimal, never, full);
+        const vl new_done = optimal & ~released;
+        optimal = ik_lselect(done, optimal, new_optimal);
+        done = done | new_done;
+    }
+}
+
+/* The steps of targets [first, last): T (N, 4, 4) and q (N, n), the bounds from the limits and
+ * each joint's reach (v dt: step.py's lo and hi), x (N, n) out */
+TARGET static int ik_step_task(const IKModel *m, const IKOptions *o, const double *T,
+                               const double *q, const double *reach, double gain, double lam,
+                               double release, int rounds, npy_intp first, npy_intp last,
+                               double *x) {
+    const int n = m->n;
+    IKState *S = ik_state(n);
+    if (S == NULL) return -1;
+    for (npy_intp t0 = first; t0 < last; t0 += LANES) {
+        vd lo[IK_STEP_MAX_JOINTS], hi[IK_STEP_MAX_JOINTS], vx[IK_STEP_MAX_JOINTS];
+        for (int l = 0; l < LANES; ++l) {
+            const npy_intp t = t0 + l < last ? t0 + l : -1;
+            for (int k = 0; k < 9; ++k)
+                S->Rt[k][l] = t < 0 ? (k % 4 == 0 ? 1.0 : 0.0) : T[16 * t + 4 * (k / 3) + k % 3];
+            for (int i = 0; i < 3; ++i) S->pt[i][l] = t < 0 ? 0.0 : T[16 * t + 4 * i + 3];
+            for (int j = 0; j < n; ++j) S->q[j][l] = t < 0 ? m->base[j] : q[n * t + j];
+        }
+        for (int j = 0; j < n; ++j) {
+            const vd far = (vd){0} + reach[j], near = (vd){0} + (-reach[j]);
+            lo[j] = ik_vmin(ik_vmax(m->lo[j] - S->q[j], near), far);
+            hi[j] = ik_vmin(ik_vmax(m->hi[j] - S->q[j], near), far);
+            for (int l = 0; l < LANES; ++l)
+                if (t0 + l >= last) lo[j][l] = hi[j][l] = 0.0; /* idle: done in two rounds */
+        }
+        ik_step_block(S, m, o, lo, hi, gain, lam, release, rounds, vx);
+        for (int l = 0; l < LANES && t0 + l < last; ++l)
+            for (int j = 0; j < n; ++j) x[n * (t0 + l) + j] = vx[j][l];
+    }
+    aligned_free((unsigned char *)S);
+    return 0;
+}
+
+#undef ik_step_primal
+#undef ik_step_dual
+#undef ik_step_cholesky
+#undef ik_step_block
+#undef ik_step_task
+#undef ik_vmax
+#undef ik_vmin
+#undef ik_lselect
