@@ -1,8 +1,10 @@
 """Teleoperation at 500 Hz: poekin's differential step inside a MuJoCo simulation's loop.
 
 A target moves on a circle (the UR5e's tool) or two circles (the ALOHA's grippers); at every
-tick ``tree.ik_step`` turns the targets into joint velocities within the limits, the
-simulation integrates them (``mj_integratePos``, then ``mj_forward``), and the frames follow.
+tick the differential step turns the targets into joint velocities within the limits
+(``chain.ik_step`` for the UR5e, a chain: the compiled kernel's step; ``tree.ik_step`` for the
+ALOHA's two arms), the simulation integrates them (``mj_integratePos``, then ``mj_forward``),
+and the frames follow.
 It prints the median step time and how far each frame trails its target, measured by
 MuJoCo::
 
@@ -55,6 +57,7 @@ def run(robot: str, frames: tuple[str, ...], seconds: float) -> tuple[float, flo
         warnings.simplefilter("ignore", poekin.AssetsStrippedWarning)
         loaded = poekin.load_model(robot)
     tree, model = poekin.load_tree(loaded), loaded.model
+    chain = poekin.load(loaded) if len(frames) == 1 else None  # one end frame: a chain
     data = mujoco.MjData(model)
     data.qpos[:] = STARTS[robot]
     mujoco.mj_forward(model, data)
@@ -71,7 +74,10 @@ def run(robot: str, frames: tuple[str, ...], seconds: float) -> tuple[float, flo
             T[:3, 3] += RADIUS * np.array([np.cos(phase) - 1.0, sign * np.sin(phase), 0.0])
             targets[f] = T
         began = time.perf_counter()
-        qvel = tree.ik_step(targets, data.qpos, dt, velocity_limits=np.pi)
+        if chain is not None:
+            qvel = chain.ik_step(targets[frames[0]], data.qpos, dt, velocity_limits=np.pi)
+        else:
+            qvel = tree.ik_step(targets, data.qpos, dt, velocity_limits=np.pi)
         times.append(time.perf_counter() - began)
         mujoco.mj_integratePos(model, data.qpos, qvel, dt)
         mujoco.mj_forward(model, data)
@@ -91,7 +97,7 @@ def main() -> None:
         step, trail = run(robot, frames, args.seconds)
         print(
             f"{robot}: {int(args.seconds * RATE)} ticks at {RATE:.0f} Hz, median step "
-            f"{step * 1e6:.0f} us, frames within {trail * 1e3:.1e} mm of their targets"
+            f"{step * 1e6:.3g} us, frames within {trail * 1e3:.1e} mm of their targets"
         )
 
 
