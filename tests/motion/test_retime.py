@@ -52,15 +52,20 @@ def _waypoints(robot: str, count: int, seed: int) -> np.ndarray:
     return np.random.default_rng(seed).uniform(lo, hi, (count, len(lo)))
 
 
-def _toppra_duration(q: np.ndarray, vel: np.ndarray, acc: np.ndarray) -> float:
-    """toppra 0.6 at its defaults (its own grid), on its SplineInterpolator at
-    ``linspace(0, 1, N)``."""
+def _toppra_duration(
+    q: np.ndarray, vel: np.ndarray, acc: np.ndarray, stages: int | None = None
+) -> float:
+    """toppra 0.6 on its SplineInterpolator at ``linspace(0, 1, N)``: on its own grid (its
+    default), or on ``stages`` equal stages."""
     path = toppra.SplineInterpolator(np.linspace(0.0, 1.0, len(q)), q)
     constraints = [
         toppra.constraint.JointVelocityConstraint(vel),
         toppra.constraint.JointAccelerationConstraint(acc),
     ]
-    algo = toppra.algorithm.TOPPRA(constraints, path, parametrizer="ParametrizeConstAccel")
+    grid = None if stages is None else np.linspace(0.0, 1.0, stages + 1)
+    algo = toppra.algorithm.TOPPRA(
+        constraints, path, gridpoints=grid, parametrizer="ParametrizeConstAccel"
+    )
     return float(algo.compute_trajectory().duration)
 
 
@@ -139,6 +144,25 @@ def test_duration_agrees_with_toppra(
     assert r.duration >= r.optimal_duration
     _assert_within(r, vel, acc)
     _assert_ends(r, q)
+
+
+@pytest.mark.parametrize(
+    ("robot", "vel", "acc", "count", "seed"),
+    [
+        ("universal_robots_ur5e", UR5E_VEL, UR5E_ACC, 4, 12),
+        ("franka_fr3", FR3_VEL, FR3_ACC, 7, 13),
+    ],
+)
+def test_same_grid_same_optimum_as_toppra(
+    robot: str, vel: np.ndarray, acc: np.ndarray, count: int, seed: int
+) -> None:
+    """On the same grid (equal stages, each spline interval cut into as many) the two TOPP-RAs
+    solve the same problems: their optima agree to rounding in toppra's LP solver, far closer
+    than toppra's default grid is to either."""
+    q = _waypoints(robot, count, seed)
+    stages = (count - 1) * 100
+    r = retime(q, vel, acc, stages=stages)
+    assert abs(r.optimal_duration / _toppra_duration(q, vel, acc, stages) - 1.0) < 1e-5
 
 
 @pytest.mark.parametrize(("distance", "vel", "acc"), [(2.0, 1.0, 3.0), (0.2, 1.0, 3.0)])
@@ -272,7 +296,10 @@ Q3 = np.array([[0.0, 0.0], [0.5, 1.0], [1.0, 0.0]])
         ({"rate": 0.0}, "rate must be > 0 (Hz), got 0.0"),
         ({"rate": -500.0}, "rate must be > 0 (Hz), got -500.0"),
         ({"rate": np.nan}, "rate must be > 0 (Hz), got nan"),
-        ({"stages": 0}, "stages must be a whole number >= 1, got 0"),
+        ({"rate": np.inf}, "rate must be finite (Hz), got inf"),
+        ({"rate": "500"}, "rate must be > 0 (Hz), got '500'"),
+        ({"stages": 1}, "stages must be a whole number >= 2, got 1"),
+        ({"stages": 2.5}, "stages must be a whole number >= 2, got 2.5"),
     ],
 )
 def test_bad_input(kwargs: dict[str, object], message: str) -> None:

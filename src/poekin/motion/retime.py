@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import numbers
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -162,16 +163,17 @@ def retime(
             waypoints by Ruckig (the ``motion`` extra; finite velocity limits needed), see the
             module's text.
         rate: samples per second (Hz), > 0.
-        stages: how many stages (at least) the parameterisation's grid has; more is closer to
-            the continuous optimum and slower (the default is within 0.1% of it on the tests'
-            paths).
+        stages: how many stages (at least, >= 2) the parameterisation's grid has; more is
+            closer to the continuous optimum and slower (the default is within about 0.2% of
+            it on the tests' paths).
 
     Returns:
         :class:`Retimed`: ``t (K,)``, ``q, qd, qdd (K, n)``, every sample within every limit.
 
     Raises:
         InputError: fewer than 2 waypoints, NaN or inf in ``q_path``, limits that are not > 0
-            or not one per joint, a rate that is not > 0.
+            or not one per joint (infinite where they must be finite), a rate that is not a
+            finite number > 0, ``stages`` below 2.
         MissingExtraError: ``jerk_limits`` without Ruckig installed.
     """
     q = real_array(q_path, "retime: q_path")
@@ -193,10 +195,12 @@ def retime(
         if jerk_limits is None
         else _limits(jerk_limits, n, "jerk_limits", "rad/s^3", infinite=False)
     )
-    if not (isinstance(rate, int | float) and math.isfinite(rate) and rate > 0.0):
+    if isinstance(rate, bool) or not isinstance(rate, numbers.Real) or not rate > 0.0:
         raise InputError(f"retime: rate must be > 0 (Hz), got {rate!r}")
-    if isinstance(stages, bool) or not isinstance(stages, int) or stages < 1:
-        raise InputError(f"retime: stages must be a whole number >= 1, got {stages!r}")
+    if not math.isfinite(rate):
+        raise InputError(f"retime: rate must be finite (Hz), got {rate!r}")
+    if isinstance(stages, bool) or not isinstance(stages, numbers.Integral) or stages < 2:
+        raise InputError(f"retime: stages must be a whole number >= 2, got {stages!r}")
     rate = float(rate)
     spline = not_a_knot(q)
     if not np.any(spline.c[:3]):  # every waypoint the same: nothing to move
@@ -212,7 +216,7 @@ def retime(
             optimal_duration=0.0,
             rate=rate,
         )
-    s, sd, u, optimal, slow = _topp_timing(spline, vel, acc, stages)
+    s, sd, u, optimal, slow = _topp_timing(spline, vel, acc, int(stages))
     ticks = math.ceil(slow * optimal * rate)
     c = ticks / (optimal * rate)  # >= slow: the end on a tick
     t = np.arange(ticks + 1) / rate
