@@ -256,6 +256,16 @@ def test_jerk_limited_through_the_waypoints() -> None:
     np.testing.assert_allclose(r.q[ticks], q, rtol=0, atol=1e-9)
 
 
+def test_jerk_limited_through_a_waypoint_given_twice() -> None:
+    q = _waypoints("franka_fr3", 3, seed=14)[[0, 1, 1, 2]]
+    jerk = np.full(7, 500.0)
+    r = retime(q, FR3_VEL, FR3_ACC, jerk_limits=jerk)
+    _assert_within(r, FR3_VEL, FR3_ACC)
+    _assert_ends(r, q)
+    assert np.all(np.abs(np.diff(r.qdd, axis=0)) * r.rate <= jerk * (1.0 + 1e-9))
+    assert len(r.waypoint_times) == 4
+
+
 def test_jerk_limits_without_ruckig(monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setitem(sys.modules, "ruckig", None)
     q = _waypoints("franka_fr3", 3, seed=11)
