@@ -1,0 +1,245 @@
+"""The motion benchmark (issue #28): each part of ``poekin.motion`` against its reference
+library, in the same run.
+
+Parts (one function each, ``bench_<part>(sizes) -> list[Row]``; ``main`` runs them all):
+
+* ``bench_retime``: :func:`poekin.motion.retime` against toppra 0.6 (``TOPPRA`` with
+  ``JointVelocityConstraint`` and ``JointAccelerationConstraint``, its default grid and
+  ``ParametrizeConstAccel``) on the same paths and limits: random waypoints (5 to 10, uniform
+  within the joint limits) of the UR5e (pi rad/s, 8 rad/s^2 on the big joints and 12 on the
+  wrist) and the FR3 (Franka's data sheet: 2.62 to 5.26 rad/s, 10 rad/s^2), the spline at
+  ``linspace(0, 1, N)`` for both. Per path, the median time of one call (poekin's includes
+  the samples at 500 Hz; toppra's is ``compute_trajectory`` at its defaults, its own grid and
+  ``ParametrizeSpline``, and then its samples at 500 Hz, ``q, qd, qdd``), and how far the
+  durations are apart: poekin's optimum on its grid (``optimal_duration``) and its sampled
+  motion (``duration``, slowed within the limits between grid points and to a whole tick) over
+  toppra's; and the largest ``|qd|`` and ``|qdd|`` of toppra's samples over the limits (its
+  output is a spline in time through its grid points, which the limits do not bound between
+  them). Then ``retime`` with jerk limits (Ruckig,
+  1000 rad/s^3 on the FR3's joints), its median time and duration over the unlimited one.
+
+Timings are medians of repeated single calls (wall time on a possibly shared machine: read
+medians and ratios); the CPU, its vector width and the load average are printed with the
+table.
+
+examples:
+  python benchmarks/bench_motion.py --quick      # seconds: a check that it runs
+  python benchmarks/bench_motion.py              # the full run, about a minute
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import functools
+import logging
+import math
+import pathlib
+import sys
+import time
+import warnings
+from collections.abc import Callable, Sequence
+
+import numpy as np
+from numpy.typing import NDArray
+
+sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent))
+from bench_fk import machine_info, package_version  # the FK benchmark's machine description
+
+import poekin
+from poekin.motion import retime
+
+FloatArray = NDArray[np.float64]
+
+RATE = 500.0  # Hz: the samples both sides return
+GOAL_AGREE = 0.01  # the issue: durations within 1% of toppra's
+ARMS = {  # robot: (label, velocity limits, acceleration limits)
+    "universal_robots_ur5e": (
+        "UR5e",
+        np.full(6, math.pi),
+        np.array([8.0, 8.0, 8.0, 12.0, 12.0, 12.0]),
+    ),
+    "franka_fr3": (
+        "FR3",
+        np.array([2.62, 2.62, 2.62, 2.62, 5.26, 4.18, 5.26]),
+        np.full(7, 10.0),
+    ),
+}
+JERK = 1000.0  # rad/s^3, the jerk row's limit on every joint
+
+
+@dataclasses.dataclass(frozen=True)
+class Sizes:
+    """How much to run; ``--quick`` shrinks everything to seconds (its figures are not the
+    table's)."""
+
+    paths: int = 20  # per arm
+    repeats: int = 7  # timed calls per path
+
+
+QUICK = Sizes(paths=2, repeats=2)
+
+
+@dataclasses.dataclass
+class Row:
+    name: str
+    poekin: str
+    reference: str
+    ratio: float | None  # the reference's time over poekin's
+    note: str
+
+
+def median_s(call: Callable[[], object], repeats: int) -> float:
+    """The median wall time of ``repeats`` calls after one warm-up call (s)."""
+    call()
+    times = []
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        call()
+        times.append(time.perf_counter() - t0)
+    return float(np.median(times))
+
+
+def fmt_s(seconds: float) -> str:
+    for unit, scale in (("s", 1.0), ("ms", 1e-3), ("us", 1e-6)):
+        if seconds >= scale:
+            return f"{seconds / scale:.3g} {unit}"
+    return f"{seconds / 1e-9:.3g} ns"
+
+
+# --- retime: poekin against toppra --------------------------------------------------------------
+
+
+def waypoints(robot: str, paths: int, seed: int) -> list[FloatArray]:
+    """``paths`` arrays of 5 to 10 waypoints within the joint limits (one turn for none)."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", poekin.AssetsStrippedWarning)
+        tree = poekin.load_tree(robot)
+    lo, hi = np.clip(tree.joint_limits, -math.pi, math.pi).T
+    rng = np.random.default_rng(seed)
+    return [rng.uniform(lo, hi, (int(rng.integers(5, 11)), len(lo))) for _ in range(paths)]
+
+
+def toppra_call(
+    q: FloatArray, vel: FloatArray, acc: FloatArray
+) -> Callable[[], tuple[float, float, float]]:
+    """toppra's whole call on the path through ``q`` at its defaults, sampled at :data:`RATE`:
+    its duration and its samples' peak ``|qd|`` and ``|qdd|`` over the limits."""
+    import toppra
+    import toppra.algorithm
+    import toppra.constraint
+
+    def call() -> tuple[float, float, float]:
+        path = toppra.SplineInterpolator(np.linspace(0.0, 1.0, len(q)), q)
+        constraints = [
+            toppra.constraint.JointVelocityConstraint(vel),
+            toppra.constraint.JointAccelerationConstraint(acc),
+        ]
+        traj = toppra.algorithm.TOPPRA(constraints, path).compute_trajectory()
+        t = np.arange(0.0, traj.duration, 1.0 / RATE)
+        _, qd, qdd = traj(t), traj(t, 1), traj(t, 2)
+        peak_v = float(np.max(np.abs(qd) / vel))
+        return float(traj.duration), peak_v, float(np.max(np.abs(qdd) / acc))
+
+    return call
+
+
+def bench_retime(sizes: Sizes) -> list[Row]:
+    if package_version("toppra") is None:
+        print("toppra is not installed: pip install 'poekin[motion]'", file=sys.stderr)
+        return []
+    logging.getLogger("toppra").setLevel(logging.ERROR)
+    rows = []
+    for seed, (robot, (label, vel, acc)) in enumerate(ARMS.items()):
+        ours, theirs, optimal, sampled, peaks_v, peaks_a = [], [], [], [], [], []
+        for q in waypoints(robot, sizes.paths, seed):
+            reference = toppra_call(q, vel, acc)
+            duration, peak_v, peak_a = reference()
+            peaks_v.append(peak_v)
+            peaks_a.append(peak_a)
+            r = retime(q, vel, acc, rate=RATE)
+            optimal.append(r.optimal_duration / duration - 1.0)
+            sampled.append(r.duration / duration - 1.0)
+            ours.append(median_s(functools.partial(retime, q, vel, acc, rate=RATE), sizes.repeats))
+            theirs.append(median_s(reference, sizes.repeats))
+        worst = max(np.abs(optimal).max(), np.abs(sampled).max())
+        rows.append(
+            Row(
+                f"retime {label}, {sizes.paths} paths of 5-10 waypoints, {RATE:g} Hz",
+                fmt_s(float(np.median(ours))),
+                fmt_s(float(np.median(theirs))),
+                float(np.median(theirs)) / float(np.median(ours)),
+                f"durations / toppra's - 1: optimum {min(optimal):+.2%} to {max(optimal):+.2%}, "
+                f"sampled {min(sampled):+.2%} to {max(sampled):+.2%} (goal within "
+                f"{GOAL_AGREE:.0%}: {'met' if worst < GOAL_AGREE else 'missed'}); toppra's "
+                f"samples peak at {max(peaks_v):.4f} of the velocity limit and "
+                f"{max(peaks_a):.4f} of the acceleration limit (poekin's: at most 1)",
+            )
+        )
+    if package_version("ruckig") is not None:
+        label, vel, acc = ARMS["franka_fr3"]
+        paths = waypoints("franka_fr3", sizes.paths, seed=7)
+        times, slower = [], []
+        for q in paths:
+            plain = retime(q, vel, acc, rate=RATE)
+            jerked = retime(q, vel, acc, jerk_limits=JERK, rate=RATE)
+            slower.append(jerked.duration / plain.duration)
+            call = functools.partial(retime, q, vel, acc, jerk_limits=JERK, rate=RATE)
+            times.append(median_s(call, sizes.repeats))
+        rows.append(
+            Row(
+                f"retime {label}, jerk {JERK:g} rad/s^3 (Ruckig)",
+                fmt_s(float(np.median(times))),
+                "—",
+                None,
+                f"duration / without jerk limits: median {np.median(slower):.3g} "
+                f"({min(slower):.3g} to {max(slower):.3g}); leaves the spline between waypoints",
+            )
+        )
+    return rows
+
+
+PARTS: dict[str, Callable[[Sizes], list[Row]]] = {"retime": bench_retime}
+
+
+def table(rows: Sequence[Row]) -> str:
+    out = ["| row | poekin | reference | reference / poekin | |", "|---|---|---|---|---|"]
+    for r in rows:
+        ratio = "—" if r.ratio is None else f"{r.ratio:.3g}x"
+        out.append(f"| {r.name} | {r.poekin} | {r.reference} | {ratio} | {r.note} |")
+    return "\n".join(out)
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(
+        description=__doc__.split("\n\n")[0] if __doc__ else None,
+        epilog=__doc__[__doc__.index("examples:") :] if __doc__ else None,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    parser.add_argument(
+        "--quick", action="store_true", help="small sizes, seconds: a check that it runs"
+    )
+    parser.add_argument(
+        "--only", choices=sorted(PARTS), action="append", help="run only this part (repeatable)"
+    )
+    args = parser.parse_args(argv)
+    sizes = QUICK if args.quick else Sizes()
+    info = machine_info()
+    loadavg = ", ".join(f"{x:.2f}" for x in info["load_average"] or ())
+    print(
+        f"{info['cpu']}, {info['vector_width']}, {info['usable_cores']} usable cores (load "
+        f"average {loadavg}); poekin {package_version('poekin')}, toppra "
+        f"{package_version('toppra')}, ruckig {package_version('ruckig')}, numpy "
+        f"{np.__version__}; git {info['git']}",
+        flush=True,
+    )
+    rows: list[Row] = []
+    for name in args.only or PARTS:
+        rows.extend(PARTS[name](sizes))
+    print()
+    print(table(rows))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
