@@ -17,6 +17,15 @@ Parts (one function each, ``bench_<part>(sizes) -> list[Row]``; ``main`` runs th
   output is a spline in time through its grid points, which the limits do not bound between
   them). Then ``retime`` with jerk limits (Ruckig,
   1000 rad/s^3 on the FR3's joints), its median time and duration over the unlimited one.
+* ``bench_track``: :func:`poekin.motion.track` on a G1 clip of 300 frames at 30 Hz against
+  ``tree.ik`` frame by frame (each frame from the last answer, one attempt), on the same
+  targets: the hands (the elbow roll links), feet and pelvis as poses, the head by position,
+  from a smooth motion (every hinge outside the fingers its centre plus three sines of 0.1 to
+  0.6 Hz inside its limits, the base swaying and turning), with 5 mm of noise on every position
+  and 5 mrad on every orientation; the fingers frozen. Medians of repeated whole solves (NumPy
+  on one BLAS thread, as both solvers run), the mean joint acceleration ``|qdd|`` of each answer
+  (hinges, rad/s^2) and its RMS target position error against the noisy targets. The goal:
+  ``track`` within 2 s, and no slower than frame by frame.
 
 Timings are medians of repeated single calls (wall time on a possibly shared machine: read
 medians and ratios); the CPU, its vector width and the load average are printed with the
@@ -47,7 +56,9 @@ sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent))
 from bench_fk import machine_info, package_version  # the FK benchmark's machine description
 
 import poekin
+import poekin.motion
 from poekin.motion import retime
+from poekin.wholebody.space import space
 
 FloatArray = NDArray[np.float64]
 
@@ -75,9 +86,11 @@ class Sizes:
 
     paths: int = 20  # per arm
     repeats: int = 7  # timed calls per path
+    frames: int = 300  # track: the clip's frames
+    track_repeats: int = 3  # track: whole solves of the clip
 
 
-QUICK = Sizes(paths=2, repeats=2)
+QUICK = Sizes(paths=2, repeats=2, frames=20, track_repeats=1)
 
 
 @dataclasses.dataclass
@@ -199,7 +212,117 @@ def bench_retime(sizes: Sizes) -> list[Row]:
     return rows
 
 
-PARTS: dict[str, Callable[[Sizes], list[Row]]] = {"retime": bench_retime}
+# --- track: a whole clip against tree.ik frame by frame ------------------------------------------
+
+
+CLIP_DT = 1.0 / 30.0  # s: the clip's frames
+NOISE = 0.005  # m on every position, rad on every orientation
+POSES = ("left_elbow_roll_link", "right_elbow_roll_link", "left_foot", "right_foot", "pelvis")
+FINGER_WORDS = {"zero", "one", "two", "three", "four", "five", "six"}
+GOAL_TRACK_S = 2.0
+
+
+def g1_clip(tree: poekin.Tree, fingers: Sequence[str], T: int, seed: int) -> FloatArray:
+    """``(T, nq)`` the smooth G1 motion of the module's docstring."""
+    rng = np.random.default_rng(seed)
+    sp = space(tree, fingers)
+    t = np.arange(T) * CLIP_DT
+    lo, hi = sp.lower, sp.upper
+    centre = np.clip(tree.qpos0[sp.scalar_q], lo + 0.1 * (hi - lo), hi - 0.1 * (hi - lo))
+    amplitude = 0.25 * np.minimum(hi - lo, 1.0) / 3
+    wave = np.zeros((T, len(centre)))
+    for _ in range(3):
+        f = rng.uniform(0.1, 0.6, len(centre))
+        phase = rng.uniform(0, 2 * np.pi, len(centre))
+        wave += (
+            rng.uniform(0, 1, len(centre)) * amplitude * np.sin(2 * np.pi * f * t[:, None] + phase)
+        )
+    q = np.repeat(tree.qpos0[None], T, axis=0)
+    q[:, sp.scalar_q] = np.clip(centre + wave, lo, hi)
+    q[:, 0] += 0.1 * np.sin(2 * np.pi * 0.2 * t)
+    q[:, 1] += 0.05 * np.sin(2 * np.pi * 0.3 * t)
+    yaw = 0.2 * np.sin(2 * np.pi * 0.15 * t)
+    q[:, 3:7] = np.stack([np.cos(yaw / 2), 0 * yaw, 0 * yaw, np.sin(yaw / 2)], axis=1)
+    return q
+
+
+def noisy_targets(tree: poekin.Tree, q: FloatArray, seed: int) -> dict[str, FloatArray]:
+    rng = np.random.default_rng(seed)
+    P = tree.fk(q)
+    out: dict[str, FloatArray] = {}
+    for f in POSES:
+        v = np.array(P[:, tree.frame_index(f)])
+        v[:, :3, 3] += rng.normal(0, NOISE, (len(q), 3))
+        v[:, :3, :3] = poekin.exp_so3(rng.normal(0, NOISE, (len(q), 3))) @ v[:, :3, :3]
+        out[f] = v
+    out["head"] = P[:, tree.frame_index("head"), :3, 3] + rng.normal(0, NOISE, (len(q), 3))
+    return out
+
+
+def mean_acceleration(qpos: FloatArray) -> float:
+    """Mean ``|qdd|`` over the hinges (``qpos[:, 7:]``) and the frames (rad/s^2)."""
+    return float(np.mean(np.abs(np.diff(qpos[:, 7:], 2, axis=0)))) / CLIP_DT**2
+
+
+def rms_error(tree: poekin.Tree, qpos: FloatArray, targets: dict[str, FloatArray]) -> float:
+    P = tree.fk(qpos)
+    errors = [
+        P[:, tree.frame_index(f), :3, 3] - (v if v.ndim == 2 else v[:, :3, 3])
+        for f, v in targets.items()
+    ]
+    return float(np.sqrt(np.mean(np.sum(np.square(errors), axis=-1))))
+
+
+def by_frame(
+    tree: poekin.Tree, targets: dict[str, FloatArray], fingers: Sequence[str]
+) -> FloatArray:
+    """``tree.ik`` frame by frame, each frame from the last answer, one attempt."""
+    T = len(next(iter(targets.values())))
+    out, q = [], tree.qpos0
+    for t in range(T):
+        one = {f: v[t] for f, v in targets.items()}
+        q = tree.ik(one, q, position_only={"head"}, freeze=fingers, max_attempts=1).qpos
+        out.append(q)
+    return np.array(out)
+
+
+def bench_track(sizes: Sizes) -> list[Row]:
+    """``track`` against ``tree.ik`` frame by frame on the G1 clip."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", poekin.AssetsStrippedWarning)
+        tree = poekin.load_tree("unitree_g1")
+    fingers = tuple(n for n in tree.joint_names if n.split("_")[1] in FINGER_WORDS)
+    targets = noisy_targets(tree, g1_clip(tree, fingers, sizes.frames, seed=4), seed=5)
+    times: dict[str, list[float]] = {"track": [], "frames": []}
+    answers: dict[str, FloatArray] = {}
+    iterations = 0
+    for _ in range(sizes.track_repeats):
+        start = time.perf_counter()
+        found = poekin.motion.track(tree, targets, tree.qpos0, freeze=fingers, dt=CLIP_DT)
+        times["track"].append(time.perf_counter() - start)
+        answers["track"], iterations = found.qpos, found.iterations
+        start = time.perf_counter()
+        answers["frames"] = by_frame(tree, targets, fingers)
+        times["frames"].append(time.perf_counter() - start)
+    t_track, t_frames = (float(np.median(times[k])) for k in ("track", "frames"))
+    qdd = {k: mean_acceleration(v) for k, v in answers.items()}
+    err = {k: rms_error(tree, v, targets) * 1e3 for k, v in answers.items()}
+    met = t_track <= GOAL_TRACK_S and t_track <= t_frames
+    return [
+        Row(
+            f"track G1, {sizes.frames} frames at 30 Hz, 5 mm / 5 mrad noise",
+            f"{fmt_s(t_track)} ({iterations} iterations), mean qdd {qdd['track']:.3g} rad/s^2, "
+            f"RMS error {err['track']:.3g} mm",
+            f"tree.ik frame by frame {fmt_s(t_frames)}, mean qdd {qdd['frames']:.3g} rad/s^2, "
+            f"RMS error {err['frames']:.3g} mm",
+            t_frames / t_track,
+            f"goal within {GOAL_TRACK_S:g} s and no slower than by frame: "
+            f"{'met' if met else 'missed'}",
+        )
+    ]
+
+
+PARTS: dict[str, Callable[[Sizes], list[Row]]] = {"retime": bench_retime, "track": bench_track}
 
 
 def table(rows: Sequence[Row]) -> str:

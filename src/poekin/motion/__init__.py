@@ -15,11 +15,12 @@ from poekin.motion.joint import JointTrajectory, joint_trajectory, via_trajector
 from poekin.motion.paths import line_path, line_path_twist, screw_path, screw_path_twist
 from poekin.motion.retime import Retimed, retime
 from poekin.motion.scaling import TrapezoidProfile, min_duration, scaling, trapezoid
-from poekin.motion.track import track
+from poekin.motion.track import TrackResult, track
 
 __all__ = [
     "JointTrajectory",
     "Retimed",
+    "TrackResult",
     "TrapezoidProfile",
     "joint_trajectory",
     "line_path",
