@@ -30,7 +30,12 @@ setup(
             depends=[
                 f"src/poekin/kernel/{name}.h"
                 for name in (
-                    "_kernel_core", "_ik_all", "_ik_common", "_ik_core", "_ik_step", "_ik_type"
+                    "_kernel_core",
+                    "_ik_all",
+                    "_ik_common",
+                    "_ik_core",
+                    "_ik_step",
+                    "_ik_type",
                 )
             ],
             include_dirs=[np.get_include()],
