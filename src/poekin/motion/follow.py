@@ -305,11 +305,12 @@ class _Stop:
 
 
 def _beyond(chain: Chain, q: FloatArray) -> int | None:
-    """The first joint of ``q`` ``(n,)`` outside its limits, or None."""
+    """The joint of ``q`` ``(n,)`` furthest outside its limits, or None."""
     limits = chain.limits
     assert limits is not None
-    out = np.flatnonzero((q < limits[:, 0]) | (q > limits[:, 1]))
-    return int(out[0]) if out.size else None
+    over = np.maximum(limits[:, 0] - q, q - limits[:, 1])
+    k = int(np.argmax(over))
+    return k if over[k] > 0 else None
 
 
 def _limit_stop(chain: Chain, k: int, q: FloatArray, s: float) -> _Stop:
@@ -557,10 +558,12 @@ def _numerical_stop(
     if why == "unsolved":
         free = dataclasses.replace(chain, limits=None)  # the same chain without its limits
         unlimited = free.ik(T_b, q_a, max_attempts=1)
-        k = _beyond(chain, unlimited.q)
-        near = np.max(np.abs(unlimited.q - q_a)) <= opts.max_step
+        revolute = np.array([t == "revolute" for t in chain.joint_types])
+        q_free = np.where(revolute, q_a + _wrap(unlimited.q - q_a), unlimited.q)
+        k = _beyond(chain, q_free)
+        near = np.max(np.abs(q_free - q_a)) <= opts.max_step
         if unlimited.success and near and k is not None:
-            return _limit_stop(chain, k, unlimited.q, s_a)
+            return _limit_stop(chain, k, q_free, s_a)
         if not chain.ik(T_b).success:  # random restarts: no configuration reaches it
             return _unreachable(chain, q_a, s_a)
         why = "the solve from the last sample finds no solution nearby"
