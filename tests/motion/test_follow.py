@@ -178,7 +178,7 @@ def test_ur5e_movel_keeps_the_branch_and_the_line(ur5e: Robot) -> None:
         return line_path(T0, T1, s)
 
     result = chain.follow(path, q0)
-    assert result.reason == "done" and result.fraction == 1.0 and result.branch is not None
+    assert result.done and result.fraction == 1.0 and result.branch is not None
     assert np.array_equal(result.q[0], q0)
     assert result.max_deviation <= 1e-4 and result.max_ori_deviation <= 1e-3
     check(ur5e, result, path)
@@ -283,6 +283,45 @@ def test_a_singular_start_is_solved_numerically(ur5e: Robot) -> None:
     result = chain.follow(path, q0)
     assert result.branch is None and result.signs is None
     check(ur5e, result, path)
+
+
+def test_ur5e_branch_ends_where_another_goes_on(ur5e: Robot) -> None:
+    """A line (random seed 47) that leaves the reach of q0's branch while another branch (the
+    other shoulder) still reaches it: a singular stop, not a switch."""
+    q0, path = _line(ur5e, 47, reach=1.0)
+    result = ur5e.chain.follow(path, q0)
+    assert result.reason == "singular" and "ends here" in result.detail
+    after = path(np.array([result.fraction + 10 * S_RESOLUTION]))
+    assert ur5e.chain.ik_all(after).valid.any()
+    check(ur5e, result, path)
+
+
+def _broken(T0: np.ndarray, T1: np.ndarray) -> Callable[[np.ndarray], np.ndarray]:
+    """A path that jumps from ``T0`` to ``T1`` at s = 0.5."""
+    return lambda s: np.where((np.asarray(s) < 0.5)[..., None, None], T0, T1)
+
+
+@pytest.mark.parametrize("robot_name", ["ur5e", "fr3"])
+def test_a_path_that_jumps(robot_name: str, request: pytest.FixtureRequest) -> None:
+    robot: Robot = request.getfixturevalue(robot_name)
+    q0 = Q0 if robot_name == "ur5e" else np.array([0.0, -0.5, 0.0, -2.0, 0.0, 1.5, 0.7])
+    path = _broken(robot.chain.fk(q0), robot.chain.fk(q0 + 0.3))
+    result = robot.chain.follow(path, q0)
+    assert result.reason == "jump" and result.done is False
+    assert result.fraction == pytest.approx(0.5, abs=1e-8)
+    check(robot, result, path)
+
+
+def test_fr3_path_that_jumps_out_of_the_solve_s_reach(fr3: Robot) -> None:
+    """A jump to a pose that one attempt from the last sample does not solve (random restarts
+    do): a jump, not unreachable."""
+    q0 = np.array([0.0, -0.5, 0.0, -2.0, 0.0, 1.5, 0.7])
+    far = np.array([0.752, -0.821, -2.663, -2.994, 1.758, 4.17, 0.643])
+    assert not fr3.chain.ik(fr3.chain.fk(far), q0, max_attempts=1).success
+    path = _broken(fr3.chain.fk(q0), fr3.chain.fk(far))
+    result = fr3.chain.follow(path, q0)
+    assert result.reason == "jump" and "no solution nearby" in result.detail
+    check(fr3, result, path)
 
 
 @pytest.mark.parametrize("seed", range(12))
@@ -408,6 +447,7 @@ BAD: dict[str, tuple[dict[str, object], str]] = {
         "follow: T_path[1] is not a rigid transform",
     ),
     "short q0": ({"q0": Q0[:5]}, "follow: q0 must be 6 joint values (shape (6,))"),
+    "text q0": ({"q0": "home"}, "follow: q0 must be 6 joint values"),
     "NaN q0": ({"q0": [np.nan] * 6}, "follow: q0 has NaN or inf entries"),
     "q0 beyond": (
         {"q0": Q0 + np.array([0, 0, 5, 0, 0, 0])},
@@ -426,6 +466,14 @@ BAD: dict[str, tuple[dict[str, object], str]] = {
     "function of the wrong shape": (
         {"T_path": lambda T: lambda s: T[0]},
         "follow: the path function must return poses (..., 4, 4) in the shape of s",
+    ),
+    "function of a float": (
+        {"T_path": lambda T: lambda s: T[0] * float(s)},
+        "follow: the path function failed on s of shape (11,)",
+    ),
+    "function of bad poses": (
+        {"T_path": lambda T: lambda s: line_path(T[0], T[1][:3], s)},
+        "line_path: T1 must be poses (..., 4, 4)",
     ),
     "function of NaN": (
         {"T_path": lambda T: lambda s: np.full((len(s), 4, 4), np.nan)},
