@@ -17,6 +17,15 @@ Parts (one function each, ``bench_<part>(sizes) -> list[Row]``; ``main`` runs th
   output is a spline in time through its grid points, which the limits do not bound between
   them). Then ``retime`` with jerk limits (Ruckig,
   1000 rad/s^3 on the FR3's joints), its median time and duration over the unlimited one.
+* ``bench_follow``: ``chain.follow`` of a UR5e straight line given as 1,000 samples
+  (``line_path`` at uniform ``s``, a 0.5 m move with a 0.6 rad turn, the elbow up): median per
+  call, single-threaded NumPy with the compiled kernel. Goal: <= 5 ms on one core. Beside it,
+  1,000 warm-started single solves (``chain.ik`` from the previous sample, one at a time) and
+  one batched ``chain.ik_all`` of the 1,000 poses, the two things it is "close to". Then the
+  same line as a callable (11 first samples: the adaptive re-sampling alone decides how many
+  samples the 0.1 mm bound needs), and the FR3 (seven joints, no closed form) on a 0.3 m line as
+  a callable, each sample ``chain.ik`` from the one before. Every answer is checked before it
+  is timed: the line followed to its end, the largest midpoint deviation under 0.1 mm.
 * ``bench_track``: :func:`poekin.motion.track` on a G1 clip of 300 frames at 30 Hz against
   ``tree.ik`` frame by frame (each frame from the last answer, one attempt), on the same
   targets: the hands (the elbow roll links), feet and pelvis as poses, the head by position,
@@ -57,7 +66,7 @@ from bench_fk import machine_info, package_version  # the FK benchmark's machine
 
 import poekin
 import poekin.motion
-from poekin.motion import retime
+from poekin.motion import line_path, retime
 from poekin.wholebody.space import space
 
 FloatArray = NDArray[np.float64]
@@ -86,11 +95,12 @@ class Sizes:
 
     paths: int = 20  # per arm
     repeats: int = 7  # timed calls per path
+    follow_repeats: int = 50  # follow: timed calls per case
     frames: int = 300  # track: the clip's frames
     track_repeats: int = 3  # track: whole solves of the clip
 
 
-QUICK = Sizes(paths=2, repeats=2, frames=20, track_repeats=1)
+QUICK = Sizes(paths=2, repeats=2, follow_repeats=3, frames=20, track_repeats=1)
 
 
 @dataclasses.dataclass
@@ -212,6 +222,82 @@ def bench_retime(sizes: Sizes) -> list[Row]:
     return rows
 
 
+# --- follow: IK along straight lines ----------------------------------------------------------
+
+UR_START = np.array([0.3, -1.2, 1.4, -0.5, 1.1, 0.2])
+FR3_START = np.array([0.0, -0.5, 0.0, -2.0, 0.0, 1.5, 0.7])
+GOAL_FOLLOW_MS = 5.0  # ms: the 1,000-sample UR5e line
+
+
+def _ur_line(chain: poekin.Chain) -> tuple[np.ndarray, np.ndarray]:
+    T0 = chain.fk(UR_START)
+    T1 = T0.copy()
+    T1[:3, 3] += [0.3, -0.3, -0.25]
+    turn = poekin.lie.exp_so3(np.array([0.0, 0.0, 0.6]))
+    T1[:3, :3] = turn @ T0[:3, :3]
+    return T0, T1
+
+
+def bench_follow(sizes: Sizes) -> list[Row]:
+    """``chain.follow`` along straight lines (the module's docstring)."""
+    repeats = sizes.follow_repeats
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", poekin.AssetsStrippedWarning)
+        ur = poekin.load("universal_robots_ur5e")
+        fr3 = poekin.load("franka_fr3")
+    T0, T1 = _ur_line(ur)
+    samples = line_path(T0, T1, np.linspace(0.0, 1.0, 1000))
+    result = ur.follow(samples, UR_START)
+    assert result.done and len(result.s) == 1000 and result.max_deviation <= 1e-4, result.detail
+
+    def one_by_one() -> None:
+        q = UR_START
+        for T in samples:
+            q = ur.ik(T, q, max_attempts=1).q
+
+    ours = median_s(lambda: ur.follow(samples, UR_START), repeats)
+    single = median_s(one_by_one, max(1, repeats // 5))
+    every = median_s(lambda: ur.ik_all(samples), repeats)
+
+    def ur_path(s: FloatArray) -> FloatArray:
+        return line_path(T0, T1, s)
+
+    adaptive = ur.follow(ur_path, UR_START)
+    assert adaptive.done and adaptive.max_deviation <= 1e-4, adaptive.detail
+    F0 = fr3.fk(FR3_START)
+    F1 = F0.copy()
+    F1[:3, 3] += [0.1, 0.25, -0.1]
+
+    def fr3_path(s: FloatArray) -> FloatArray:
+        return line_path(F0, F1, s)
+
+    seven = fr3.follow(fr3_path, FR3_START)
+    assert seven.done and seven.max_deviation <= 1e-4, seven.detail
+    return [
+        Row(
+            "follow UR5e, a 1,000-sample line",
+            fmt_s(ours),
+            f"1,000 warm-started chain.ik {fmt_s(single)}; one ik_all of them {fmt_s(every)}",
+            single / ours,
+            f"goal <= {GOAL_FOLLOW_MS:g} ms: {'met' if ours * 1e3 <= GOAL_FOLLOW_MS else 'missed'}",
+        ),
+        Row(
+            "follow UR5e, the line as a callable",
+            fmt_s(median_s(lambda: ur.follow(ur_path, UR_START), repeats)),
+            "—",
+            None,
+            f"{len(adaptive.s)} samples for the 0.1 mm bound",
+        ),
+        Row(
+            "follow FR3, a 0.3 m line as a callable",
+            fmt_s(median_s(lambda: fr3.follow(fr3_path, FR3_START), max(1, repeats // 5))),
+            "—",
+            None,
+            f"{len(seven.s)} samples, chain.ik from each to the next",
+        ),
+    ]
+
+
 # --- track: a whole clip against tree.ik frame by frame ------------------------------------------
 
 
@@ -322,7 +408,11 @@ def bench_track(sizes: Sizes) -> list[Row]:
     ]
 
 
-PARTS: dict[str, Callable[[Sizes], list[Row]]] = {"retime": bench_retime, "track": bench_track}
+PARTS: dict[str, Callable[[Sizes], list[Row]]] = {
+    "retime": bench_retime,
+    "follow": bench_follow,
+    "track": bench_track,
+}
 
 
 def table(rows: Sequence[Row]) -> str:

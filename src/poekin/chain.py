@@ -48,6 +48,7 @@ from poekin.kernel._fast import Form
 if TYPE_CHECKING:
     from poekin.ik.analytic import IKSolutions
     from poekin.ik.numerical import IKResult
+    from poekin.motion.follow import FollowResult
 
 __all__ = [
     "IDENTITY",
@@ -1053,6 +1054,67 @@ class Chain:
         """
         solutions: IKSolutions = _analytic().ik_all(self, T, near=near, refine=refine)
         return solutions
+
+    def follow(
+        self,
+        T_path: ArrayLike | Callable[[FloatArray], ArrayLike],
+        q0: ArrayLike,
+        *,
+        max_step: float = 0.1,
+        tol: float = 1e-4,
+        ori_tol: float = 1e-3,
+        samples: int | None = None,
+    ) -> FollowResult:
+        """Inverse kinematics along a path of end-frame poses: joint values for samples of it,
+        each solved from the one before, the branch kept, re-sampled until the end frame stays
+        within ``tol`` of the path between samples (:mod:`poekin.motion.follow` describes the
+        algorithm, the stops and their reasons).
+
+        Where the chain has a closed form (:meth:`ik_all`, the UR arms) every sample is on the
+        branch ``q0`` is on, its configuration signs (shoulder, wrist, elbow) never switched;
+        elsewhere (the FR3) each sample is :meth:`ik` from the one before.
+
+        Args:
+            T_path: ``(N, 4, 4)`` poses at ``s = 0, 1/(N-1), ..., 1`` (``N >= 2``; between two
+                samples the path is the screw motion between them,
+                :func:`poekin.motion.screw_path`), or a callable taking ``(m,)`` path
+                parameters in [0, 1] to ``(m, 4, 4)`` poses, such as
+                ``lambda s: poekin.motion.line_path(T0, T1, s)``.
+            q0: ``(n,)`` the start (rad, m), within the joint limits, ``fk(q0)`` on the path's
+                start (within ``tol`` and ``ori_tol``).
+            max_step: the largest move of any joint between two samples (rad, m), > 0.
+            tol: the largest distance of the end frame's origin from the path at the midpoint
+                (in joint space) of two samples (m), > 0.
+            ori_tol: the largest angle of its rotation from the path's there (rad), > 0.
+            samples: a callable path's first samples, uniform in ``s`` (default 11), >= 2.
+
+        Returns:
+            A :class:`~poekin.motion.follow.FollowResult`: ``q`` ``(K, n)``, ``s`` ``(K,)``,
+            ``T`` ``(K, 4, 4)`` (the poses reached), ``fraction``, ``reason`` (``"done"``,
+            ``"joint_limit"``, ``"singular"``, ``"unreachable"`` or ``"jump"``), ``detail``,
+            ``joint`` (at its limit), ``sigma_min`` (where singular), ``branch``.
+
+        Raises:
+            InputError: a path that is not poses (nor a callable returning them), ``q0`` of
+                the wrong length, outside the limits or off the path's start, a tolerance or
+                ``max_step`` that is not > 0, ``samples`` below 2 or with an array path.
+
+        Example:
+            >>> chain = poekin.load("universal_robots_ur5e")
+            >>> q0 = np.array([0.3, -1.2, 1.4, -0.5, 1.1, 0.2])
+            >>> T0 = chain.fk(q0)
+            >>> T1 = T0.copy()
+            >>> T1[0, 3] += 0.1  # 10 cm along x
+            >>> from poekin.motion import line_path
+            >>> done = chain.follow(lambda s: line_path(T0, T1, s), q0)
+            >>> done.reason, done.fraction, done.max_deviation <= 1e-4
+            ('done', 1.0, True)
+        """
+        from poekin.motion.follow import follow
+
+        return follow(
+            self, T_path, q0, max_step=max_step, tol=tol, ori_tol=ori_tol, samples=samples
+        )
 
     def __repr__(self) -> str:
         joints = ", ".join(

@@ -11,6 +11,7 @@
 Maths only: no file or terminal I/O here (the CLI, plots and the viewer sit at the edge).
 """
 
+from poekin.motion.follow import FollowResult
 from poekin.motion.joint import JointTrajectory, joint_trajectory, via_trajectory
 from poekin.motion.paths import line_path, line_path_twist, screw_path, screw_path_twist
 from poekin.motion.retime import Retimed, retime
@@ -18,6 +19,7 @@ from poekin.motion.scaling import TrapezoidProfile, min_duration, scaling, trape
 from poekin.motion.track import TrackResult, track
 
 __all__ = [
+    "FollowResult",
     "JointTrajectory",
     "Retimed",
     "TrackResult",
