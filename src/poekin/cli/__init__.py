@@ -17,7 +17,7 @@ import warnings
 from collections.abc import Callable, Sequence
 from typing import Any
 
-from poekin.cli import _calibrate, _describe, _export, _fk, _ik, _verify, _view
+from poekin.cli import _calibrate, _describe, _export, _fk, _ik, _path, _verify, _view
 from poekin.cli._args import EXIT_USAGE, Parser
 from poekin.errors import PoekinError
 
@@ -71,6 +71,7 @@ def _build_parser() -> argparse.ArgumentParser:
     _describe.register(sub, fmt)
     _fk.register(sub, fmt)
     _ik.register(sub, fmt)
+    _path.register(sub, fmt)
     _view.register(sub, fmt)
     _calibrate.register(sub, fmt)
     _export.register(sub, fmt)
