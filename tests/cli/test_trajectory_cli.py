@@ -34,8 +34,8 @@ def test_writes_the_figure(
     code, stdout, err = run(capsys, "plot-trajectory", str(traj), "--out", str(out))
     assert code == 0 and err == ""
     assert stdout == (
-        f"plot written to {out}: 6 joints, 201 samples over 2 s; the path stopped at 50.0% "
-        "(singular: smallest singular value 2.1e-05)\n"
+        f"plot written to {out}: 6 joints, 201 samples over 2 s; the path stopped at 50.0%: "
+        "singular: smallest singular value 2.1e-05\n"
     )
     svg = out.read_text()
     assert svg.startswith("<?xml") and 'id="limit-band' in svg and 'id="stop' in svg

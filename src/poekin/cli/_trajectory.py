@@ -20,11 +20,7 @@ def _cmd_plot(args: argparse.Namespace, out: TextIO) -> int:
     check_new_file(args.out, "plot", force=args.force)
     trajectory = load_trajectory(args.trajectory)
     save_figure(trajectory_figure(trajectory, deg=args.deg), args.out, dpi=_DPI, what="plot")
-    stop = ""
-    if trajectory.stopped:
-        fraction = "" if trajectory.fraction is None else f" at {100 * trajectory.fraction:.1f}%"
-        reason = f" ({trajectory.reason})" if trajectory.reason else ""
-        stop = f"; the path stopped{fraction}{reason}"
+    stop = f"; the path {trajectory.stop_words()}" if trajectory.stopped else ""
     print(
         f"plot written to {args.out}: {trajectory.n} joints, {len(trajectory.t)} samples over "
         f"{trajectory.duration:.6g} s{stop}",

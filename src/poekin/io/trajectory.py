@@ -222,6 +222,14 @@ class Trajectory:
             return None
         return float(self.t[-1 if self.stop_index is None else self.stop_index])
 
+    def stop_words(self) -> str:
+        """Where the path stopped, in words: ``"stopped at 62.5%: joint limit: elbow_joint"``
+        (the fraction and the reason where known); "" if it did not stop early."""
+        if not self.stopped:
+            return ""
+        at = "" if self.fraction is None else f" at {100 * self.fraction:.1f}%"
+        return f"stopped{at}" + (f": {self.reason}" if self.reason else "")
+
     def column_names(self) -> tuple[str, ...]:
         """``joint_names``, or ``q[0]`` ... ``q[n-1]`` without them."""
         return self.joint_names or tuple(f"q[{j}]" for j in range(self.n))

@@ -165,11 +165,9 @@ def trajectory_figure(
     if stop is not None:
         for ax in axes:
             ax.axvline(stop, color=_STOP_COLOR, lw=1.6, gid=STOP_GID)
-        fraction = "" if trajectory.fraction is None else f"{100 * trajectory.fraction:.1f}%"
-        words = ": ".join(w for w in (f"stopped at {fraction}".strip(), trajectory.reason) if w)
         right = stop > t[0] + 0.6 * (t[-1] - t[0])
         axes[0].annotate(
-            words,
+            trajectory.stop_words(),
             xy=(stop, 1.0),
             xycoords=("data", "axes fraction"),
             xytext=(-6 if right else 6, -6),
