@@ -2,7 +2,7 @@
 (README shows the first)
 
     python docs/screenshots.py       # writes docs/view_ur5e.png, view_lynch_park.png,
-                                     # view_ik.png, view_wholebody.png
+                                     # view_ik.png, view_wholebody.png, view_play.png
     python docs/screenshots.py ik    # only those whose name contains "ik"
 
 Each is a 1280 x 720 page, quantised to 256 colours to stay small.
@@ -33,6 +33,9 @@ G1_FEET = ("left_foot", "right_foot")
 # where the palms' handles are dragged: their poses with the arms raised forward (shoulder
 # pitch -0.4 rad, roll 0.15 rad outward), reached in five drags of each
 ARMS_RAISED = {"shoulder_pitch_joint": -0.4, "shoulder_roll_joint": 0.15}
+# the trajectory played: a quintic time scaling over 2 s from Q to PLAY_TO, shown at 1.2 s
+PLAY_TO = [1.6, -0.7, 1.0, -1.9, -1.5708, 0.8]
+PLAY_AT = 1.2
 
 
 def _shoot(
@@ -121,11 +124,29 @@ def _wholebody(page: Page) -> None:
         _shoot(page, v, None, HERE / "view_wholebody.png", ready="geometry: stand-in")
 
 
+def _play(page: Page) -> None:
+    """A trajectory played on the UR5e: the quintic from Q to PLAY_TO, paused at PLAY_AT, the
+    end frame's path over the whole of it as the tool trace."""
+    from poekin.io.trajectory import Trajectory
+
+    t = np.linspace(0.0, 2.0, 201)
+    tau = t / 2.0
+    s = 10 * tau**3 - 15 * tau**4 + 6 * tau**5
+    q = np.asarray(Q) + np.outer(s, np.subtract(PLAY_TO, Q))
+    trajectory = Trajectory(t, q, robot="universal_robots_ur5e")
+    with poekin.view("universal_robots_ur5e", play=trajectory, port=0, open_browser=False) as v:
+        v.set_option("screw axes", False)
+        v.play_time = PLAY_AT
+        v.wait_geometry()
+        _shoot(page, v, None, HERE / "view_play.png")
+
+
 SHOTS = {
     "view_ur5e": _ur5e,
     "view_lynch_park": _lynch_park,
     "view_ik": _ik,
     "view_wholebody": _wholebody,
+    "view_play": _play,
 }
 
 

@@ -20,9 +20,11 @@ import sys
 import doc_blocks as db
 import numpy as np
 import pytest
+from trajectory_helpers import quintic
 
 import poekin
 from poekin.cli import _build_parser
+from poekin.io.trajectory import Trajectory
 
 
 def test_readme_has_what_the_brief_asks() -> None:
@@ -65,8 +67,8 @@ def _tracker() -> tuple[np.ndarray, np.ndarray]:
 
 def _fixtures(folder: pathlib.Path) -> None:
     """The files the examples read: joint values for the UR5e and the go2, UR5e poses to solve
-    (T.npy, from joint values within the limits), a parameter file, and a calibration's
-    measurements (tracker.csv)."""
+    (T.npy, from joint values within the limits), a parameter file, a calibration's
+    measurements (tracker.csv), and a trajectory (traj.npz)."""
     from poekin.calibration.files import params_document, write_json, write_measurements
 
     write_measurements(folder / "tracker.csv", poekin.load("universal_robots_ur5e"), *_tracker())
@@ -83,6 +85,11 @@ def _fixtures(folder: pathlib.Path) -> None:
     (folder / "g1_targets.json").write_text(__import__("json").dumps(targets))
     (folder / "my_ur5e.json").write_text(
         __import__("json").dumps(poekin.named_params("ur5e-dh").describe())
+    )
+    # a trajectory file (poekin plot-trajectory, poekin view --play): a UR5e quintic
+    t, q, qd, qdd = quintic()
+    Trajectory(t, q, qd, qdd, robot="universal_robots_ur5e", joint_names=ur5e.joint_names).save(
+        folder / "traj.npz"
     )
     calibration = db.REPO / "tests" / "data" / "ur" / "ur5e_calibration.yaml"  # synthetic
     (folder / "my_robot_calibration.yaml").write_text(calibration.read_text())

@@ -1,5 +1,5 @@
 """The ``poekin`` command line: ``verify``, ``diagnose``, ``screws``, ``dh``, ``fk``,
-``jacobian``, ``ik``, ``view``, ``draw``, ``calibrate`` and ``export``.
+``jacobian``, ``ik``, ``view``, ``draw``, ``calibrate``, ``export`` and ``plot-trajectory``.
 
 Exit codes: 0 success (verify: within tolerance; diagnose: parameters match; ik: every target
 solved), 1 verify out of tolerance, diagnose found differences or ik left targets unsolved, 2
@@ -17,7 +17,17 @@ import warnings
 from collections.abc import Callable, Sequence
 from typing import Any
 
-from poekin.cli import _calibrate, _describe, _export, _fk, _ik, _path, _verify, _view
+from poekin.cli import (
+    _calibrate,
+    _describe,
+    _export,
+    _fk,
+    _ik,
+    _path,
+    _trajectory,
+    _verify,
+    _view,
+)
 from poekin.cli._args import EXIT_USAGE, Parser
 from poekin.errors import PoekinError
 
@@ -75,6 +85,7 @@ def _build_parser() -> argparse.ArgumentParser:
     _view.register(sub, fmt)
     _calibrate.register(sub, fmt)
     _export.register(sub, fmt)
+    _trajectory.register(sub, fmt)
     return parser
 
 

@@ -62,9 +62,15 @@ def _cmd_view(args: argparse.Namespace, out: TextIO) -> int:
     _check_wholebody(args)
 
     require_view("'poekin view'")
+    from poekin.io.trajectory import load_trajectory
     from poekin.viewer.app import is_loopback, view
 
     base, tool = placement(args)  # checked before the model is read
+    trajectory = None
+    if args.play is not None:
+        trajectory = load_trajectory(args.play, "--play")
+        if args.source is None and not args.params and trajectory.robot:
+            args.source = trajectory.robot  # the robot it was made for
     source = model_source(args)
     if not is_loopback(args.host):
         print(
@@ -83,6 +89,8 @@ def _cmd_view(args: argparse.Namespace, out: TextIO) -> int:
         ik=args.ik,
         frames=None if args.frames is None else _names(args.frames),
         hold=None if args.hold is None else _names(args.hold),
+        play=trajectory,
+        play_name=None if args.play is None else f"--play {args.play}",
     )
     try:
         what = f"end frame {viewer.frame!r}"
@@ -90,6 +98,11 @@ def _cmd_view(args: argparse.Namespace, out: TextIO) -> int:
         if shown is not None:
             held = ", ".join(shown.handles.hold) or "none"
             what = f"whole-body IK: {len(shown.handles.frames)} handles, held: {held}"
+        if trajectory is not None:
+            what += (
+                f"; playing {args.play}: {len(trajectory.t)} samples over "
+                f"{trajectory.duration:.6g} s"
+            )
         print(
             f"poekin view: {viewer.url}  ({viewer.subject.name}, {what}); Ctrl-C to stop",
             file=out,
@@ -144,12 +157,15 @@ def register(sub: Any, fmt: type[argparse.HelpFormatter]) -> None:
         "S_i / B_i at the current q, T(q) and the Jacobian, the PoE step by step and DH frames, "
         "an IK mode (drag a target handle, the arm follows; every closed-form solution a ghost); "
         "with --frames, whole-body IK (a handle per frame, the whole robot solved at each drag, "
-        "the --hold frames met exactly); with --params, your parameters as a ghost arm with "
-        "diagnose's findings. Needs the extra poekin[view]. Ctrl-C stops it.",
+        "the --hold frames met exactly); with --play, a trajectory file played with a time "
+        "slider and a play button, the end frame's path drawn as a trace; with --params, your "
+        "parameters as a ghost arm with diagnose's findings. Needs the extra poekin[view]. "
+        "Ctrl-C stops it.",
         epilog="examples:\n  poekin view\n  poekin view unitree_go2 --no-browser --port 8081\n"
         "  poekin view --params lynch-park-ur5\n"
         "  poekin view --base 0 0 0.8 1 0 0 0 --tool 0 0 0.15 1 0 0 0\n"
         "  poekin view --ik\n"
+        "  poekin view universal_robots_ur5e --play traj.npz\n"
         "  poekin view unitree_g1 --ik --frames left_elbow_roll_link,right_elbow_roll_link,"
         "left_foot,right_foot --hold left_foot,right_foot",
         formatter_class=fmt,
@@ -182,6 +198,13 @@ def register(sub: Any, fmt: type[argparse.HelpFormatter]) -> None:
         "--hold",
         metavar="F,F,...",
         help="some of --frames met exactly whatever the drag (contacts: the feet)",
+    )
+    w.add_argument(
+        "--play",
+        metavar="TRAJ",
+        help="play this trajectory file (.npz, as poekin path writes it): a time slider, a "
+        "play/pause button, the tool's path as a trace; without SOURCE, on the robot it was "
+        "made for",
     )
     w.set_defaults(run=_cmd_view)
 

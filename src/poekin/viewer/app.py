@@ -31,11 +31,13 @@ from poekin import lie
 from poekin.chain import Chain, JacobianConvention
 from poekin.dh import Convention, DHTable
 from poekin.errors import InputError, did_you_mean
+from poekin.io.trajectory import Trajectory, trajectory_from
 from poekin.tree import Tree
 from poekin.viewer import panel, wholebody
 from poekin.viewer.geometry import Geometry, Part, mjcf_geometry, stand_in, urdf_geometry
 from poekin.viewer.ik import Reach, follow, ghost_poses, pick, reach, support
 from poekin.viewer.loading import Shown, load_params_comparison, load_shown
+from poekin.viewer.play import Clock, Playback, playback_of, tool_trace
 from poekin.viewer.scene import (
     Comparison,
     Control,
@@ -73,6 +75,9 @@ UNREACHABLE_COLOR = (225, 20, 20)  # the IK target, out of reach
 SOLUTION_COLOR = (40, 170, 120)  # the other closed-form solutions, as ghosts
 SOLUTION_OPACITY = 0.28
 HELD_COLOR = (30, 110, 220)  # a whole-body handle's held frame, met
+TRACE_COLOR = (190, 30, 150)  # the tool trace of a trajectory played
+STOP_COLOR = (200, 20, 20)  # where its path stopped
+_PLAY_FPS = 30.0  # frames a second while a trajectory plays
 _SYMBOL = {"space": "S", "body": "B"}
 _NO_SOLUTION = "(pick one)"
 _REVOLUTE_STEP = 1e-4  # rad: four decimals in the number box
@@ -145,6 +150,7 @@ class Viewer:
         geometry: Callable[[Subject], Geometry],
         comparison: Comparison | None = None,
         handles: Handles | None = None,
+        playback: Playback | None = None,
         host: str = "127.0.0.1",
         port: int | None = None,
     ) -> None:
@@ -161,6 +167,12 @@ class Viewer:
         self._lock = threading.RLock()
         self._nodes: dict[str, _Node] = {}
         self._qpos = subject.qpos0
+        self._playback = playback
+        self._clock: Clock | None = None
+        self._player: threading.Thread | None = None
+        if playback is not None:
+            self._clock = Clock(playback.start, playback.end, playback.start)
+            self._qpos = playback.qpos_at(playback.start)
         self._form: Form = "space"
         self._k = subject.n_joints
         self._unit: Unit = "rad"
@@ -299,6 +311,118 @@ class Viewer:
     def snapshot(self) -> Snapshot:
         """What is drawn now (:func:`poekin.viewer.scene.snapshot` at :attr:`q`)."""
         return snapshot(self.subject, self._qpos)
+
+    # --- a trajectory played -------------------------------------------------------------------
+
+    @property
+    def playback(self) -> Playback | None:
+        """The trajectory played (:class:`poekin.viewer.play.Playback`), or None without one
+        (``view(..., play=...)``)."""
+        return self._playback
+
+    @property
+    def playing(self) -> bool:
+        """Whether the trajectory is playing (in real time, from a thread of the viewer)."""
+        return self._clock is not None and self._clock.playing
+
+    @property
+    def play_time(self) -> float:
+        """The trajectory's time shown, s; setting it shows the robot there (as the time
+        slider does), playing on from it if playing.
+
+        Raises:
+            InputError: no trajectory, or a time outside ``[t[0], t[-1]]``.
+        """
+        return self._need_clock().at(time.monotonic())
+
+    @play_time.setter
+    def play_time(self, seconds: float) -> None:
+        clock = self._need_clock()
+        if not clock.start <= seconds <= clock.end:
+            raise InputError(
+                f"the trajectory's time runs from {clock.start:g} to {clock.end:g} s, got "
+                f"{seconds!r}"
+            )
+        with self._lock:
+            clock.seek(seconds, time.monotonic())
+            self._show_time(clock.time)
+
+    def play(self) -> None:
+        """Play the trajectory in real time from the time shown (from its start when at its
+        end), as the page's play button does; it stops at the end."""
+        clock = self._need_clock()
+        with self._lock:
+            if clock.playing:
+                return
+            clock.play(time.monotonic())
+            self._show_time(clock.time)
+            self._play_button.label = "pause"
+            self._player = threading.Thread(
+                target=self._run_player, name="poekin-play", daemon=True
+            )
+            self._player.start()
+
+    def pause(self) -> None:
+        """Hold the trajectory at the time reached."""
+        clock = self._need_clock()
+        with self._lock:
+            clock.pause(time.monotonic())
+            self._play_button.label = "play"
+            self._show_time(clock.time)
+
+    def _need_clock(self) -> Clock:
+        if self._clock is None:
+            raise InputError("no trajectory to play: start the viewer with play=FILE (--play)")
+        return self._clock
+
+    def _run_player(self) -> None:
+        """Advance the shown time until the end, a pause or the viewer closes."""
+        clock = self._clock
+        assert clock is not None
+        while True:
+            with self._lock:
+                if self._closed or not clock.playing:
+                    return
+                self._show_time(clock.tick(time.monotonic()))
+                if not clock.playing:  # the end
+                    self._play_button.label = "play"
+                    return
+            time.sleep(1.0 / _PLAY_FPS)
+
+    def _show_time(self, seconds: float) -> None:
+        """The robot at ``seconds`` of the trajectory, the slider there."""
+        assert self._playback is not None
+        self._qpos = self._playback.qpos_at(seconds)
+        self._wb = None  # the whole-body targets: at their frames
+        self._syncing = True
+        try:
+            _set(self._time_input, "value", seconds)
+        finally:
+            self._syncing = False
+        self._refresh()
+        self._sync_controls()
+
+    def _on_time(self) -> None:
+        """The time slider moved on the page."""
+        if self._syncing or self._clock is None:
+            return
+        with self._lock:
+            seconds = float(self._time_input.value)
+            if seconds == self._clock.time:
+                return  # an update already shown
+            self._clock.seek(seconds, time.monotonic())
+            self._show_time(self._clock.time)
+
+    def _refresh_trace(self) -> None:
+        """The trace and the stop marker for the end frame shown."""
+        assert self._playback is not None
+        points = self._trace_points()
+        self._nodes["/play/trace"].handle.points = np.stack(
+            [points[:-1], points[1:]], axis=1
+        ).astype(np.float32)
+        stop = self._playback.trajectory.stop_time
+        if stop is not None:
+            self._nodes["/play/stop"].handle.position = points[self._playback.index(stop)]
 
     # --- the IK mode ------------------------------------------------------------------------
 
@@ -444,7 +568,7 @@ class Viewer:
     def texts(self) -> dict[str, str]:
         """The panel's readouts as sent to the page: ``pose``, ``jacobian``, ``poe``, ``screws``,
         ``dh``, ``q`` (and ``compare`` with parameters, ``ik`` in the IK mode, ``wholebody``
-        with whole-body handles)."""
+        with whole-body handles, ``trajectory`` with a trajectory played)."""
         return dict(self._texts)
 
     def node_names(self, kind: str | None = None) -> list[str]:
@@ -453,7 +577,7 @@ class Viewer:
         ``ghost_end``, ``ghost_home``, ``part``, ``world``; the IK mode's ``ik_target`` (the
         handle), ``ik_marker``, ``ik_miss``, ``solution`` (one batched mesh per part: an
         instance per ghost) and ``solution_label``; the whole-body mode's ``wb_handle``,
-        ``wb_marker`` and ``wb_miss``)."""
+        ``wb_marker`` and ``wb_miss``; a trajectory's ``trace`` and ``trace_stop``)."""
         return [n for n, node in self._nodes.items() if kind is None or node.kind == kind]
 
     def node_poses(self, kind: str | None = None) -> dict[str, FloatArray]:
@@ -483,13 +607,15 @@ class Viewer:
             if self._closed:
                 return
             self._closed = True
+            if self._clock is not None:
+                self._clock.playing = False
             with contextlib.redirect_stdout(io.StringIO()):  # viser says "Server stopped"
                 self.server.stop()
         # let a mesh compile in progress finish: native code running in a daemon thread while
         # the interpreter shuts down can crash it
-        loader = getattr(self, "_loader", None)
-        if loader is not None and loader is not threading.current_thread():
-            loader.join(timeout=60.0)
+        for thread in (getattr(self, "_loader", None), getattr(self, "_player", None)):
+            if thread is not None and thread is not threading.current_thread():
+                thread.join(timeout=60.0)
 
     def __enter__(self) -> Viewer:
         return self
@@ -570,6 +696,8 @@ class Viewer:
         self._build_ik_nodes()
         if self._handles is not None:
             self._build_wholebody_nodes()
+        if self._playback is not None:
+            self._build_play_nodes()
         position, look_at = self._camera(snapshot(subject, self._qpos))
         self.server.initial_camera.position = position
         self.server.initial_camera.look_at = look_at
@@ -815,6 +943,53 @@ class Viewer:
             ),
         )
 
+    def _build_play_nodes(self) -> None:
+        """The tool trace of the trajectory played (the end frame's positions at every sample,
+        as line segments) and, where its path stopped early, a marker with the reason."""
+        assert self._playback is not None
+        scene, e = self.server.scene, self._extent
+        self._add(
+            "/play/trace",
+            "trace",
+            scene.add_line_segments(
+                "/play/trace", self._trace_segments(), TRACE_COLOR, thickness=0.004 * e
+            ),
+        )
+        trajectory = self._playback.trajectory
+        stop = trajectory.stop_time
+        if stop is None:
+            return
+        at = self._playback.index(stop)
+        self._add(
+            "/play/stop",
+            "trace_stop",
+            scene.add_icosphere(
+                "/play/stop",
+                radius=0.012 * e,
+                color=STOP_COLOR,
+                position=self._trace_points()[at],
+            ),
+        )
+        self._add(
+            "/play/stop/label",
+            "label",
+            scene.add_label(
+                "/play/stop/label",
+                trajectory.stop_words(),
+                position=(0.0, 0.0, 0.03 * e),
+                anchor="bottom-left",
+            ),
+        )
+
+    def _trace_points(self) -> FloatArray:
+        assert self._playback is not None
+        return tool_trace(self.subject, self._playback.qpos)
+
+    def _trace_segments(self) -> NDArray[np.float32]:
+        """``(K - 1, 2, 3)`` the trace's segments, from each sample to the next."""
+        p = self._trace_points()
+        return np.stack([p[:-1], p[1:]], axis=1).astype(np.float32)
+
     def _build_solution_meshes(self, geometry: Geometry) -> None:
         """One batched mesh per part of the robot, an instance per ghost solution (posed by its
         body's pose in that solution), clickable; sent once, when the IK mode first shows
@@ -898,6 +1073,9 @@ class Viewer:
         if self._handles is not None:
             with gui.add_folder("Whole-body IK"):
                 self._wb_text = gui.add_markdown("")
+        if self._playback is not None:
+            with gui.add_folder("Trajectory"):
+                self._build_play_controls()
         with gui.add_folder("Inverse kinematics"):
             self._build_ik_controls()
         tabs = gui.add_tab_group()
@@ -972,9 +1150,30 @@ class Viewer:
                 self._ik_position_input,
                 self._show_solutions_input,
                 *([self._frame_input] if hasattr(self, "_frame_input") else []),
+                *([self._time_input, self._trace_input] if self._playback is not None else []),
                 *([self._align_input] if self.comparison is not None else []),
             )
         }
+
+    def _build_play_controls(self) -> None:
+        """The trajectory's time slider (s), its play/pause button, the trace's check box and
+        what it is."""
+        assert self._playback is not None
+        gui, shown = self.server.gui, self._playback
+        text = panel.trajectory_text(shown.trajectory, shown.what)
+        self._texts["trajectory"] = text
+        self._play_text = gui.add_markdown(text)
+        step = float(np.min(np.diff(shown.t)))
+        self._time_input: Any = gui.add_slider(
+            "time [s]", shown.start, shown.end, step, shown.start
+        )
+        self._time_input.on_update(lambda _: self._on_time())
+        self._play_button = gui.add_button("play", hint="play the trajectory in real time")
+        self._play_button.on_click(lambda _: self.pause() if self.playing else self.play())
+        self._trace_input: Any = gui.add_checkbox(
+            "tool trace", True, hint="the end frame's path over the whole trajectory"
+        )
+        self._trace_input.on_update(lambda _: self._on_view_option())
 
     def _build_ik_controls(self) -> None:
         gui = self.server.gui
@@ -1166,6 +1365,8 @@ class Viewer:
             symbol = _SYMBOL[self._form]
             for i in range(self.subject.n_joints):
                 self._nodes[f"/screws/s{i}/label"].handle.text = f"{symbol}{i + 1}"
+            if self._playback is not None:
+                _set(self._nodes["/play/trace"].handle, "visible", bool(self._trace_input.value))
             self._refresh()
 
     def _on_ik_option(self) -> None:
@@ -1319,6 +1520,8 @@ class Viewer:
                 if new.base_body is not None and new.tree is not None:
                     title += f" from the floating body `{new.tree.body_names[new.base_body]}`"
                 self._title.content = title
+                if self._playback is not None:
+                    self._refresh_trace()
                 self._on_view_option()
 
     def _sync_controls(self) -> None:
@@ -1751,6 +1954,8 @@ def view(
     ik: bool = False,
     frames: str | Sequence[str] | None = None,
     hold: str | Sequence[str] | None = None,
+    play: str | os.PathLike[str] | Trajectory | None = None,
+    play_name: str | None = None,
 ) -> Viewer:
     """Show a robot in the browser: sliders for its joints, its screw axes, ``T(q)``, its
     Jacobian, the PoE step by step, DH frames, and a parameter set beside it.
@@ -1779,6 +1984,13 @@ def view(
             frames of a tree (names, or one comma-separated string); a drag of one solves the
             whole robot with :meth:`Tree.ik` (the others keep their targets).
         hold: some of ``frames`` met exactly whatever the drag (contacts: the feet).
+        play: a trajectory to play (:mod:`poekin.viewer.play`): a ``.npz`` file
+            (:func:`~poekin.io.trajectory.load_trajectory`) or a
+            :class:`~poekin.io.trajectory.Trajectory` of the robot's ``qpos`` or of its chain's
+            joint values: a time slider (s), a play/pause button that plays it in real time,
+            and the end frame's path as a tool trace.
+        play_name: how messages name the trajectory (the command line's ``--play FILE``);
+            default ``play FILE``.
 
     Returns:
         The :class:`Viewer`; ``viewer.q = ...`` poses the robot, ``viewer.close()`` stops it.
@@ -1786,10 +1998,12 @@ def view(
     Raises:
         PoekinError: an unknown robot, frame or parameter set, a port in use, ``hold``
             without ``frames`` or naming a frame not among them, ``ik`` on an end frame the IK
-            mode does not apply to, and the like.
+            mode does not apply to, a trajectory file that is bad or made for another robot,
+            and the like.
     """
     if hold is not None and frames is None:
         raise InputError("hold names some of the whole-body frames: give frames too")
+    trajectory = None if play is None else trajectory_from(play, "play")
     shown = load_shown(model, frame, base=base, tool=tool)
     subject = shown.subject
     handles = None
@@ -1797,12 +2011,19 @@ def view(
         if subject.tree is None:
             raise InputError("whole-body IK needs a tree: a model, not a bare parameter set")
         handles = wholebody.check_handles(subject.tree, frames, hold)
+    played = None
+    if play is not None and trajectory is not None:
+        named = play_name or (
+            "the trajectory" if isinstance(play, Trajectory) else f"play {os.fspath(play)}"
+        )
+        played = playback_of(subject, trajectory, named)
     comparison = load_params_comparison(subject, params)
     viewer = Viewer(
         subject,
         geometry=_geometry_loader(shown),
         comparison=comparison,
         handles=handles,
+        playback=played,
         host=host,
         port=port,
     )

@@ -15,6 +15,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from poekin.dh import DHTable
+from poekin.io.trajectory import Trajectory
 from poekin.viewer.ik import IKSupport, Reach
 from poekin.viewer.scene import (
     Comparison,
@@ -41,6 +42,7 @@ __all__ = [
     "residual_words",
     "screws_text",
     "solution_label",
+    "trajectory_text",
     "wholebody_text",
 ]
 
@@ -310,4 +312,18 @@ def wholebody_text(shown: WholeBodyReach, *, solve_s: float | None = None, note:
         name = f"`{f}` (held)" if f in handles.hold else f"`{f}`"
         rows.append(f"| {name} | {residual_words(*shown.frame_errors[f])} |")
     lines.append("\n".join(rows))
+    return "\n\n".join(lines)
+
+
+def trajectory_text(trajectory: Trajectory, what: str) -> str:
+    """The trajectory played: its samples and duration, the robot it was made for, what its
+    columns were read as (``what``: ``"qpos"`` or ``"chain"``), and where its path stopped."""
+    made = f" for `{trajectory.robot}`" if trajectory.robot else ""
+    read = "the robot's qpos" if what == "qpos" else "the chain's joint values"
+    lines = [
+        f"**{len(trajectory.t)}** samples over **{trajectory.duration:.6g} s**{made}, "
+        f"{trajectory.n} columns: {read}"
+    ]
+    if trajectory.stopped:
+        lines.append(f"**{trajectory.stop_words()}** (the red marker)")
     return "\n\n".join(lines)
