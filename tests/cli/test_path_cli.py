@@ -75,23 +75,24 @@ def test_a_line_is_followed_timed_and_written(
     assert np.max(np.linalg.norm(off_line, axis=1)) < 2e-4  # samples between follow's: the spline
 
 
-def test_text_output_names_every_joint(capsys: pytest.CaptureFixture[str]) -> None:
+def test_text_output_names_every_joint(
+    capsys: pytest.CaptureFixture[str], ur5e: poekin.Chain
+) -> None:
     code, out, err = run(capsys, "path", "universal_robots_ur5e", "--from", *START, "--to", *END)
     assert code == 0, err
     assert "line of " in out and "followed to its end" in out
-    assert all(name in out for name in poekin.load("universal_robots_ur5e").joint_names)
+    assert all(name in out for name in ur5e.joint_names)
     assert "poekin: note: limits: 1.05 rad/s and 1.4 rad/s^2" in err
 
 
 def test_a_line_out_of_reach_stops_and_says_where(
-    capsys: pytest.CaptureFixture[str], tmp_path: pathlib.Path
+    capsys: pytest.CaptureFixture[str], tmp_path: pathlib.Path, ur5e: poekin.Chain
 ) -> None:
     """A line to a point 3 m away leaves the workspace: exit 1, the part followed is written,
     and the file says where and why it stopped."""
     out_file = tmp_path / "stop.npz"
-    chain = poekin.load("universal_robots_ur5e")
     q0 = np.array([float(v) for v in START])
-    p = chain.fk(q0)[:3, 3] + [3.0, 0.0, 0.0]
+    p = ur5e.fk(q0)[:3, 3] + [3.0, 0.0, 0.0]
     pose = [*map(str, p), "0", "1", "0", "0"]
     code, out, err = run(
         capsys,
