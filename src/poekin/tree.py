@@ -1267,6 +1267,68 @@ class Tree:
         )
         return solve_tree(self, T, frame, qpos, warm_start=warm_start, seed=seed, options=options)
 
+    def follow(
+        self,
+        T_path: Any,
+        qpos0: ArrayLike,
+        frame: str,
+        *,
+        hold: Any = None,
+        max_step: float = 0.1,
+        tol: float = 1e-4,
+        ori_tol: float = 1e-3,
+        samples: int | None = None,
+        freeze: Collection[str] = (),
+        position_only: Collection[str] = (),
+    ) -> Any:
+        """IK along a pose path for one frame, the whole body solved, other frames held: the
+        tree's :meth:`poekin.Chain.follow` (:func:`poekin.motion.follow.follow_tree`).
+
+        Each sample is :meth:`ik` with a dict of targets (``frame`` at the path's pose, each
+        frame of ``hold`` where it is at ``qpos0``, met exactly) from the previous sample; the
+        path is re-sampled until ``frame`` stays within ``tol`` and ``ori_tol`` of it between
+        samples and nothing moves more than ``max_step``, and it stops where it cannot go on
+        (``reason`` ``"joint_limit"``, ``"unreachable"`` or ``"jump"``).
+
+        Args:
+            T_path: ``(N, 4, 4)`` poses of ``frame`` at ``s = 0, 1/(N-1), ..., 1`` (joined by
+                screw motions), or a callable taking ``(m,)`` path parameters to ``(m, 4, 4)``.
+            qpos0: ``(nq,)`` the start, ``frame`` on the path's start.
+            frame: the body or site that follows the path.
+            hold: frames held where they are at ``qpos0`` (a name or names: the feet).
+            max_step: the largest move between two samples of a joint, of the base's position
+                or of a quaternion's angle (rad, m), > 0.
+            tol, ori_tol: the largest deviation of ``frame`` from the path between samples (m,
+                rad), > 0.
+            samples: a callable path's first samples (11), >= 2.
+            freeze: joints kept at ``qpos0`` (the fingers).
+            position_only: held frames held by their position only (a quadruped's feet,
+                which turn as the body moves).
+
+        Returns:
+            A :class:`~poekin.motion.follow.FollowResult` with ``q`` ``(K, nq)`` (``qpos``) and
+            ``T`` the poses of ``frame``.
+
+        Raises:
+            UnknownFrameError: ``frame`` or a held frame names no body or site.
+            InputError: as :meth:`poekin.Chain.follow`, and ``frame`` held too.
+        """
+        from poekin.motion.follow import follow_tree
+
+        return follow_tree(
+            self,
+            T_path,
+            qpos0,
+            frame,
+            hold=hold,
+            max_step=max_step,
+            tol=tol,
+            ori_tol=ori_tol,
+            samples=samples,
+            freeze=tuple(freeze),
+            position_only=tuple(position_only),
+        )
+
     def ik_step(
         self,
         targets: Mapping[str, ArrayLike],

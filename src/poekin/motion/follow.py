@@ -52,12 +52,14 @@ from typing import TYPE_CHECKING, Literal
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from poekin._poe import as_joint_values
 from poekin.errors import AnalyticIKError, InputError
 from poekin.ik import analytic
 from poekin.motion.paths import screw_path
 
 if TYPE_CHECKING:
     from poekin.chain import Chain
+    from poekin.tree import Tree
 
 __all__ = [
     "DEFAULT_MAX_STEP",
@@ -89,6 +91,10 @@ S_RESOLUTION = 1e-9
 #: A stop at a configuration whose world Jacobian's smallest singular value is below this is
 #: ``"singular"`` (m/rad and rad/rad mixed, as the Jacobian's columns ``[w; v]`` are).
 SINGULAR_TOL = 1e-4
+
+#: A tree's stop: the attempts (random restarts) that decide whether the path's next pose is
+#: reachable at all, with the held frames where they are.
+RESTARTS = 20
 
 _SOLVED = 1e-9  # a closed-form branch solves its pose when it is within this (m and rad)
 _RIGID_TOL = 1e-6  # a path's rotation blocks must be orthonormal to this
@@ -614,3 +620,188 @@ def follow(
     if branch is None:
         return _follow_numerical(chain, path, q, opts)
     return _follow_closed(chain, path, q, branch, opts)
+
+
+# --- trees: one frame along the path, others held, the whole body solved ------------------------
+
+
+def _tree_midpoint(tree: Tree, a: FloatArray, b: FloatArray) -> FloatArray:
+    """The configuration half way from ``qpos`` ``a`` to ``b``: hinges, slides and a free
+    joint's position linearly, every quaternion along the shorter arc."""
+    from poekin.wholebody.space import quat_log_between, quat_times_exp, space
+
+    mid = 0.5 * (a + b)
+    for adr, _ in space(tree, ()).quats:
+        w = quat_log_between(a[None, adr : adr + 4], b[None, adr : adr + 4])
+        mid[adr : adr + 4] = quat_times_exp(a[None, adr : adr + 4], 0.5 * w)[0]
+    return mid
+
+
+def _tree_step(tree: Tree, a: FloatArray, b: FloatArray) -> float:
+    """The largest move from ``a`` to ``b``: of a hinge or slide, a free joint's position, or a
+    quaternion's angle (rad, m)."""
+    from poekin.wholebody.space import quat_log_between, space
+
+    sp = space(tree, ())
+    moves = [np.abs(b[sp.scalar_q] - a[sp.scalar_q])]
+    for adr, _ in sp.free_p:
+        moves.append(np.abs(b[adr : adr + 3] - a[adr : adr + 3]))
+    for adr, _ in sp.quats:
+        w = quat_log_between(a[None, adr : adr + 4], b[None, adr : adr + 4])
+        moves.append(np.linalg.norm(w, axis=-1))
+    return float(np.max(np.concatenate(moves), initial=0.0))
+
+
+def _tree_at_limit(tree: Tree, q: FloatArray) -> int | None:
+    """A hinge or slide of ``qpos`` at one of its limits (within 1e-12), or None."""
+    for k, kind in enumerate(tree.joint_types):
+        if kind in ("revolute", "prismatic") and tree.mimics[k] is None:
+            v, (lo, hi) = q[tree.qpos_adr[k]], tree.joint_limits[k]
+            if abs(v - lo) <= 1e-12 or abs(v - hi) <= 1e-12:
+                return k
+    return None
+
+
+def follow_tree(
+    tree: Tree,
+    T_path: ArrayLike | PathFunction,
+    qpos0: ArrayLike,
+    frame: str,
+    *,
+    hold: object = None,
+    max_step: float = DEFAULT_MAX_STEP,
+    tol: float = DEFAULT_TOL,
+    ori_tol: float = DEFAULT_ORI_TOL,
+    samples: int | None = None,
+    freeze: tuple[str, ...] = (),
+    position_only: tuple[str, ...] = (),
+) -> FollowResult:
+    """:meth:`poekin.Tree.follow`: ``frame`` along a pose path from ``qpos0``, the frames
+    ``hold`` met exactly where they are at ``qpos0``, every joint of the tree solved for (a
+    floating base too) by :meth:`poekin.Tree.ik` with a dict of targets from the previous
+    sample, one attempt; re-sampled and stopped as :func:`follow` does (a tree has no closed
+    form: ``branch`` and ``sigma_min`` are None). ``q`` is ``(K, nq)``, ``qpos``."""
+    opts = _Options(
+        _positive(max_step, "max_step", "rad"),
+        _positive(tol, "tol", "m"),
+        _positive(ori_tol, "ori_tol", "rad"),
+    )
+    path = _Path(T_path, samples)
+    index = tree.frame_index(frame)  # an unknown frame: UnknownFrameError, with a suggestion
+    q0 = as_joint_values(qpos0, tree.nq, what="qpos0 values", layout=tree.qpos_layout())
+    if q0.shape != (tree.nq,):
+        raise InputError(
+            f"follow: qpos0 must be one configuration (shape ({tree.nq},)), got {q0.shape}"
+        )
+    held = [] if hold is None else ([hold] if isinstance(hold, str) else list(hold))  # type: ignore[call-overload]
+    if frame in held:
+        raise InputError(f"follow: {frame!r} both follows the path and is held; hold other frames")
+    if frame in position_only:
+        raise InputError(
+            f"follow: {frame!r} follows the path's poses; position_only is for held frames"
+        )
+    poses = tree.fk(q0)
+    fixed = {
+        name: poses[tree.frame_index(name)][:3, 3]
+        if name in position_only
+        else poses[tree.frame_index(name)]
+        for name in held
+    }
+    pos, ori = _errors(poses[index][None], path.poses[:1])
+    if pos[0] > opts.tol or ori[0] > opts.ori_tol:
+        raise InputError(
+            f"follow: qpos0 puts {frame!r} {pos[0]:.3g} m and {ori[0]:.3g} rad from the path's "
+            f"start (tol {opts.tol:g} m, ori_tol {opts.ori_tol:g} rad); start on the path"
+        )
+
+    def solve(T: FloatArray, start: FloatArray, attempts: int) -> tuple[FloatArray, bool]:
+        found = tree.ik(
+            {frame: T, **fixed},
+            start,
+            hold=set(held) or None,
+            position_only=set(position_only) or None,
+            freeze=freeze,
+            max_attempts=attempts,
+        )
+        return np.asarray(found.qpos, dtype=np.float64), bool(found.success)
+
+    qs, ss = [q0], [0.0]
+    pos_dev: list[float] = []
+    ori_dev: list[float] = []
+    pending = list(zip(path.grid[1:][::-1].tolist(), path.poses[1:][::-1], strict=True))
+    stop: _Stop | None = None
+    while pending:
+        s_b, T_b = pending[-1]
+        s_a, q_a = ss[-1], qs[-1]
+        q_b, success = solve(T_b, q_a, 1)
+        why = "" if success else "unsolved"
+        if not why and _tree_step(tree, q_a, q_b) > opts.max_step:
+            why = f"the body moves {_tree_step(tree, q_a, q_b):.3g} within ds < {S_RESOLUTION:g}"
+        dev = (math.nan, math.nan)
+        if not why:
+            mid = tree.fk(_tree_midpoint(tree, q_a, q_b))[index]
+            p, o = _errors(mid[None], path.at(np.array([0.5 * (s_a + s_b)])))
+            dev = (float(p[0]), float(o[0]))
+            if p[0] > opts.tol or o[0] > opts.ori_tol:
+                why = "the frame strays from the path between samples"
+        if not why:
+            qs.append(q_b)
+            ss.append(s_b)
+            pos_dev.append(dev[0])
+            ori_dev.append(dev[1])
+            pending.pop()
+        elif s_b - s_a >= S_RESOLUTION:
+            s_m = 0.5 * (s_a + s_b)
+            pending.append((s_m, path.at(np.array([s_m]))[0]))
+        else:
+            stop = _tree_stop(tree, solve, (s_a, q_a), T_b, q_b, why)
+            break
+    q = np.array(qs)
+    s = np.array(ss)
+    q.flags.writeable = False
+    s.flags.writeable = False
+    T = np.ascontiguousarray(tree.fk(q)[:, index])
+    T.flags.writeable = False
+    return FollowResult(
+        q=q,
+        s=s,
+        T=T,
+        fraction=float(s[-1]) if stop is not None else 1.0,
+        reason="done" if stop is None else stop.reason,
+        detail="" if stop is None else stop.detail,
+        joint=None if stop is None else stop.joint,
+        sigma_min=None,
+        branch=None,
+        max_deviation=float(np.max(pos_dev, initial=0.0)),
+        max_ori_deviation=float(np.max(ori_dev, initial=0.0)),
+    )
+
+
+def _tree_stop(
+    tree: Tree,
+    solve: Callable[[FloatArray, FloatArray, int], tuple[FloatArray, bool]],
+    a: tuple[float, FloatArray],
+    T_b: FloatArray,
+    q_b: FloatArray,
+    why: str,
+) -> _Stop:
+    """Why the tree cannot go on from sample ``a`` to the pose ``T_b`` (``q_b``: the one-attempt
+    solve's answer or best fit there)."""
+    s_a, q_a = a
+    if why == "unsolved":
+        k = _tree_at_limit(tree, q_b)
+        if k is not None:
+            name = tree.joint_names[k]
+            return _Stop(
+                "joint_limit",
+                f"joint {name!r} holds at its limit and the path cannot go on at s = {s_a:.6g}",
+                joint=name,
+            )
+        if not solve(T_b, q_a, RESTARTS)[1]:
+            return _Stop(
+                "unreachable",
+                f"no configuration reaches the path at s = {s_a:.6g} with the held frames "
+                f"where they are ({RESTARTS} attempts)",
+            )
+        why = "the solve from the last sample finds no solution nearby"
+    return _Stop("jump", f"a jump at s = {s_a:.6g}: {why}")
