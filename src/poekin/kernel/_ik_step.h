@@ -135,14 +135,25 @@ AI void ik_step_block(IKState *S, const IKModel *m, const IKOptions *o, const vd
             for (int j = 1; j < n; ++j) t = t + J[k][j] * vselect(fixed[j], x[j], zero);
             bf[k] = b[k] - t;
         }
-        ik_step_primal(Jf, bf, lam, IK_STEP_FLOOR, rows, n, d);
-        if (n > rows) {
-            vd dual[IK_STEP_MAX_JOINTS];
-            ik_step_dual(Jf, bf, lam, IK_STEP_FLOOR, rows, n, dual);
-            vl free = (vl){0}; /* a mask is -1 where true */
-            for (int j = 0; j < n; ++j) free = free - ~fixed[j];
-            const vl wide = free > rows;
-            for (int j = 0; j < n; ++j) d[j] = vselect(wide, dual[j], d[j]);
+        /* a system only where a running lane with free joints takes its answer (a lane that
+         * is done keeps its step, one with every joint fixed takes none): the same bits */
+        vl free = (vl){0}; /* a mask is -1 where true */
+        for (int j = 0; j < n; ++j) free = free - ~fixed[j];
+        const vl wide = free > rows;
+        int primal = 0, dual = 0;
+        for (int l = 0; l < LANES; ++l) {
+            if (done[l] || free[l] == 0) continue;
+            if (n > rows && wide[l])
+                dual = 1;
+            else
+                primal = 1;
+        }
+        for (int j = 0; j < n; ++j) d[j] = zero;
+        if (primal) ik_step_primal(Jf, bf, lam, IK_STEP_FLOOR, rows, n, d);
+        if (dual) {
+            vd by_rows[IK_STEP_MAX_JOINTS];
+            ik_step_dual(Jf, bf, lam, IK_STEP_FLOOR, rows, n, by_rows);
+            for (int j = 0; j < n; ++j) d[j] = vselect(wide, by_rows[j], d[j]);
         }
         for (int j = 0; j < n; ++j) target[j] = vselect(fixed[j], x[j], d[j]);
         /* (1) toward the free joints' optimum, as far as the box allows */
