@@ -37,7 +37,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from collections.abc import Collection, Mapping, Sequence
+from collections.abc import Callable, Collection, Mapping, Sequence
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -70,6 +70,8 @@ STIFF = 1e6  # the weight (per (rad/s)^2 dt^2) of an active velocity limit's ter
 REJECTIONS = 12  # damping increases in a row before an iteration gives up
 RELATIVE_TOL = 1e-7  # converged: an iteration lowered the cost by less than this fraction
 COST_FLOOR = 1e-24  # m^2 per frame: converged (errors of a picometre)
+STUCK_RATIO = 1e4  # a frame whose target cost is this many times the clip's median is stuck
+REPAIRS = 2  # rounds of re-solving stuck frames, each followed by the whole solve
 POLISH_ITERATIONS = 20  # held rows alone, after the iterations, until they are met
 RELEASES = 3  # joints released from their bounds per step at most (one per frame each time)
 _BOUND_TOL = 1e-12
@@ -230,6 +232,20 @@ def track(
         )
         q = _feasible(sp, q, limits)
         q, iterations, converged = _solve(clip, q, options.max_iterations)
+        for _ in range(REPAIRS):  # frames stuck far from their targets: re-solved, then again
+
+            def solve_frame(t: int, start: FloatArray) -> FloatArray:
+                return _frame_ik(
+                    tree, targets, t, start, held, mask, frames_by_position, weights, freeze
+                )
+
+            repaired = _repair(clip, q, solve_frame)
+            if repaired is None:
+                break
+            q, more, converged = _solve(
+                clip, _feasible(sp, repaired, limits), options.max_iterations
+            )
+            iterations += more
         q = _polish(clip, q)
         return _result(clip, q, iterations, converged)
 
@@ -411,19 +427,74 @@ def _start(
             f"track: qpos0 must be ({tree.nq},), one configuration, or ({T}, {tree.nq}), one "
             f"per frame, got shape {q.shape}"
         )
-    first = {name: arr[0] for name, arr in targets.items()}
-    held_first = {name for name in held if mask[name][0]}
-    soft_weights = {k: v for k, v in (weights or {}).items() if k not in held_first}
+    first = _frame_ik(tree, targets, 0, q, held, mask, position_only, weights, freeze)
+    return np.repeat(first[None], T, axis=0)
+
+
+def _frame_ik(
+    tree: Tree,
+    targets: Mapping[str, FloatArray],
+    t: int,
+    start: FloatArray,
+    held: tuple[str, ...],
+    mask: Mapping[str, BoolArray],
+    position_only: frozenset[str],
+    weights: Mapping[str, float] | None,
+    freeze: Collection[str],
+) -> FloatArray:
+    """Frame ``t`` alone, by :meth:`Tree.ik` from ``start`` (one attempt): its ``qpos``."""
+    one = {name: arr[t] for name, arr in targets.items()}
+    held_t = {name for name in held if mask[name][t]}
+    soft_weights = {k: v for k, v in (weights or {}).items() if k not in held_t}
     found = tree.ik(
-        first,
-        q,
-        hold=held_first or None,
+        one,
+        start,
+        hold=held_t or None,
         position_only=position_only or None,
         weights=soft_weights or None,
         freeze=freeze,
         max_attempts=1,
     )
-    return np.repeat(np.asarray(found.qpos)[None], T, axis=0)
+    return np.asarray(found.qpos, dtype=np.float64)
+
+
+def _repair(
+    clip: _Clip, q: FloatArray, solve_frame: Callable[[int, FloatArray], FloatArray]
+) -> FloatArray | None:
+    """``q`` with its stuck frames re-solved, or None if none is stuck or none improves.
+
+    A frame is stuck when its target cost is above :data:`STUCK_RATIO` times the clip's median
+    (a local minimum the joint start led it to, far from frames on either side: exact targets
+    met everywhere but there, or noise whose cost is alike in every frame). Each run of stuck
+    frames is solved frame by frame from the frame before it (:meth:`Tree.ik`, one attempt, so
+    that the motion stays on its branch), and a frame keeps its new configuration where that
+    lowers its target cost."""
+    s = _state(clip, q)
+    per_frame = np.sum(s.d * s.d, axis=1)
+    floor = max(float(np.median(per_frame)), COST_FLOOR)
+    stuck = per_frame > STUCK_RATIO * floor
+    if not stuck.any() or stuck.all():
+        return None
+    out = q.copy()
+    changed = False
+    good = np.flatnonzero(~stuck)
+    for t in np.flatnonzero(stuck):  # in order: a run's frames from the one before
+        start = out[t - 1] if t > 0 else out[good[0]]
+        candidate = solve_frame(int(t), start)
+        if _frame_cost(clip, out, candidate, int(t)) < per_frame[t]:
+            out[t] = candidate
+            changed = True
+    return out if changed else None
+
+
+def _frame_cost(clip: _Clip, q: FloatArray, qpos: FloatArray, t: int) -> float:
+    """The target cost at frame ``t`` of the clip ``q`` with ``qpos`` ``(nq,)`` there (its
+    soft rows, as :func:`_state` weighs them; the problem's targets are the whole clip's)."""
+    trial = q.copy()
+    trial[t] = qpos
+    _, _, _, d, _ = clip.problem.residual(trial)
+    soft = d[t] * ~clip.held_rows[t]
+    return float(np.sum(soft * soft))
 
 
 # --- the configuration space over time ------------------------------------------------------
