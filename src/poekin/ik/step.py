@@ -105,18 +105,61 @@ def step_entries(
     xp: Any,
     trig: Any = _sincos.sincos,
     loop: Any = None,
+    stop: Any = None,
 ) -> Entries:
     """The step ``x`` (entries, ``(...)`` each) from ``q`` toward ``target`` within ``bounds``
-    (``lo``, ``hi`` entries, ``lo <= 0 <= hi`` where ``q`` is inside its limits); ``loop(rounds,
-    body, state)`` runs the rounds (default: until every step is done, NumPy's)."""
+    (``lo``, ``hi`` entries, ``lo <= 0 <= hi`` where ``q`` is inside its limits).
+
+    ``loop(rounds, body, state)`` runs the rounds (default: until every step is done, or
+    :func:`max_rounds`, NumPy's). With ``stop`` (JAX's ``stop_gradient``, PyTorch's
+    ``detach``) the rounds run on values cut from differentiation, and a step that is done is
+    solved once more, differentiably, for the active set they ended with: its derivative is
+    the one at that active set (a step cut short by the rounds keeps the rounds' value, with
+    none)."""
     pose, columns = evaluate(chain, q, xp, None, trig)
     r, _, _, _, quat = residual(pose, target, s, xp)
     J = jacobian_rows(columns, quat, s)
     b = [gain * rk for rk in r]
     lo, hi = bounds
-    n, m = len(q), len(J)
-    zero = xp.zeros_like(q[0])
-    never = zero > 1.0  # False, of q's shape
+    if stop is None:
+        return _rounds(J, b, lo, hi, lam, xp, loop).x
+    cut = [[stop(v) for v in row] for row in J], [stop(v) for v in b]
+    lo_cut, hi_cut = [stop(v) for v in lo], [stop(v) for v in hi]
+    state = _rounds(cut[0], cut[1], lo_cut, hi_cut, lam, xp, loop)
+    at = [
+        xp.where(f, xp.where(x <= lc, lj, hj), 0.0 * lj)
+        for f, x, lc, lj, hj in zip(state.fixed, state.x, lo_cut, lo, hi, strict=True)
+    ]
+    live = _solve_free(J, b, lam, at, state.fixed, xp)
+    return [xp.where(state.done, u, stop(x)) for u, x in zip(live, state.x, strict=True)]
+
+
+def _solve_free(
+    J: list[Entries], b: Entries, lam: float, x: Entries, fx: Entries, xp: Any
+) -> Entries:
+    """The free joints' optimum with the fixed ones (``fx``) at ``x`` (entries, ``n``)."""
+    n, m = len(x), len(J)
+    J_free = [[xp.where(f, 0.0, v) for f, v in zip(fx, row, strict=True)] for row in J]
+    b_free = [
+        bk - _dot(row, [xp.where(f, xj, 0.0) for f, xj in zip(fx, x, strict=True)])
+        for bk, row in zip(b, J, strict=True)
+    ]
+    d = damped_step_primal(J_free, b_free, lam, FLOOR, xp)
+    if n > m:  # more free joints than rows: the dual form where they are
+        free = _count([~f for f in fx], xp)
+        dual = damped_step_dual(J_free, b_free, lam, FLOOR, xp)
+        d = [xp.where(free > m, u, v) for u, v in zip(dual, d, strict=True)]
+    return [xp.where(f, xj, dj) for f, xj, dj in zip(fx, x, d, strict=True)]
+
+
+def _rounds(
+    J: list[Entries], b: Entries, lo: Entries, hi: Entries, lam: float, xp: Any, loop: Any
+) -> _Round:
+    """The active set's rounds (the module's docstring) on the rows ``J``, ``b`` in the box
+    ``lo``, ``hi``: the last state."""
+    n, m = len(lo), len(J)
+    zero = xp.zeros_like(lo[0])
+    never = zero > 1.0  # False, of the batch's shape
     size_b = xp.sqrt(_sum_squares(b))
     size_J = [xp.sqrt(_sum_squares([J[k][j] for k in range(m)])) for j in range(n)]
     # a joint whose bounds meet cannot move: fixed from the start, and never released
@@ -128,25 +171,10 @@ def step_entries(
         done=never,
     )
 
-    def solve_free(state: _Round) -> Entries:
-        """The free joints' optimum with the fixed ones where they are (entries, ``n``)."""
-        x, fx = state.x, state.fixed
-        J_free = [[xp.where(f, 0.0, v) for f, v in zip(fx, row, strict=True)] for row in J]
-        b_free = [
-            bk - _dot(row, [xp.where(f, xj, 0.0) for f, xj in zip(fx, x, strict=True)])
-            for bk, row in zip(b, J, strict=True)
-        ]
-        d = damped_step_primal(J_free, b_free, lam, FLOOR, xp)
-        if n > m:  # more free joints than rows: the dual form where they are
-            free = _count([~f for f in fx], xp)
-            dual = damped_step_dual(J_free, b_free, lam, FLOOR, xp)
-            d = [xp.where(free > m, u, v) for u, v in zip(dual, d, strict=True)]
-        return [xp.where(f, xj, dj) for f, xj, dj in zip(fx, x, d, strict=True)]
-
     def body(state: _Round) -> _Round:
         x, fx = state.x, state.fixed
         # (1) not at an optimum: toward the free joints' optimum, as far as the box allows
-        target_x = solve_free(state)
+        target_x = _solve_free(J, b, lam, x, fx, xp)
         p = [t - xj for t, xj in zip(target_x, x, strict=True)]
         alpha = xp.ones_like(zero)
         block = [never] * n
@@ -205,7 +233,7 @@ def step_entries(
             state = body(state)
     else:
         state = loop(rounds, body, start)
-    return state.x
+    return state
 
 
 def _sum_squares(v: Sequence[Entry]) -> Entry:
@@ -284,10 +312,11 @@ def step(
         T_arr, q_arr = broadcast_together(
             check_targets(T), as_joint_values(q, n, what="q values"), "q"
         )
-        terms, trig, loop = chain_terms(chain), _sincos.sincos, None
+        terms, trig, loop, stop = chain_terms(chain), _sincos.sincos, None, None
     else:
         T_arr, q_arr, single = fixed.as_arrays(T, q, n, kind)
-        terms, trig, loop = chain_terms(chain, single), _pose.sincos, _loop(kind)
+        terms, trig = chain_terms(chain, single), _pose.sincos
+        loop, stop = _loop(kind)
     reach = [v * dt for v in vmax]
     if kind is None and (kernel := _ik_kernel(chain)) is not None:
         options = _kernel_options(chain, s)
@@ -301,7 +330,7 @@ def step(
     for j, (lower, upper) in enumerate(terms.bounds):
         lo.append(xp.minimum(xp.maximum(lower - q_e[j], -reach[j]), reach[j]))
         hi.append(xp.minimum(xp.maximum(upper - q_e[j], -reach[j]), reach[j]))
-    x_e = step_entries(chain, q_e, pose_of(T_arr), (lo, hi), gain, lam, s, xp, trig, loop)
+    x_e = step_entries(chain, q_e, pose_of(T_arr), (lo, hi), gain, lam, s, xp, trig, loop, stop)
     return xp.stack(x_e, axis=-1) / dt
 
 
@@ -359,20 +388,33 @@ def _quick_options(
     return reach, _kernel_options(chain, s), lam, max_rounds(chain.n_joints)
 
 
-def _loop(kind: str) -> Any:
-    """The rounds under JAX (``jax.lax.fori_loop``: one round traced) and PyTorch (all of
-    them, with no test of the values: no synchronisation with a GPU)."""
+def _loop(kind: str) -> tuple[Any, Any]:
+    """The rounds and the cut from differentiation under JAX (``jax.lax.while_loop``, until
+    every step of the batch is done or :func:`max_rounds`; ``stop_gradient``) and PyTorch (the
+    same in Python; ``detach``)."""
     if kind == "jax":
         import jax
 
         def run(rounds: int, body: Any, state: Any) -> Any:
-            return jax.lax.fori_loop(0, rounds, lambda _, st: body(st), state)
+            def more(carry: Any) -> Any:
+                k, st = carry
+                return (k < rounds) & ~jax.numpy.all(st.done)
 
-        return run
+            def once(carry: Any) -> Any:
+                k, st = carry
+                return k + 1, body(st)
 
-    def run_all(rounds: int, body: Any, state: Any) -> Any:
+            return jax.lax.while_loop(more, once, (0, state))[1]
+
+        return run, jax.lax.stop_gradient
+
+    def run_torch(rounds: int, body: Any, state: Any) -> Any:
+        import torch
+
         for _ in range(rounds):
+            if bool(torch.all(state.done)):
+                break
             state = body(state)
         return state
 
-    return run_all
+    return run_torch, lambda x: x.detach()
