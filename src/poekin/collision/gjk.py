@@ -458,6 +458,7 @@ def gjk(
     max_iter: int = 200,
     epa_tol: float = 1e-9,
     epa_faces: int = 1000,
+    depth: bool = True,
 ) -> Distance:
     """The signed distance and witness points of two convex shapes by GJK (EPA when they
     overlap), batched over the poses and sizes (NumPy).
@@ -475,6 +476,10 @@ def gjk(
         max_iter: the most GJK rounds.
         epa_tol: the penetration depth's accuracy (m) on polytopes.
         epa_faces: the most faces of an EPA polytope (curved shapes stop there).
+        depth: False skips EPA: overlapping cores then report ``0`` as their distance (the
+            result is ``-(r1 + r2)``, an upper bound of the signed distance, enough to know
+            that the shapes overlap), and their witness points are a common point of the
+            cores.
 
     Returns:
         The signed distance ``(...)`` (negative: penetration depth) and witness points
@@ -503,12 +508,15 @@ def gjk(
     b = _Shape(kind2, T2, s2, shape)
     dist, pa, pb, inside, Y, YA, YB = _run_gjk(a, b, n, tol, max_iter)
     sign = np.full(n, -1.0)  # the direction from a to b is -(pa - pb) apart
-    for i in np.flatnonzero(inside):
+    for i in np.flatnonzero(inside) if depth else ():
         depth, pa[i], pb[i] = _epa(a, b, int(i), Y[i], YA[i], YB[i], epa_tol, epa_faces)
         dist[i], sign[i] = depth, 1.0
     x = pa - pb
     length = np.linalg.norm(x, axis=-1, keepdims=True)
     n12 = np.where(length > 0, sign[:, None] * x / np.where(length > 0, length, 1.0), 0.0)
+    if not depth:
+        dist[inside] = 0.0
+        pb[inside] = pa[inside]
     signed = np.where(inside, -dist, dist) - a.radius - b.radius
     p1 = pa + a.radius[:, None] * n12
     p2 = pb - b.radius[:, None] * n12
