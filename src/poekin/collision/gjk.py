@@ -509,8 +509,8 @@ def gjk(
     dist, pa, pb, inside, Y, YA, YB = _run_gjk(a, b, n, tol, max_iter)
     sign = np.full(n, -1.0)  # the direction from a to b is -(pa - pb) apart
     for i in np.flatnonzero(inside) if depth else ():
-        depth, pa[i], pb[i] = _epa(a, b, int(i), Y[i], YA[i], YB[i], epa_tol, epa_faces)
-        dist[i], sign[i] = depth, 1.0
+        dist[i], pa[i], pb[i] = _epa(a, b, int(i), Y[i], YA[i], YB[i], epa_tol, epa_faces)
+        sign[i] = 1.0
     x = pa - pb
     length = np.linalg.norm(x, axis=-1, keepdims=True)
     n12 = np.where(length > 0, sign[:, None] * x / np.where(length > 0, length, 1.0), 0.0)
