@@ -56,7 +56,8 @@ def _limits(values: list[float] | None, n: int, default: float, flag: str, unit:
             f"{flag} takes one number > 0 or {n} of them ({unit}, one per joint), got "
             + " ".join(f"{v:g}" for v in values)
         )
-    return np.broadcast_to(arr, (n,)).copy()
+    out: FloatArray = np.broadcast_to(arr, (n,)).copy()
+    return out
 
 
 def _number(value: float, flag: str, unit: str) -> float:
