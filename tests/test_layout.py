@@ -125,7 +125,7 @@ LAYERS = (
     ),
     ("poekin.kernel",),
     ("poekin._poe", "poekin._levels"),
-    ("poekin.ik", "poekin.wholebody", "poekin.motion"),
+    ("poekin.ik", "poekin.wholebody", "poekin.motion", "poekin.collision"),
     ("poekin.chain", "poekin.tree", "poekin.dh"),
     ("poekin.io",),
     ("poekin.verification",),
