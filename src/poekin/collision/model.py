@@ -22,9 +22,8 @@ model tests the same ones:
 * body pairs named in ``<exclude>`` are left out;
 * ``contype``/``conaffinity``: geoms 1 and 2 are a pair when ``contype1 & conaffinity2`` or
   ``contype2 & conaffinity1`` is nonzero;
-* the ``<pair>`` elements are pairs whatever the rules above say, and where a ``<pair>`` names
-  two bodies' geoms, those two bodies' other geoms are not paired by the rules (MuJoCo's
-  merge);
+* the ``<pair>`` elements are pairs whatever the rules above say (a pair that both give is
+  checked once);
 * two geoms that MuJoCo has no collision function for (planes and height fields) are none.
 
 For a URDF these rules are the adjacent-links rule (links joined by a fixed joint count as one
@@ -349,7 +348,6 @@ def _pairs(model: mujoco.MjModel, ids: list[int]) -> list[tuple[int, int]]:
     filter_parent = not (model.opt.disableflags & mujoco.mjtDisableBit.mjDSBL_FILTERPARENT)
     excluded = {int(s) for s in model.exclude_signature}
     explicit = [(int(a), int(b)) for a, b in zip(model.pair_geom1, model.pair_geom2, strict=True)]
-    merged = {int(s) for s in model.pair_signature}
     types = [GEOM_TYPES[int(t)] if int(t) < len(GEOM_TYPES) else "sdf" for t in model.geom_type]
     out: list[tuple[int, int]] = []
     for i, g1 in enumerate(ids):
@@ -361,7 +359,7 @@ def _pairs(model: mujoco.MjModel, ids: list[int]) -> list[tuple[int, int]]:
             if filter_parent and w1 and w2 and (w1 == weld[parent[w2]] or w2 == weld[parent[w1]]):
                 continue
             signature = (min(b1, b2) << 16) + max(b1, b2)
-            if signature in excluded or signature in merged:
+            if signature in excluded:
                 continue
             c1, a1 = int(model.geom_contype[g1]), int(model.geom_conaffinity[g1])
             c2, a2 = int(model.geom_contype[g2]), int(model.geom_conaffinity[g2])
