@@ -2,9 +2,10 @@
 
 The pairs are checked against MuJoCo's own collision filter: ``mj_collision`` on the same
 model with every geom's (and every ``<pair>``'s) margin at 100 m reports a contact for each
-pair that it tests and for no other (the broad phase reads each body's margin, so
-``body_margin`` too; boxes become spheres there, as MuJoCo's box-box function reports no
-contact for boxes far apart, whatever the margin; the filter does not depend on the shapes), so its contacts' geom pairs are MuJoCo's candidate set.
+pair that it tests and for no other. The broad phase reads each body's margin, so
+``body_margin`` is set too; boxes become spheres there, as MuJoCo's box-box function reports
+no contact for boxes far apart whatever the margin (the filter does not depend on shapes).
+So its contacts' geom pairs are MuJoCo's candidate set.
 """
 
 from __future__ import annotations

@@ -6,9 +6,11 @@ pose in the body (:class:`~poekin.collision.model.CollisionModel`); MuJoCo's
 penetration depth, as MuJoCo reports it) and the two witness points. What that is exactly, by
 the kinds of the pair:
 
-* sphere, capsule, plane with each other and with a box: MuJoCo's closed forms (to rounding);
-* box with box, cylinders, ellipsoids and meshes (their convex hulls): MuJoCo's GJK and EPA,
-  to its convex tolerance (``opt.ccd_tolerance``, 1e-6 by default).
+* spheres, capsules and planes with each other and with boxes, and box with box: MuJoCo's
+  closed forms, to rounding (checked to 1e-9);
+* cylinders (but with a plane), ellipsoids and meshes (their convex hulls, their vertices in
+  float32 as MuJoCo keeps them): MuJoCo's GJK and EPA, to its convex tolerance
+  (``opt.ccd_tolerance``, 1e-6 by default).
 
 Obstacles are added to a copy of the model as geoms of bodies of their own; an obstacle
 attached to a frame moves with it and, as a geom of that frame's body would, is not paired
