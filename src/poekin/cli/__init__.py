@@ -1,8 +1,9 @@
 """The ``poekin`` command line: ``verify``, ``diagnose``, ``screws``, ``dh``, ``fk``,
-``jacobian``, ``ik``, ``view``, ``draw``, ``calibrate`` and ``export``.
+``jacobian``, ``ik``, ``collide``, ``view``, ``draw``, ``calibrate`` and ``export``.
 
 Exit codes: 0 success (verify: within tolerance; diagnose: parameters match; ik: every target
-solved), 1 verify out of tolerance, diagnose found differences or ik left targets unsolved, 2
+solved; collide: no pair collides), 1 verify out of tolerance, diagnose found differences, ik
+left targets unsolved or collide found a pair colliding, 2
 bad input. Every expected failure prints one
 ``poekin: error: ...`` line and no traceback; notes (``poekin: note: ...``) say what poekin
 assumed or noticed, on stderr.
@@ -17,7 +18,7 @@ import warnings
 from collections.abc import Callable, Sequence
 from typing import Any
 
-from poekin.cli import _calibrate, _describe, _export, _fk, _ik, _verify, _view
+from poekin.cli import _calibrate, _collide, _describe, _export, _fk, _ik, _verify, _view
 from poekin.cli._args import EXIT_USAGE, Parser
 from poekin.errors import PoekinError
 
@@ -71,6 +72,7 @@ def _build_parser() -> argparse.ArgumentParser:
     _describe.register(sub, fmt)
     _fk.register(sub, fmt)
     _ik.register(sub, fmt)
+    _collide.register(sub, fmt)
     _view.register(sub, fmt)
     _calibrate.register(sub, fmt)
     _export.register(sub, fmt)
