@@ -10,10 +10,10 @@ configuration of
   model (the issue's reference), which finds the contacts only.
 
 Robots: the UR5e (capsules and a cylinder; poekin's built-in copy serves, no mesh files), and
-the G1 (example-robot-data's ``g1_29dof_rev_1_0`` URDF with its STL collision meshes, as MuJoCo compiles
-it: Menagerie's G1 here has no mesh files). The issue's goal: the UR5e >= 10x MuJoCo's loop.
-Each row also gives the share of configurations that collide with themselves, by poekin and by
-MuJoCo (they must agree).
+the G1 (example-robot-data's ``g1_29dof_rev_1_0`` URDF with its STL collision meshes, as
+MuJoCo compiles it: Menagerie's G1 here has no mesh files). The issue's goal: the UR5e >= 10x
+MuJoCo's loop. Each row also gives the share of configurations that collide with themselves,
+by poekin and by MuJoCo (they must agree).
 
 Timings are medians of repeats (wall time on a possibly shared machine: read medians and
 ratios); the CPU, its vector width and the load average are printed with the table.
