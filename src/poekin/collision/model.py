@@ -38,14 +38,13 @@ from __future__ import annotations
 import dataclasses
 import os
 import pathlib
-from collections.abc import Iterable
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import NDArray
 
 from poekin import lie
-from poekin.errors import InputError, ModelError, did_you_mean
+from poekin.errors import ModelError
 
 if TYPE_CHECKING:
     import mujoco
@@ -132,40 +131,6 @@ class CollisionModel:
     def _weld_parent(self, weld: int) -> int:
         parent = int(self.body_parents[weld])
         return -1 if parent < 0 else int(self.body_welds[parent])
-
-    def without(self, ignore: Iterable[tuple[str, str]]) -> IntArray:
-        """:attr:`pairs` less those that ``ignore`` names: pairs of geom names or of body
-        names (every geom of the two bodies), in either order.
-
-        Raises:
-            InputError: an entry that is not two names, or names no geom or body.
-        """
-        keep = np.ones(self.n_pairs, dtype=bool)
-        valid = sorted(set(self.geom_names) | set(self.body_names))
-        for entry in ignore:
-            if not (isinstance(entry, tuple | list) and len(entry) == 2):
-                raise InputError(
-                    f"ignore: each entry is a pair of geom or body names, got {entry!r}"
-                )
-            for name in entry:
-                if name not in valid:
-                    raise InputError(
-                        f"ignore: no collision geom or body named {name!r}: "
-                        f"{did_you_mean(str(name), valid)}"
-                    )
-            a, b = (self._geoms_named(str(name)) for name in entry)
-            in_a = np.isin(self.pairs, a)
-            in_b = np.isin(self.pairs, b)
-            keep &= ~((in_a[:, 0] & in_b[:, 1]) | (in_a[:, 1] & in_b[:, 0]))
-        pairs = self.pairs[keep]
-        pairs.flags.writeable = False
-        return pairs
-
-    def _geoms_named(self, name: str) -> list[int]:
-        if name in self.geom_names:
-            return [self.geom_names.index(name)]
-        b = self.body_names.index(name) if name in self.body_names else -2
-        return [g for g, body in enumerate(self.geom_bodies.tolist()) if body == b]
 
 
 def _reason(e: Exception) -> str:
