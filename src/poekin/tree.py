@@ -25,7 +25,7 @@ from __future__ import annotations
 
 import dataclasses
 from collections.abc import Collection, Mapping, Sequence
-from typing import Any, Literal, NamedTuple
+from typing import TYPE_CHECKING, Any, Literal, NamedTuple
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -50,6 +50,9 @@ from poekin.chain import (
 from poekin.errors import InputError, ModelError, UnknownFrameError, did_you_mean
 from poekin.kernel import _fast
 from poekin.kernel._fast import Form
+
+if TYPE_CHECKING:
+    from poekin.collision.query import Distances
 
 __all__ = ["Mimic", "Tree", "TreeJointType", "TreeParams"]
 
@@ -225,6 +228,10 @@ class Tree:
     _static: _TreeLayout = dataclasses.field(init=False, repr=False, compare=False)
     # T_world_base that with_base folded into the top-level bodies and the world's sites
     _base: FloatArray | None = dataclasses.field(default=None, repr=False, kw_only=True)
+    # the model file poekin.load_tree read (its collision geometry is read from it), or ""
+    _source_file: str = dataclasses.field(default="", repr=False, compare=False, kw_only=True)
+    # the collision model (poekin.collision.model_of), built at first use
+    _collision: dict[str, Any] = dataclasses.field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         set_ = object.__setattr__
@@ -296,6 +303,7 @@ class Tree:
         set_(self, "_kernel", _fast.tree_program(spec))
         set_(self, "_jacobian_kernels", {})
         set_(self, "_ik_cache", {})
+        set_(self, "_collision", {})
         # computed now, not cached at first use: torch.compile cannot trace a cache's lock
         set_(self, "_layout_text", self._layout_words())
         set_(
@@ -1328,6 +1336,79 @@ class Tree:
             freeze=tuple(freeze),
             position_only=tuple(position_only),
         )
+
+    def distances(
+        self,
+        qpos: ArrayLike,
+        obstacles: Any = (),
+        *,
+        margin: float = float("inf"),
+        ignore: Collection[tuple[str, str]] = (),
+    ) -> Distances:
+        """The signed distance and witness points of every checked collision pair.
+
+        The pairs are the model's collision geoms as MuJoCo pairs them (``contype`` and
+        ``conaffinity``, no body with its parent, ``<exclude>``, ``<pair>``; for a URDF, no
+        link with an adjacent one), then each geom with each obstacle, and the obstacles
+        with each other (never two fixed to the world): :mod:`poekin.collision.model`. Each
+        is measured by MuJoCo's ``mj_geomDistance`` on the geoms' poses from :meth:`fk`.
+
+        Args:
+            qpos: ``(..., nq)`` configurations (MuJoCo's layout).
+            obstacles: :class:`poekin.collision.Box`, ``Sphere``, ``Capsule``, ``Plane`` or
+                ``Mesh`` (one or a list), in the world or attached to a frame.
+            margin: pairs farther apart than this (m) are not measured (distance ``inf``,
+                points NaN); default: every pair measured.
+            ignore: pairs of names (geoms, bodies or obstacles) not to check.
+
+        Returns:
+            A :class:`~poekin.collision.Distances`: ``distance (..., P)`` (m, negative: the
+            penetration depth), ``points (..., P, 2, 3)`` in the world frame, and ``pairs``,
+            the ``P`` pairs' names.
+
+        Raises:
+            ModelError: the tree was not loaded from a model file, or its collision meshes
+                are missing (poekin's built-in copies have no mesh files).
+            InputError: bad ``qpos``, obstacles, ``margin`` or ``ignore``.
+            UnknownFrameError: an obstacle attached to a frame that the tree does not have.
+
+        Example:
+            >>> tree = poekin.load_tree("universal_robots_ur5e")
+            >>> found = tree.distances([0.0, -1.57, 1.57, 0.0, 0.0, 0.0])
+            >>> bool((found.distance > 0).all())
+            True
+        """
+        from poekin.collision.query import distances
+
+        return distances(self, qpos, obstacles, margin=margin, ignore=ignore)
+
+    def min_distance(
+        self,
+        qpos: ArrayLike,
+        obstacles: Any = (),
+        *,
+        ignore: Collection[tuple[str, str]] = (),
+    ) -> FloatArray:
+        """``(...)`` the smallest signed distance (m) over every pair :meth:`distances`
+        checks (``inf`` where there is none); arguments and errors as there."""
+        from poekin.collision.query import min_distance
+
+        return min_distance(self, qpos, obstacles, ignore=ignore)
+
+    def in_collision(
+        self,
+        qpos: ArrayLike,
+        obstacles: Any = (),
+        *,
+        margin: float = 0.0,
+        ignore: Collection[tuple[str, str]] = (),
+    ) -> NDArray[np.bool_]:
+        """``(...)`` whether any pair that :meth:`distances` checks is closer than ``margin``
+        (m; 0: whether any two geoms penetrate, touching is not a collision); arguments and
+        errors as there."""
+        from poekin.collision.query import in_collision
+
+        return in_collision(self, qpos, obstacles, margin=margin, ignore=ignore)
 
     def ik_step(
         self,

@@ -1,8 +1,10 @@
 """The ``poekin`` command line: ``verify``, ``diagnose``, ``screws``, ``dh``, ``fk``,
-``jacobian``, ``ik``, ``view``, ``draw``, ``calibrate``, ``export`` and ``plot-trajectory``.
+``jacobian``, ``ik``, ``path``, ``collide``, ``view``, ``draw``, ``calibrate``, ``export`` and
+``plot-trajectory``.
 
 Exit codes: 0 success (verify: within tolerance; diagnose: parameters match; ik: every target
-solved), 1 verify out of tolerance, diagnose found differences or ik left targets unsolved, 2
+solved; collide: no pair collides), 1 verify out of tolerance, diagnose found differences, ik
+left targets unsolved or collide found a pair colliding, 2
 bad input. Every expected failure prints one
 ``poekin: error: ...`` line and no traceback; notes (``poekin: note: ...``) say what poekin
 assumed or noticed, on stderr.
@@ -19,6 +21,7 @@ from typing import Any
 
 from poekin.cli import (
     _calibrate,
+    _collide,
     _describe,
     _export,
     _fk,
@@ -82,6 +85,7 @@ def _build_parser() -> argparse.ArgumentParser:
     _fk.register(sub, fmt)
     _ik.register(sub, fmt)
     _path.register(sub, fmt)
+    _collide.register(sub, fmt)
     _view.register(sub, fmt)
     _calibrate.register(sub, fmt)
     _export.register(sub, fmt)

@@ -147,7 +147,11 @@ def _site_offsets(model: mujoco.MjModel) -> tuple[NDArray[np.float64], NDArray[n
 
 
 def tree_from_model(
-    model: mujoco.MjModel, *, robot: str = "", unknown_masses: Collection[int] = ()
+    model: mujoco.MjModel,
+    *,
+    robot: str = "",
+    unknown_masses: Collection[int] = (),
+    source_file: str = "",
 ) -> Tree:
     """The whole kinematic tree of a compiled MuJoCo model: every body, joint and site.
 
@@ -156,7 +160,9 @@ def tree_from_model(
     the like are already resolved. Mocap bodies sit at their model pose, and sites as
     :func:`_site_offsets` says. Masses and centres of mass are ``body_mass`` and ``body_ipos``,
     NaN for the MuJoCo body ids in ``unknown_masses`` (those a kinematics-only compile got
-    wrong: :attr:`poekin.io.sources.LoadedModel.unknown_masses`).
+    wrong: :attr:`poekin.io.sources.LoadedModel.unknown_masses`). ``source_file``: the model
+    file ``model`` was compiled from, which :meth:`Tree.distances` reads the collision geometry
+    from (empty: none known).
     """
 
     def quat(q: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -198,6 +204,7 @@ def tree_from_model(
         robot=robot,
         body_mass=body_mass,
         body_com=body_com,
+        _source_file=source_file,
     )
 
 

@@ -196,6 +196,7 @@ def tree_from_urdf(
             body_mass=body_mass,
             body_com=body_com,
             joint_velocity_limits=np.array([_speed(joint) for joint in urdf_joints]),
+            _source_file=os.path.abspath(where),
         )
     except InputError as exc:  # what Tree refuses: a guard, as the checks above catch all known
         raise URDFError(f"{where}: {exc}") from exc

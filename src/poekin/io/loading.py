@@ -66,7 +66,10 @@ def load_tree(
     else:
         loaded = source if isinstance(source, LoadedModel) else load_model(source)
         tree = tree_from_model(
-            loaded.model, robot=loaded.robot, unknown_masses=loaded.unknown_masses
+            loaded.model,
+            robot=loaded.robot,
+            unknown_masses=loaded.unknown_masses,
+            source_file=str(loaded.xml_path),
         )
     return tree if base is None else tree.with_base(base)
 

@@ -1,0 +1,162 @@
+"""The collision benchmark (issue #29): self-collision checks, batched, against a MuJoCo loop.
+
+For a batch of random configurations (uniform within the joint ranges), the time per
+configuration of
+
+* poekin: ``tree.in_collision(qpos)`` (one batched call; today measured by MuJoCo's
+  ``mj_geomDistance`` pair by pair on the poses of ``tree.fk``), and ``tree.distances(qpos)``
+  (every pair's distance and witness points);
+* MuJoCo: a Python loop of ``mj_kinematics`` + ``mj_collision`` per configuration on the same
+  model (the issue's reference), which finds the contacts only.
+
+Robots: the UR5e (capsules and a cylinder; poekin's built-in copy serves, no mesh files), and
+the G1 (example-robot-data's ``g1_29dof_rev_1_0`` URDF with its STL collision meshes, as
+MuJoCo compiles it: Menagerie's G1 here has no mesh files). The issue's goal: the UR5e >= 10x
+MuJoCo's loop. Each row also gives the share of configurations that collide with themselves,
+by poekin and by MuJoCo (they must agree).
+
+Timings are medians of repeats (wall time on a possibly shared machine: read medians and
+ratios); the CPU, its vector width and the load average are printed with the table.
+
+examples:
+  python benchmarks/bench_collision.py --quick      # seconds: a check that it runs
+  python benchmarks/bench_collision.py              # the full run, 10,000 configurations
+"""
+
+from __future__ import annotations
+
+import argparse
+import pathlib
+import statistics
+import sys
+import sysconfig
+import time
+import warnings
+from collections.abc import Callable, Sequence
+
+import mujoco
+import numpy as np
+
+sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent))
+from bench_fk import machine_info, package_version  # the FK benchmark's machine description
+
+import poekin
+
+GOAL = 10.0  # the issue: UR5e self-collision >= 10x MuJoCo's loop
+
+
+def _median_s(run: Callable[[], object], repeats: int) -> float:
+    times = []
+    for _ in range(repeats):
+        start = time.perf_counter()
+        run()
+        times.append(time.perf_counter() - start)
+    return statistics.median(times)
+
+
+def _ur5e() -> tuple[str, poekin.Tree, mujoco.MjModel]:
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", poekin.AssetsStrippedWarning)
+        loaded = poekin.load_model("universal_robots_ur5e")
+    return "UR5e (capsules)", poekin.load_tree(loaded), loaded.model
+
+
+def _g1() -> tuple[str, poekin.Tree, mujoco.MjModel] | None:
+    share = pathlib.Path(sysconfig.get_paths()["purelib"]) / "cmeel.prefix" / "share"
+    path = (
+        share
+        / "example-robot-data"
+        / "robots"
+        / "g1_description"
+        / "urdf"
+        / "g1_29dof_rev_1_0.urdf"
+    )
+    if not path.is_file():
+        return None
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        tree = poekin.load_tree(path, floating_base=True)
+    spec = mujoco.MjSpec.from_file(str(path))
+    for mesh in spec.meshes:
+        mesh.file = mesh.file.replace(
+            "package://example-robot-data", str(share / "example-robot-data")
+        )
+    spec.compiler.fusestatic = False
+    spec.worldbody.bodies[0].add_freejoint()
+    for compiler in {id(b.compiler): b.compiler for b in spec.bodies}.values():
+        compiler.boundmass, compiler.boundinertia = 1e-6, 1e-12
+    return "G1 URDF (STL meshes)", tree, spec.compile()
+
+
+def _mujoco_loop(model: mujoco.MjModel, full: np.ndarray) -> np.ndarray:
+    """Whether each configuration collides, by mj_kinematics + mj_collision in a loop."""
+    data = mujoco.MjData(model)
+    out = np.zeros(len(full), dtype=bool)
+    for c, row in enumerate(full):
+        data.qpos[:] = row
+        mujoco.mj_kinematics(model, data)
+        mujoco.mj_collision(model, data)
+        out[c] = any(con.dist < 0 for con in data.contact)
+    return out
+
+
+def _row(label: str, tree: poekin.Tree, model: mujoco.MjModel, n: int, repeats: int) -> str:
+    qpos = poekin.sample_qpos(tree, n, seed=0, within_limits=True)
+    full = tree.full_qpos(qpos)
+    tree.in_collision(qpos[:2])  # the collision model is built once, outside the timing
+    ours = tree.in_collision(qpos)
+    theirs = _mujoco_loop(model, full)
+    t_ours = _median_s(lambda: tree.in_collision(qpos), repeats) / n
+    t_dist = _median_s(lambda: tree.distances(qpos), repeats) / n
+    t_mj = _median_s(lambda: _mujoco_loop(model, full), repeats) / n
+    agree = "agree" if np.array_equal(ours, theirs) else f"DIFFER ({np.sum(ours != theirs)})"
+    note = f"{100 * ours.mean():.1f}% collide (MuJoCo {100 * theirs.mean():.1f}%: {agree})"
+    return (
+        f"| {label}, {n} configurations | {1e6 * t_ours:.3g} us | {1e6 * t_dist:.3g} us | "
+        f"{1e6 * t_mj:.3g} us | {t_mj / t_ours:.3g}x | {note} |"
+    )
+
+
+def bench(n: int, repeats: int) -> list[str]:
+    rows = [_row(*_ur5e(), n, repeats)]
+    g1 = _g1()
+    if g1 is None:
+        rows.append("| G1 | — | — | — | — | example-robot-data is not installed |")
+    else:
+        rows.append(_row(*g1, n, repeats))
+    return rows
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(
+        description=__doc__.split("\n\n")[0] if __doc__ else None,
+        epilog=__doc__[__doc__.index("examples:") :] if __doc__ else None,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    parser.add_argument(
+        "--quick", action="store_true", help="small sizes, seconds: a check that it runs"
+    )
+    args = parser.parse_args(argv)
+    n, repeats = (200, 1) if args.quick else (10_000, 3)
+    info = machine_info()
+    loadavg = ", ".join(f"{x:.2f}" for x in info["load_average"] or ())
+    print(
+        f"{info['cpu']}, {info['vector_width']}, {info['usable_cores']} usable cores (load "
+        f"average {loadavg}); poekin {package_version('poekin')}, mujoco "
+        f"{package_version('mujoco')}, numpy {np.__version__}; git {info['git']}",
+        flush=True,
+    )
+    print()
+    print(
+        "| robot | poekin in_collision / config | poekin distances / config | MuJoCo "
+        "mj_kinematics + mj_collision / config | MuJoCo / poekin in_collision | self-collision |"
+    )
+    print("|---|---|---|---|---|---|")
+    for row in bench(n, repeats):
+        print(row)
+    print(f"\nthe issue's goal: UR5e >= {GOAL:g}x MuJoCo's loop")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

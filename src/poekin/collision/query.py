@@ -1,0 +1,305 @@
+"""Distances between a robot's collision geoms, and between them and obstacles, batched.
+
+For each configuration, every geom's world pose is the tree's FK of its body times the geom's
+pose in the body (:class:`~poekin.collision.model.CollisionModel`); MuJoCo's
+``mj_geomDistance`` then measures each pair on those poses: the signed distance (negative: the
+penetration depth, as MuJoCo reports it) and the two witness points. What that is exactly, by
+the kinds of the pair:
+
+* spheres, capsules and planes with each other and with boxes, and box with box: MuJoCo's
+  closed forms, to rounding (checked to 1e-9);
+* cylinders (but with a plane), ellipsoids and meshes (their convex hulls, their vertices in
+  float32 as MuJoCo keeps them): MuJoCo's GJK and EPA, to its convex tolerance
+  (``opt.ccd_tolerance``, 1e-6 by default).
+
+Obstacles are added to a copy of the model as geoms of bodies of their own; an obstacle
+attached to a frame moves with it and, as a geom of that frame's body would, is not paired
+with the geoms of its own rigid group or (after welding) of its parent.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from collections.abc import Iterable
+from typing import Any
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from poekin import lie
+from poekin.collision.model import GEOM_TYPES, CollisionModel, model_of
+from poekin.collision.obstacles import Mesh, Obstacle, as_obstacles, kind_of, mjcf_size
+from poekin.errors import InputError, did_you_mean
+
+__all__ = ["Distances", "distances", "in_collision", "min_distance"]
+
+FloatArray = NDArray[np.float64]
+IntArray = NDArray[np.intp]
+_NO_FUNCTION = {"plane", "hfield"}
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class Distances:
+    """The signed distance and witness points of every checked pair, per configuration.
+
+    Attributes:
+        distance: ``(..., P)`` signed distances (m): > 0 apart, < 0 the penetration depth;
+            ``inf`` for a pair farther apart than the query's ``margin``.
+        points: ``(..., P, 2, 3)`` the witness points in the world frame (m): on the first
+            geom of the pair, then on the second (NaN where the distance is ``inf``).
+        pairs: ``P`` pairs of names: robot geoms (their own names, else their bodies') and
+            obstacles.
+    """
+
+    distance: FloatArray
+    points: FloatArray
+    pairs: tuple[tuple[str, str], ...]
+
+    @property
+    def colliding(self) -> NDArray[np.bool_]:
+        """``(..., P)`` whether each pair penetrates (distance < 0)."""
+        return self.distance < 0
+
+
+@dataclasses.dataclass(frozen=True)
+class _Scene:
+    """A MuJoCo model with the robot's collision geoms and the obstacles, and how to pose
+    them: geom ``k`` is at ``frames[..., frame[k]] @ local[k]`` (``frames`` the tree's FK,
+    then its base, then the world)."""
+
+    model: Any
+    frame: IntArray
+    local: FloatArray
+    pairs: IntArray
+    names: tuple[tuple[str, str], ...]
+
+
+def _obstacle_model(collision: CollisionModel, obstacles: tuple[Obstacle, ...]) -> Any:
+    """``(MjModel, (n, 4, 4) each obstacle geom's pose in the obstacle's frame)`` for these
+    obstacle shapes, compiled once per collision model and set of shapes."""
+    import mujoco
+
+    key = tuple(
+        (kind_of(o), o.vertices.tobytes() if isinstance(o, Mesh) else tuple(mjcf_size(o)))
+        for o in obstacles
+    )
+    found = collision._with_obstacles.get(key)
+    if found is not None:
+        return found
+    spec = collision.mj_spec.copy()
+    types = {name: mujoco.mjtGeom(k) for k, name in enumerate(GEOM_TYPES)}
+    for k, obstacle in enumerate(obstacles):
+        kind = kind_of(obstacle)
+        body = spec.worldbody.add_body()  # added last: the robot's geom ids stay
+        geom = body.add_geom(type=types[kind], size=mjcf_size(obstacle), contype=0, conaffinity=0)
+        if isinstance(obstacle, Mesh):
+            name = f"poekin_obstacle_{k}"
+            spec.add_mesh(name=name, uservert=obstacle.vertices.ravel().tolist())
+            geom.meshname = name
+    try:
+        model = spec.compile()
+    except Exception as e:
+        reason = "; ".join(ln.strip() for ln in str(e).splitlines() if ln.strip())
+        raise InputError(f"obstacles: MuJoCo cannot compile them: {reason}") from None
+    first = len(collision.geom_names)
+    offsets = np.tile(np.eye(4), (len(obstacles), 1, 1))
+    offsets[:, :3, :3] = lie.quat_to_rotation(np.array(model.geom_quat[first:]))
+    offsets[:, :3, 3] = model.geom_pos[first:]
+    collision._with_obstacles[key] = found = (model, offsets)
+    return found
+
+
+def _names(obstacles: tuple[Obstacle, ...], taken: set[str]) -> list[str]:
+    names = []
+    for k, obstacle in enumerate(obstacles):
+        name = obstacle.name or f"{kind_of(obstacle)}{k}"
+        if name in taken:
+            raise InputError(
+                f"obstacle name {name!r} is taken (by a geom, a body or another obstacle): "
+                "give it another name="
+            )
+        taken.add(name)
+        names.append(name)
+    return names
+
+
+def _scene(
+    tree: Any,
+    collision: CollisionModel,
+    obstacles: tuple[Obstacle, ...],
+    ignore: Iterable[Any],
+) -> _Scene:
+    n_frames, n_geoms = tree.n_frames, len(collision.geom_names)
+    base, world = n_frames, n_frames + 1
+    frame = [base if b < 0 else int(b) for b in collision.geom_bodies.tolist()]
+    local = np.tile(np.eye(4), (n_geoms + len(obstacles), 1, 1))
+    local[:n_geoms, :3, :3], local[:n_geoms, :3, 3] = collision.geom_rot, collision.geom_pos
+    welds = [collision.weld_of(int(b)) for b in collision.geom_bodies.tolist()]
+    types = list(collision.geom_types)
+    labels = [
+        {n, collision.body_names[b] if b >= 0 else "world"}
+        for n, b in zip(collision.geom_names, collision.geom_bodies.tolist(), strict=True)
+    ]
+    names = list(collision.geom_names)
+    model = collision.mj_model
+    if obstacles:
+        model, offsets = _obstacle_model(collision, obstacles)
+        taken = set(collision.geom_names) | set(collision.body_names) | {"world"}
+        for k, (obstacle, name) in enumerate(zip(obstacles, _names(obstacles, taken), strict=True)):
+            if obstacle.frame is None:
+                frame.append(world)
+                body = -1
+            else:
+                index = tree.frame_index(obstacle.frame)  # UnknownFrameError, with a suggestion
+                frame.append(index)
+                nb = len(tree.body_names)
+                body = index if index < nb else int(tree.site_bodies[index - nb])
+            local[n_geoms + k] = obstacle.pose @ offsets[k]
+            welds.append(collision.weld_of(body))
+            types.append(kind_of(obstacle))
+            labels.append({name})
+            names.append(name)
+    pairs = [tuple(p) for p in collision.pairs.tolist()]
+    for j in range(n_geoms, len(names)):
+        for i in range(j):
+            if collision.filtered(welds[i], welds[j]):
+                continue
+            if types[i] in _NO_FUNCTION and types[j] in _NO_FUNCTION:
+                continue
+            pairs.append((i, j))
+    valid = sorted(set().union(*labels)) if labels else []
+    keep = []
+    dropped: list[tuple[str, str]] = []
+    for entry in ignore:
+        if not (isinstance(entry, tuple | list) and len(entry) == 2):
+            raise InputError(f"ignore: each entry is a pair of names, got {entry!r}")
+        for name in entry:
+            if name not in valid:
+                raise InputError(
+                    f"ignore: no collision geom, body or obstacle named {name!r}: "
+                    f"{did_you_mean(str(name), valid)}"
+                )
+        dropped.append((entry[0], entry[1]))
+    for i, j in pairs:
+        hit = any(
+            (a in labels[i] and b in labels[j]) or (b in labels[i] and a in labels[j])
+            for a, b in dropped
+        )
+        if not hit:
+            keep.append((i, j))
+    return _Scene(
+        model=model,
+        frame=np.array(frame, dtype=np.intp),
+        local=local,
+        pairs=np.array(keep, dtype=np.intp).reshape(-1, 2),
+        names=tuple((names[i], names[j]) for i, j in keep),
+    )
+
+
+def _margin(margin: Any, what: str) -> float:
+    try:
+        value = float(margin)
+    except (TypeError, ValueError):
+        raise InputError(
+            f"{what}: margin must be a number (m), got {type(margin).__name__}"
+        ) from None
+    if math.isnan(value) or value == -math.inf:
+        raise InputError(f"{what}: margin must be a number (m) or inf, got {value}")
+    return value
+
+
+def _measure(
+    tree: Any, qpos: ArrayLike, obstacles: Any, margin: float, ignore: Iterable[Any]
+) -> tuple[FloatArray, FloatArray, _Scene]:
+    import mujoco
+
+    collision = model_of(tree)
+    scene = _scene(tree, collision, as_obstacles(obstacles), ignore)
+    frames = np.asarray(tree.fk(qpos), dtype=np.float64)  # checks qpos
+    batch = frames.shape[:-3]
+    extra = np.broadcast_to(np.stack([tree.base, np.eye(4)]), (*batch, 2, 4, 4))
+    frames = np.concatenate([frames, extra], axis=-3).reshape(-1, tree.n_frames + 2, 4, 4)
+    poses = frames[:, scene.frame] @ scene.local  # (B, G, 4, 4)
+    n_pairs = scene.pairs.shape[0]
+    distance = np.full((poses.shape[0], n_pairs), np.inf)
+    points = np.full((poses.shape[0], n_pairs, 2, 3), np.nan)
+    model = scene.model
+    data = mujoco.MjData(model)
+    n_geoms = poses.shape[1]
+    fromto = np.zeros(6)
+    pairs = scene.pairs.tolist()
+    for c in range(poses.shape[0]):
+        data.geom_xpos[:n_geoms] = poses[c, :, :3, 3]
+        data.geom_xmat[:n_geoms] = poses[c, :, :3, :3].reshape(n_geoms, 9)
+        for p, (g1, g2) in enumerate(pairs):
+            d = mujoco.mj_geomDistance(model, data, g1, g2, margin, fromto)
+            if d < margin:
+                distance[c, p] = d
+                points[c, p] = fromto.reshape(2, 3)
+    return (
+        distance.reshape(*batch, n_pairs),
+        points.reshape(*batch, n_pairs, 2, 3),
+        scene,
+    )
+
+
+def distances(
+    tree: Any,
+    qpos: ArrayLike,
+    obstacles: Any = (),
+    *,
+    margin: float = math.inf,
+    ignore: Iterable[Any] = (),
+) -> Distances:
+    """:meth:`poekin.Tree.distances`: every checked pair's signed distance and witness points.
+
+    Args:
+        tree: a tree loaded from a model file (:func:`poekin.load_tree`).
+        qpos: ``(..., nq)`` configurations (MuJoCo's layout).
+        obstacles: :class:`~poekin.collision.Box`, ``Sphere``, ``Capsule``, ``Plane`` or
+            ``Mesh`` obstacles (one, or a list).
+        margin: pairs farther apart than this (m) are not measured: their distance is
+            ``inf``, their points NaN (faster: MuJoCo stops early). Default: all measured.
+        ignore: pairs of names (geoms, bodies or obstacles, in either order) not to check,
+            as an SRDF's disabled collisions.
+
+    Returns:
+        A :class:`Distances` with ``distance (..., P)``, ``points (..., P, 2, 3)`` and the
+        ``P`` pairs' names.
+
+    Raises:
+        InputError: bad ``qpos``, obstacles, ``margin`` or ``ignore``.
+        UnknownFrameError: an obstacle attached to a frame the tree does not have.
+        ModelError: the tree knows no model file, or its collision meshes are missing.
+    """
+    value = _margin(margin, "distances")
+    distance, points, scene = _measure(tree, qpos, obstacles, value, ignore)
+    for a in (distance, points):
+        a.flags.writeable = False
+    return Distances(distance=distance, points=points, pairs=scene.names)
+
+
+def min_distance(
+    tree: Any, qpos: ArrayLike, obstacles: Any = (), *, ignore: Iterable[Any] = ()
+) -> FloatArray:
+    """:meth:`poekin.Tree.min_distance`: ``(...)`` the smallest signed distance over every
+    checked pair (m; ``inf`` where there is no pair). Arguments as :func:`distances`."""
+    distance, _, _ = _measure(tree, qpos, obstacles, math.inf, ignore)
+    return np.asarray(distance.min(axis=-1, initial=np.inf), dtype=np.float64)
+
+
+def in_collision(
+    tree: Any,
+    qpos: ArrayLike,
+    obstacles: Any = (),
+    *,
+    margin: float = 0.0,
+    ignore: Iterable[Any] = (),
+) -> NDArray[np.bool_]:
+    """:meth:`poekin.Tree.in_collision`: ``(...)`` whether any checked pair is closer than
+    ``margin`` (m; 0: whether any penetrates; touching is not a collision). Arguments as
+    :func:`distances`."""
+    value = _margin(margin, "in_collision")
+    distance, _, _ = _measure(tree, qpos, obstacles, value, ignore)
+    return np.asarray((distance < value).any(axis=-1))

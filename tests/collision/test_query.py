@@ -1,0 +1,442 @@
+"""Tree.distances, min_distance and in_collision against MuJoCo on the same model.
+
+MuJoCo is the reference twice over: ``mj_collision`` (its contacts with ``dist < 0`` are the
+colliding pairs) and ``mj_geomDistance`` called here on MuJoCo's own FK (``mj_kinematics`` of
+the qpos), with obstacles added to the model's spec as geoms by this file. Closed forms
+(sphere against a capsule's segment) and coal through Pinocchio are the others.
+"""
+
+from __future__ import annotations
+
+import math
+import pathlib
+import sysconfig
+
+import mujoco
+import numpy as np
+import pytest
+from helpers import load_quiet, pinocchio_q
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+import poekin
+from poekin.collision import Box, Capsule, Mesh, Plane, Sphere, model_of
+from poekin.errors import InputError, UnknownFrameError
+
+PRIMITIVE_TOL = 1e-9  # the issue's bound for primitive pairs
+N_CONFIGS = 300
+CYLINDER = mujoco.mjtGeom.mjGEOM_CYLINDER  # measured by GJK: its points to MuJoCo's tolerance
+
+
+def _ur5e() -> poekin.Tree:
+    return poekin.load_tree(load_quiet("universal_robots_ur5e"))
+
+
+@pytest.fixture(scope="module")
+def ur5e_tree() -> poekin.Tree:
+    return _ur5e()
+
+
+def _collision_geoms(model: mujoco.MjModel) -> list[int]:
+    return [g for g in range(model.ngeom) if model.geom_contype[g] or model.geom_conaffinity[g]]
+
+
+def mj_reference(
+    model: mujoco.MjModel, qpos: np.ndarray, pairs: list[tuple[int, int]]
+) -> tuple[np.ndarray, np.ndarray]:
+    """``(n, P)`` distances and ``(n, P, 2, 3)`` witness points by ``mj_geomDistance`` after
+    MuJoCo's own ``mj_kinematics`` of each qpos, on MuJoCo geom ids."""
+    data = mujoco.MjData(model)
+    dist = np.empty((len(qpos), len(pairs)))
+    points = np.empty((len(qpos), len(pairs), 2, 3))
+    fromto = np.zeros(6)
+    for c, row in enumerate(qpos):
+        data.qpos[:] = row
+        mujoco.mj_kinematics(model, data)
+        for p, (a, b) in enumerate(pairs):
+            dist[c, p] = mujoco.mj_geomDistance(model, data, a, b, math.inf, fromto)
+            points[c, p] = fromto.reshape(2, 3)
+    return dist, points
+
+
+def mj_colliding(model: mujoco.MjModel, qpos: np.ndarray) -> list[set[frozenset[int]]]:
+    """Per configuration, the geom pairs that ``mj_collision`` finds penetrating."""
+    data = mujoco.MjData(model)
+    out = []
+    for row in qpos:
+        data.qpos[:] = row
+        mujoco.mj_kinematics(model, data)
+        mujoco.mj_collision(model, data)
+        out.append({frozenset(map(int, c.geom)) for c in data.contact if c.dist < 0})
+    return out
+
+
+def test_ur5e_self_collision_matches_mj_collision_and_mj_geom_distance(
+    ur5e_tree: poekin.Tree,
+) -> None:
+    """Random configurations over the joint ranges: the same colliding pairs as
+    mj_collision's contacts, distances and witness points within 1e-9 of mj_geomDistance on
+    MuJoCo's FK for the capsules (MuJoCo's closed form), within its convex tolerance for the
+    cylinder (GJK and EPA)."""
+    reference = load_quiet("universal_robots_ur5e").model
+    qpos = poekin.sample_qpos(ur5e_tree, N_CONFIGS, seed=3, within_limits=True)
+    found = ur5e_tree.distances(qpos)
+    ids = _collision_geoms(reference)
+    pairs = [(ids[a], ids[b]) for a, b in model_of(ur5e_tree).pairs.tolist()]
+    dist, points = mj_reference(reference, qpos, pairs)
+    _assert_distances(reference, pairs, found.distance, dist)
+    gjk = [k for k, (a, b) in enumerate(pairs) if CYLINDER in reference.geom_type[[a, b]]]
+    err = np.abs(found.points - points).max(axis=(-1, -2))
+    assert err[:, gjk].max() < 1e-6  # MuJoCo's convex tolerance: its points' accuracy
+    err[:, gjk] = 0.0
+    same = err <= PRIMITIVE_TOL
+    for c, p in zip(*np.nonzero(~same), strict=True):  # parallel axes: no one closest pair
+        _assert_on_parallel_surfaces(reference, qpos[c], pairs[p], found.points[c, p])
+    assert same.mean() > 0.9
+    ours = [{frozenset(pairs[p]) for p in np.flatnonzero(row < 0)} for row in found.distance]
+    assert ours == mj_colliding(reference, qpos)
+    rate = np.mean(ur5e_tree.in_collision(qpos))
+    assert 0.1 < rate < 0.25  # 16.7% of 10,000 (benchmarks/bench_collision.py); the issue: 17%
+    np.testing.assert_array_equal(ur5e_tree.min_distance(qpos), found.distance.min(axis=-1))
+
+
+@pytest.mark.slow
+def test_ur5e_10000_configurations_collide_as_mj_collision_says(ur5e_tree: poekin.Tree) -> None:
+    """The issue's 10,000 random configurations: the same colliding pairs as mj_collision,
+    the distances as mj_geomDistance's on MuJoCo's FK (:func:`_assert_distances`)."""
+    reference = load_quiet("universal_robots_ur5e").model
+    qpos = poekin.sample_qpos(ur5e_tree, 10_000, seed=11, within_limits=True)
+    found = ur5e_tree.distances(qpos)
+    ids = _collision_geoms(reference)
+    pairs = [(ids[a], ids[b]) for a, b in model_of(ur5e_tree).pairs.tolist()]
+    dist, _ = mj_reference(reference, qpos, pairs)
+    _assert_distances(reference, pairs, found.distance, dist)
+    ours = [{frozenset(pairs[p]) for p in np.flatnonzero(row < 0)} for row in found.distance]
+    assert ours == mj_colliding(reference, qpos)
+
+
+def _assert_distances(
+    model: mujoco.MjModel, pairs: list[tuple[int, int]], found: np.ndarray, expected: np.ndarray
+) -> None:
+    """Capsule pairs (MuJoCo's closed form) within 1e-9; pairs with the cylinder, which MuJoCo
+    measures by GJK and EPA, within its convex tolerance (1e-6)."""
+    gjk = [k for k, (a, b) in enumerate(pairs) if CYLINDER in model.geom_type[[a, b]]]
+    exact = np.setdiff1d(np.arange(len(pairs)), gjk)
+    np.testing.assert_allclose(found[:, exact], expected[:, exact], rtol=0, atol=PRIMITIVE_TOL)
+    np.testing.assert_allclose(found[:, gjk], expected[:, gjk], rtol=0, atol=1e-6)
+
+
+def _assert_on_parallel_surfaces(
+    model: mujoco.MjModel, qpos: np.ndarray, pair: tuple[int, int], points: np.ndarray
+) -> None:
+    """Where two capsules' witness points differ from MuJoCo's, their axes are parallel (a
+    whole segment of closest points), and each point is on its geom's
+    side: at its radius from its axis (MuJoCo's FK)."""
+    data = mujoco.MjData(model)
+    data.qpos[:] = qpos
+    mujoco.mj_kinematics(model, data)
+    axes = [data.geom_xmat[g].reshape(3, 3)[:, 2] for g in pair]
+    assert np.linalg.norm(np.cross(*axes)) < 1e-6, pair
+    for g, axis, point in zip(pair, axes, points, strict=True):
+        off = point - data.geom_xpos[g]
+        from_axis = np.linalg.norm(off - np.dot(off, axis) * axis)
+        assert abs(from_axis - model.geom_size[g, 0]) < PRIMITIVE_TOL
+
+
+def test_witness_points_are_the_distance_apart(ur5e_tree: poekin.Tree) -> None:
+    found = ur5e_tree.distances(poekin.sample_qpos(ur5e_tree, 50, seed=4))
+    gap = np.linalg.norm(found.points[..., 1, :] - found.points[..., 0, :], axis=-1)
+    np.testing.assert_allclose(gap, np.abs(found.distance), atol=1e-12)
+
+
+@pytest.mark.parametrize("shape", [(), (1,), (3, 1, 2)])
+def test_batch_shapes(ur5e_tree: poekin.Tree, shape: tuple[int, ...]) -> None:
+    n = int(np.prod(shape, dtype=int))
+    flat = poekin.sample_qpos(ur5e_tree, n, seed=5)
+    qpos = flat.reshape(*shape, 6)
+    found = ur5e_tree.distances(qpos)
+    P = len(found.pairs)
+    assert found.distance.shape == (*shape, P)
+    assert found.points.shape == (*shape, P, 2, 3)
+    assert ur5e_tree.in_collision(qpos).shape == shape
+    assert ur5e_tree.min_distance(qpos).shape == shape
+    np.testing.assert_array_equal(found.distance.reshape(n, P), ur5e_tree.distances(flat).distance)
+    assert not found.distance.flags.writeable
+
+
+def _segment_point(a: np.ndarray, b: np.ndarray, p: np.ndarray) -> float:
+    t = np.clip(np.dot(p - a, b - a) / np.dot(b - a, b - a), 0.0, 1.0)
+    return float(np.linalg.norm(a + t * (b - a) - p))
+
+
+@settings(max_examples=40, deadline=None)
+@given(
+    centre=st.tuples(*[st.floats(-0.8, 0.8)] * 3),
+    radius=st.floats(0.01, 0.3),
+    seed=st.integers(0, 1000),
+)
+def test_sphere_obstacle_against_the_capsules_closed_form(
+    centre: tuple[float, float, float], radius: float, seed: int
+) -> None:
+    """A sphere obstacle and each UR5e capsule: the distance from the sphere's centre to the
+    capsule's segment, less both radii (the segment from the geom's pose in MuJoCo's FK)."""
+    tree = _cached_tree()
+    reference = load_quiet("universal_robots_ur5e").model
+    data = mujoco.MjData(reference)
+    qpos = poekin.sample_qpos(tree, 1, seed=seed)[0]
+    data.qpos[:] = qpos
+    mujoco.mj_kinematics(reference, data)
+    c = np.array(centre)
+    found = tree.distances(qpos, [Sphere(radius, pose=[*centre, 1.0, 0.0, 0.0, 0.0])])
+    ids = _collision_geoms(reference)
+    for k, g in enumerate(ids):
+        if reference.geom_type[g] != mujoco.mjtGeom.mjGEOM_CAPSULE:
+            continue
+        axis = data.geom_xmat[g].reshape(3, 3)[:, 2] * reference.geom_size[g, 1]
+        r = reference.geom_size[g, 0]
+        expected = _segment_point(data.geom_xpos[g] - axis, data.geom_xpos[g] + axis, c)
+        p = found.pairs.index((model_of(tree).geom_names[k], "sphere0"))
+        assert abs(found.distance[p] - (expected - r - radius)) < PRIMITIVE_TOL
+
+
+_TREES: dict[str, poekin.Tree] = {}
+
+
+def _cached_tree() -> poekin.Tree:
+    if "ur5e" not in _TREES:
+        _TREES["ur5e"] = _ur5e()
+    return _TREES["ur5e"]
+
+
+def _cube(half: float) -> np.ndarray:
+    return np.array(
+        [[x, y, z] for x in (-half, half) for y in (-half, half) for z in (-half, half)]
+    )
+
+
+def _obstacles() -> list[object]:
+    turn = np.eye(4)
+    turn[:3, :3] = poekin.exp_so3(np.array([0.3, -0.4, 0.5]))
+    turn[:3, 3] = [0.4, -0.2, 0.3]
+    held = np.eye(4)
+    held[:3, 3] = [0.0, 0.0, 0.05]
+    return [
+        Box([0.6, 0.6, 0.02], pose=[0.0, 0.0, -0.05, 1.0, 0.0, 0.0, 0.0], name="table"),
+        Sphere(0.1, pose=turn),
+        Capsule(0.05, 0.2, pose=turn @ np.diag([1.0, -1.0, -1.0, 1.0])),
+        Plane(pose=[0.0, 0.0, -0.3, 1.0, 0.0, 0.0, 0.0]),
+        Mesh(_cube(0.07) + np.array([0.01, 0.0, 0.02]), pose=[-0.3, 0.3, 0.4, 0.0, 1.0, 0.0, 0.0]),
+        Box([0.03, 0.03, 0.05], pose=held, frame="attachment_site", name="tool"),
+    ]
+
+
+def _reference_with(obstacles: list[object], tree: poekin.Tree) -> mujoco.MjModel:
+    """The UR5e's kinematics compile with the obstacles as geoms of their frames' bodies,
+    placed by MuJoCo (a site's pose composed by hand from the compiled model)."""
+    spec = poekin.io.sources.kinematics_spec("universal_robots_ur5e")
+    base = load_quiet("universal_robots_ur5e").model
+    types = {
+        Box: mujoco.mjtGeom.mjGEOM_BOX,
+        Sphere: mujoco.mjtGeom.mjGEOM_SPHERE,
+        Capsule: mujoco.mjtGeom.mjGEOM_CAPSULE,
+        Plane: mujoco.mjtGeom.mjGEOM_PLANE,
+        Mesh: mujoco.mjtGeom.mjGEOM_MESH,
+    }
+    for k, o in enumerate(obstacles):
+        pose = np.asarray(o.pose)  # type: ignore[attr-defined]
+        if o.frame is None:  # type: ignore[attr-defined]
+            parent = spec.worldbody
+        else:
+            site = mujoco.mj_name2id(base, mujoco.mjtObj.mjOBJ_SITE, o.frame)  # type: ignore[attr-defined]
+            body = int(base.site_bodyid[site])
+            parent = spec.body(mujoco.mj_id2name(base, mujoco.mjtObj.mjOBJ_BODY, body))
+            T = np.eye(4)
+            T[:3, :3] = poekin.quat_to_rotation(base.site_quat[site])
+            T[:3, 3] = base.site_pos[site]
+            pose = T @ pose
+        body = parent.add_body(pos=pose[:3, 3], quat=poekin.rotation_to_quat(pose[:3, :3]))
+        geom = body.add_geom(type=types[type(o)], name=f"obstacle{k}", contype=0, conaffinity=0)
+        if isinstance(o, Box):
+            geom.size = o.half_sizes
+        elif isinstance(o, Sphere):
+            geom.size = [o.radius, 0, 0]
+        elif isinstance(o, Capsule):
+            geom.size = [o.radius, o.half_length, 0]
+        elif isinstance(o, Plane):
+            geom.size = [1, 1, 1]
+        else:
+            spec.add_mesh(name=f"mesh{k}", uservert=np.asarray(o.vertices).ravel().tolist())  # type: ignore[attr-defined]
+            geom.meshname = f"mesh{k}"
+    return spec.compile()
+
+
+def test_obstacles_match_mj_geom_distance_on_mujocos_own_model(ur5e_tree: poekin.Tree) -> None:
+    """Every obstacle kind, world-fixed and held at the attachment site, against MuJoCo's
+    distance on a model where MuJoCo places them; the held tool is never paired with the
+    wrist_3 link it is attached to (nor, through welding, its parent's geoms)."""
+    obstacles = _obstacles()
+    reference = _reference_with(obstacles, ur5e_tree)
+    qpos = poekin.sample_qpos(ur5e_tree, 40, seed=6, within_limits=True)
+    found = ur5e_tree.distances(qpos, obstacles)
+    ids = {name: g for g, name in enumerate(_names(reference, ur5e_tree, obstacles))}
+    pairs = [(ids[a], ids[b]) for a, b in found.pairs]
+    dist, _ = mj_reference(reference, qpos, pairs)
+    mesh = [k for k, (a, b) in enumerate(found.pairs) if "mesh4" in (a, b)]
+    box_box = [k for k, (a, b) in enumerate(found.pairs) if {a, b} == {"table", "tool"}]
+    exact = np.setdiff1d(np.arange(len(pairs)), mesh + box_box)
+    np.testing.assert_allclose(found.distance[:, exact], dist[:, exact], atol=PRIMITIVE_TOL)
+    np.testing.assert_allclose(found.distance, dist, atol=1e-6)  # GJK: MuJoCo's tolerance
+    tool_pairs = {frozenset(p) for p in found.pairs if "tool" in p}
+    assert frozenset(("wrist_3_link", "tool")) not in tool_pairs
+    assert frozenset(("wrist_2_link#0", "tool")) not in tool_pairs
+    assert frozenset(("forearm_link#1", "tool")) in tool_pairs
+    assert frozenset(("table", "tool")) in tool_pairs
+    assert not any({"table", "sphere1"} == set(p) for p in found.pairs)  # both fixed
+
+
+def _names(model: mujoco.MjModel, tree: poekin.Tree, obstacles: list[object]) -> list[str]:
+    """The reference model's geom labels: poekin's geom names in order for the collision
+    geoms, obstacles by their poekin names."""
+    robot = list(model_of(tree).geom_names)
+    out, k = [], 0
+    labels = [o.name or f"{type(o).__name__.lower()}{j}" for j, o in enumerate(obstacles)]  # type: ignore[attr-defined]
+    for g in range(model.ngeom):
+        name = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_GEOM, g) or ""
+        if name.startswith("obstacle"):
+            out.append(labels[int(name[len("obstacle") :])])
+        elif model.geom_contype[g]:
+            out.append(robot[k])
+            k += 1
+        else:
+            out.append(f"visual{g}")
+    return out
+
+
+def test_in_collision_with_a_table_and_a_margin(ur5e_tree: poekin.Tree) -> None:
+    table = Box([0.6, 0.6, 0.02], pose=[0.0, 0.0, -0.05, 1.0, 0.0, 0.0, 0.0])
+    qpos = poekin.sample_qpos(ur5e_tree, 60, seed=7)
+    found = ur5e_tree.distances(qpos, [table])
+    for margin in (0.0, 0.01, -0.005):
+        np.testing.assert_array_equal(
+            ur5e_tree.in_collision(qpos, [table], margin=margin),
+            (found.distance < margin).any(axis=-1),
+        )
+    near = ur5e_tree.distances(qpos, [table], margin=0.05)
+    far = found.distance >= 0.05
+    assert np.all(np.isinf(near.distance[far])) and np.all(np.isnan(near.points[far]))
+    np.testing.assert_array_equal(near.distance[~far], found.distance[~far])
+
+
+def _panda() -> pathlib.Path:
+    site = pathlib.Path(sysconfig.get_paths()["purelib"])
+    found = site / "cmeel.prefix" / "share" / "example-robot-data" / "robots"
+    if not found.is_dir():
+        pytest.skip("example-robot-data is not installed (pip install example-robot-data)")
+    return found / "panda_description" / "urdf" / "panda.urdf"
+
+
+def test_urdf_meshes_against_coal_through_pinocchio() -> None:
+    """The Panda's STL meshes (as convex hulls, which MuJoCo collides) and finger boxes:
+    every pair's distance against coal's (Pinocchio's geometry model), where both are apart
+    by more than MuJoCo's convex tolerance allows to matter."""
+    pin = pytest.importorskip("pinocchio")
+    coal = pytest.importorskip("coal")
+    path = _panda()
+    tree = poekin.load_tree(path)
+    model, geometry, _ = pin.buildModelsFromUrdf(str(path), package_dirs=[str(path.parents[4])])
+    for obj in geometry.geometryObjects:
+        if isinstance(obj.geometry, coal.BVHModelBase):
+            obj.geometry.buildConvexHull(True, "Qt")
+            obj.geometry = obj.geometry.convex
+    index = {}
+    for k, obj in enumerate(geometry.geometryObjects):
+        link, _, j = obj.name.rpartition("_")
+        index[link, int(j)] = k
+    names = model_of(tree).geom_names
+    ours = {name: index[name.partition("#")[0], int(name.partition("#")[2] or 0)] for name in names}
+    qpos = poekin.sample_qpos(tree, 20, seed=8, within_limits=True)
+    found = tree.distances(qpos)
+    for a, b in found.pairs:
+        geometry.addCollisionPair(pin.CollisionPair(ours[a], ours[b]))
+    data, gdata = model.createData(), geometry.createData()
+    qs = pinocchio_q(model, tree, qpos)
+    for c in range(len(qpos)):
+        pin.updateGeometryPlacements(model, data, geometry, gdata, qs[c])
+        pin.computeDistances(geometry, gdata)
+        theirs = np.array([r.min_distance for r in gdata.distanceResults])
+        apart = (theirs > 1e-4) & (found.distance[c] > 1e-4)
+        np.testing.assert_allclose(found.distance[c][apart], theirs[apart], atol=1e-5)
+        assert np.array_equal(found.distance[c] < -1e-4, theirs < -1e-4)
+
+
+@pytest.mark.parametrize(
+    ("make", "message"),
+    [
+        (lambda: Box([0.1, -0.2, 0.1]), "Box: half size along y must be a finite size > 0"),
+        (lambda: Box([0.1, 0.2]), "Box: half_sizes must be 3 numbers"),
+        (lambda: Sphere(-1.0), "Sphere: radius must be a finite size > 0 (m), got -1.0"),
+        (lambda: Sphere(float("nan")), "Sphere: radius must be a finite size > 0"),
+        (lambda: Capsule(0.1, 0.0), "Capsule: half_length must be a finite size > 0"),
+        (lambda: Sphere(0.1, pose=np.full((4, 4), np.nan)), "Sphere: pose contains NaN"),
+        (lambda: Plane(pose=np.diag([1.0, 2.0, 1.0, 1.0])), "Plane: pose is not a rigid"),
+        (lambda: Plane(pose=np.diag([1.0, 1.0, -1.0, 1.0])), "Plane: pose is not a rigid"),
+        (lambda: Box([0.1] * 3, pose=np.eye(3)), "Box: pose must be a (4, 4) rigid transform"),
+        (lambda: Sphere(0.1, pose=[0, 0, 0, 2, 0, 0, 0]), "the quaternion qw qx qy qz has norm"),
+        (lambda: Sphere(0.1, frame=""), "frame must be a body or site name"),
+        (lambda: Mesh(np.zeros((3, 3))), "vertices must be an (n, 3) array with n >= 4"),
+        (lambda: Mesh(_cube(0.1) * [1, 1, 0]), "Mesh: the vertices lie in a plane"),
+        (lambda: Mesh(np.full((4, 3), np.inf)), "Mesh: the vertices contain NaN or inf"),
+        (lambda: Mesh(object()), "Mesh: give a mesh file's path or an (n, 3) array"),
+        (lambda: Mesh("no/such/file.stl"), "Mesh: no mesh file 'no/such/file.stl'"),
+    ],
+)
+def test_bad_obstacles(make: object, message: str) -> None:
+    with pytest.raises(InputError, match=_literal(message)) as info:
+        make()  # type: ignore[operator]
+    assert "\n" not in str(info.value)
+
+
+def _literal(text: str) -> str:
+    import re
+
+    return re.escape(text)
+
+
+def test_a_mesh_file_that_is_not_a_mesh(tmp_path: pathlib.Path) -> None:
+    notes = tmp_path / "notes.txt"
+    notes.write_text("not a mesh")
+    with pytest.raises(InputError, match=r"Mesh: notes.txt is not a mesh file: MuJoCo reads"):
+        Mesh(notes)
+    broken = tmp_path / "broken.stl"
+    broken.write_bytes(b"solid nothing\nendsolid\n")
+    with pytest.raises(InputError, match=r"Mesh: MuJoCo cannot read broken.stl as a mesh: "):
+        Mesh(broken)
+
+
+def test_a_mesh_file_reads_as_its_vertices(tmp_path: pathlib.Path) -> None:
+    """An OBJ written here reads back as its vertices, in the file's frame (MuJoCo's compile
+    moves a mesh to its centre of mass; the obstacle undoes that), to MuJoCo's float32."""
+    cube = _cube(0.05) + np.array([0.3, 0.0, 0.1])
+    lines = [f"v {x} {y} {z}" for x, y, z in cube]
+    faces = ["f 1 3 4 2", "f 5 6 8 7", "f 1 2 6 5", "f 3 7 8 4", "f 1 5 7 3", "f 2 4 8 6"]
+    path = tmp_path / "cube.obj"
+    path.write_text("\n".join(lines + faces) + "\n")
+    mesh = Mesh(path)
+    got = mesh.vertices[np.lexsort(mesh.vertices.T)]
+    np.testing.assert_allclose(got, cube[np.lexsort(cube.T)], atol=1e-7)
+
+
+def test_query_bad_input(ur5e_tree: poekin.Tree) -> None:
+    q = np.zeros(6)
+    with pytest.raises(UnknownFrameError, match="did you mean 'attachment_site'"):
+        ur5e_tree.distances(q, [Sphere(0.1, frame="atachment_site")])
+    with pytest.raises(InputError, match="distances: margin must be a number"):
+        ur5e_tree.distances(q, margin=float("nan"))
+    with pytest.raises(InputError, match=r"obstacles must be poekin\.collision\.Box"):
+        ur5e_tree.distances(q, [np.eye(4)])
+    with pytest.raises(InputError, match="obstacle name 'wrist_1_link' is taken"):
+        ur5e_tree.distances(q, [Sphere(0.1, name="wrist_1_link")])
+    with pytest.raises(InputError, match="qpos values"):
+        ur5e_tree.distances(np.zeros(5))
+    with pytest.raises(InputError, match="in_collision: margin must be a number"):
+        ur5e_tree.in_collision(q, margin="far")  # type: ignore[arg-type]
