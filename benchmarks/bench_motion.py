@@ -17,6 +17,11 @@ Parts (one function each, ``bench_<part>(sizes) -> list[Row]``; ``main`` runs th
   output is a spline in time through its grid points, which the limits do not bound between
   them). Then ``retime`` with jerk limits (Ruckig,
   1000 rad/s^3 on the FR3's joints), its median time and duration over the unlimited one.
+* ``bench_via``: :func:`poekin.motion.via_trajectory` against Robotics Toolbox's ``mstraj``
+  (the bench extra) on the same via points, ``qdmax`` and ``tacc``: 20 random paths of 6 via
+  points of a 6-joint arm; the median time per path, and, per path, the durations and how fast
+  each moves over ``qdmax`` at its fastest sample (by differences of ``q``), and how near each
+  passes its via points (its blends cut the corners).
 * ``bench_follow``: ``chain.follow`` of a UR5e straight line given as 1,000 samples
   (``line_path`` at uniform ``s``, a 0.5 m move with a 0.6 rad turn, the elbow up): median per
   call, single-threaded NumPy with the compiled kernel. Goal: <= 5 ms on one core. Beside it,
@@ -222,6 +227,50 @@ def bench_retime(sizes: Sizes) -> list[Row]:
     return rows
 
 
+# --- via points: poekin against Robotics Toolbox's mstraj ------------------------------------
+
+
+def bench_via(sizes: Sizes) -> list[Row]:
+    """``via_trajectory`` against RTB's ``mstraj`` (the module's docstring); no row without
+    roboticstoolbox."""
+    if package_version("roboticstoolbox-python") is None:
+        print("  via: roboticstoolbox-python is not installed (the bench extra): no row")
+        return []
+    import roboticstoolbox as rtb
+
+    from poekin.motion import via_trajectory
+
+    rng = np.random.default_rng(7)
+    qdmax, tacc, dt = np.full(6, 1.0), 0.2, 1.0 / RATE
+    paths = [rng.uniform(-1.5, 1.5, (6, 6)) for _ in range(sizes.paths)]
+    ours_t = median_s(
+        lambda: [via_trajectory(v, tacc=tacc, qdmax=qdmax, rate=RATE) for v in paths], sizes.repeats
+    ) / len(paths)
+    theirs_t = median_s(
+        lambda: [rtb.mstraj(v, dt=dt, tacc=tacc, qdmax=qdmax) for v in paths], sizes.repeats
+    ) / len(paths)
+    ratio_t, over_ours, over_theirs, near_ours, near_theirs = [], [], [], [], []
+    for v in paths:
+        a = via_trajectory(v, tacc=tacc, qdmax=qdmax, rate=RATE)
+        b = rtb.mstraj(v, dt=dt, tacc=tacc, qdmax=qdmax)
+        ratio_t.append(a.duration / b.t[-1])
+        over_ours.append(float(np.max(np.abs(np.diff(a.q, axis=0)) / np.diff(a.t)[:, None])))
+        over_theirs.append(float(np.max(np.abs(np.diff(b.q, axis=0))) / dt))
+        near_ours.append(max(float(np.min(np.linalg.norm(a.q - w, axis=1))) for w in v[1:-1]))
+        near_theirs.append(max(float(np.min(np.linalg.norm(b.q - w, axis=1))) for w in v[1:-1]))
+    return [
+        Row(
+            f"via_trajectory, {sizes.paths} paths of 6 via points, 6 joints",
+            fmt_s(ours_t),
+            f"mstraj {fmt_s(theirs_t)}",
+            theirs_t / ours_t,
+            f"duration / mstraj's: median {np.median(ratio_t):.3g}; fastest joint over qdmax: "
+            f"poekin {max(over_ours):.3g}, mstraj {max(over_theirs):.3g}; farthest via point "
+            f"passed at {max(near_ours):.2g} rad (poekin), {max(near_theirs):.2g} (mstraj)",
+        )
+    ]
+
+
 # --- follow: IK along straight lines ----------------------------------------------------------
 
 UR_START = np.array([0.3, -1.2, 1.4, -0.5, 1.1, 0.2])
@@ -410,6 +459,7 @@ def bench_track(sizes: Sizes) -> list[Row]:
 
 PARTS: dict[str, Callable[[Sizes], list[Row]]] = {
     "retime": bench_retime,
+    "via": bench_via,
     "follow": bench_follow,
     "track": bench_track,
 }

@@ -38,6 +38,18 @@ def test_joint_trajectory_matches_modern_robotics(method: int) -> None:
         traj.q = traj.qd  # type: ignore[misc]
 
 
+def test_quintic_joint_trajectory_matches_robotics_toolboxs_jtraj() -> None:
+    """Robotics Toolbox's ``jtraj`` (a quintic from rest to rest, the bench extra's anchor) on
+    the same times: the same q, qd and qdd."""
+    rtb = pytest.importorskip("roboticstoolbox")
+    q0, q1 = np.array([0.0, -1.2, 0.4]), np.array([1.0, 0.3, -0.8])
+    ours = joint_trajectory(q0, q1, 2.0, kind="quintic", rate=50.0)
+    theirs = rtb.jtraj(q0, q1, ours.t)
+    assert_close("q", ours.q, theirs.q, 1e-13)
+    assert_close("qd", ours.qd, theirs.qd, 1e-12)
+    assert_close("qdd", ours.qdd, theirs.qdd, 1e-11)
+
+
 @pytest.mark.parametrize("kind", KINDS)
 def test_joint_derivatives_match_finite_differences(kind: str) -> None:
     rng = np.random.default_rng(1)
