@@ -27,7 +27,7 @@ touch, within ``tol``, report their GJK distance (``0`` to within ``tol``).
 from __future__ import annotations
 
 import itertools
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from typing import Any
 
 import numpy as np
@@ -128,8 +128,9 @@ class _Shape:
     def world(self, d: Array, idx: Array) -> Array:
         """The support points (world) of the items ``idx`` in world directions ``d (M, 3)``."""
         R = self.R[idx]
-        local = np.einsum("nji,nj->ni", R, d)
-        out: Array = self.p[idx] + np.einsum("nij,nj->ni", R, self.support(local, idx))
+        local = np.stack([_dot(R[:, :, i], d) for i in range(3)], -1)  # R^T d
+        s = self.support(local, idx)
+        out: Array = self.p[idx] + np.stack([_dot(R[:, i, :], s) for i in range(3)], -1)
         return out
 
     @staticmethod
@@ -148,7 +149,7 @@ class _Shape:
         return self._sign(d) * self.size[idx, :3]
 
     def _cylinder(self, d: Array, idx: Array) -> Array:
-        rho = np.hypot(d[:, 0], d[:, 1])
+        rho = np.sqrt(d[:, 0] * d[:, 0] + d[:, 1] * d[:, 1])
         scale = np.where(rho > 0, self.size[idx, 0] / np.where(rho > 0, rho, 1.0), 0.0)
         return np.stack(
             [d[:, 0] * scale, d[:, 1] * scale, self._sign(d[:, 2]) * self.size[idx, 1]], -1
@@ -157,11 +158,11 @@ class _Shape:
     def _ellipsoid(self, d: Array, idx: Array) -> Array:
         radii = self.size[idx, :3]
         m = radii * d
-        length = np.linalg.norm(m, axis=-1, keepdims=True)
+        length = np.sqrt(_dot(m, m))[:, None]
         return np.where(length > 0, radii * m / np.where(length > 0, length, 1.0), 0.0)
 
     def _mesh(self, d: Array, idx: Array) -> Array:
-        best = np.argmax(d @ self.vertices.T, axis=-1)
+        best = np.argmax(_dot(d[:, None, :], self.vertices[None]), axis=-1)
         return self.vertices[best]  # type: ignore[no-any-return]
 
 
@@ -203,7 +204,34 @@ def _check(func: str, kind: str, pose: Any, size: Any, name: str) -> tuple[Array
 
 
 def _dot(a: Array, b: Array) -> Array:
-    out: Array = np.einsum("...i,...i->...", a, b)
+    """``a . b`` over the last axis of 3, summed in this order (the compiled twin's)."""
+    out: Array = a[..., 0] * b[..., 0] + a[..., 1] * b[..., 1] + a[..., 2] * b[..., 2]
+    return out
+
+
+def _cross(a: Array, b: Array) -> Array:
+    """``a x b`` over the last axis."""
+    return np.stack(
+        [
+            a[..., 1] * b[..., 2] - a[..., 2] * b[..., 1],
+            a[..., 2] * b[..., 0] - a[..., 0] * b[..., 2],
+            a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0],
+        ],
+        -1,
+    )
+
+
+def _norm(a: Array) -> Array:
+    """``|a|`` over the last axis of 3."""
+    out: Array = np.sqrt(_dot(a, a))
+    return out
+
+
+def _combine(w: Array, Y: Array, slots: Sequence[int]) -> Array:
+    """``sum_k w[..., k] Y[..., slots[k], :]``, summed in the order of ``slots``."""
+    out: Array = w[..., 0, None] * Y[..., slots[0], :]
+    for k in range(1, len(slots)):
+        out = out + w[..., k, None] * Y[..., slots[k], :]
     return out
 
 
@@ -222,27 +250,27 @@ def _face_weights(Y: Array, face: tuple[int, ...]) -> tuple[Array, Array]:
         mu = -_dot(P[0], e) / np.where(ok, ee, 1.0)
         return np.stack([1 - mu, mu], -1), ok
     if len(face) == 3:
-        n = np.cross(P[1] - P[0], P[2] - P[0])
+        n = _cross(P[1] - P[0], P[2] - P[0])
         nn = _dot(n, n)
         scale = _dot(P[1] - P[0], P[1] - P[0]) * _dot(P[2] - P[0], P[2] - P[0])
         ok = nn > 1e-24 * scale
         den = np.where(ok, nn, 1.0)
         lam = [
-            _dot(n, np.cross(P[1], P[2])),
-            _dot(n, np.cross(P[2], P[0])),
-            _dot(n, np.cross(P[0], P[1])),
+            _dot(n, _cross(P[1], P[2])),
+            _dot(n, _cross(P[2], P[0])),
+            _dot(n, _cross(P[0], P[1])),
         ]
         return np.stack(lam, -1) / den[:, None], ok
     a, b, c, d = P
-    vol = _dot(b - a, np.cross(c - a, d - a))
-    edges = np.linalg.norm(b - a, axis=-1) * np.linalg.norm(c - a, axis=-1)
-    ok = np.abs(vol) > 1e-12 * edges * np.linalg.norm(d - a, axis=-1)
+    vol = _dot(b - a, _cross(c - a, d - a))
+    edges = _norm(b - a) * _norm(c - a)
+    ok = np.abs(vol) > 1e-12 * edges * _norm(d - a)
     den = np.where(ok, vol, 1.0)
     lam = [
-        _dot(b, np.cross(c, d)),
-        -_dot(a, np.cross(c, d)),
-        _dot(a, np.cross(b, d)),
-        -_dot(a, np.cross(b, c)),
+        _dot(b, _cross(c, d)),
+        -_dot(a, _cross(c, d)),
+        _dot(a, _cross(b, d)),
+        -_dot(a, _cross(b, c)),
     ]
     return np.stack(lam, -1) / den[:, None], ok
 
@@ -257,7 +285,7 @@ def _closest(Y: Array, used: NDArray[np.bool_]) -> tuple[Array, NDArray[np.bool_
     for face in _FACES:
         lam, ok = _face_weights(Y, face)
         ok &= used[:, list(face)].all(axis=1) & (lam >= 0).all(axis=1)
-        x = np.einsum("mk,mki->mi", lam, Y[:, list(face)])
+        x = _combine(lam, Y, face)
         norm2 = np.where(ok, _dot(x, x), np.inf)
         better = norm2 < best
         if not better.any():
@@ -284,7 +312,7 @@ def _run_gjk(
     inside = np.zeros(n, dtype=bool)
     everyone = np.arange(n)
     d = a.p - b.p
-    d = np.where((np.linalg.norm(d, axis=-1) > 0)[:, None], d, [1.0, 0.0, 0.0])
+    d = np.where((_dot(d, d) > 0)[:, None], d, [1.0, 0.0, 0.0])
     sa, sb = a.world(-d, everyone), b.world(d, everyone)
     Y[:, 0], YA[:, 0], YB[:, 0], used[:, 0], lam[:, 0] = sa - sb, sa, sb, True, 1.0
     x = Y[:, 0].copy()
@@ -306,7 +334,7 @@ def _run_gjk(
         slot = np.argmin(used[go], axis=1)  # the first free slot
         Y[go, slot], YA[go, slot], YB[go, slot], used[go, slot] = w, sa, sb, True
         weights, members = _closest(Y[go], used[go])
-        x_new = np.einsum("mk,mki->mi", weights, Y[go])
+        x_new = _combine(weights, Y[go], range(4))
         progress = _dot(x_new, x_new) < _dot(x[go], x[go])
         keep = go[progress]
         x[keep], lam[keep], used[keep] = x_new[progress], weights[progress], members[progress]
@@ -316,9 +344,9 @@ def _run_gjk(
         full = members[progress].all(axis=1)
         inside[keep[full]] = True
         active = keep[~full]
-    pa = np.einsum("nk,nki->ni", lam, YA)
-    pb = np.einsum("nk,nki->ni", lam, YB)
-    dist = np.linalg.norm(pa - pb, axis=-1)
+    pa = _combine(lam, YA, range(4))
+    pb = _combine(lam, YB, range(4))
+    dist = _norm(pa - pb)
     return dist, pa, pb, inside, Y, YA, YB
 
 
@@ -348,8 +376,8 @@ def _epa(
 
     def add(f: tuple[int, int, int]) -> None:
         p0, p1, p2 = (verts[k] for k in f)
-        n = np.cross(p1 - p0, p2 - p0)
-        length = float(np.linalg.norm(n))
+        n = _cross(p1 - p0, p2 - p0)
+        length = float(_norm(n))
         faces.append(f)
         adj.append([(-1, -1)] * 3)
         if length <= 1e-300:  # a degenerate face is never the nearest
@@ -357,12 +385,12 @@ def _epa(
             dists.append(np.inf)
             return
         normals.append(n / length)
-        dists.append(float(np.dot(n, p0)) / length)
+        dists.append(float(_dot(n, p0)) / length)
 
     for f in ((0, 1, 2), (0, 3, 1), (0, 2, 3), (1, 3, 2)):
         p0, p1, p2 = (Y[k] for k in f)
         other = Y[({0, 1, 2, 3} - set(f)).pop()]
-        outward = np.dot(np.cross(p1 - p0, p2 - p0), other - p0) < 0
+        outward = _dot(_cross(p1 - p0, p2 - p0), other - p0) < 0
         add(f if outward else (f[0], f[2], f[1]))
     _link(faces, adj, range(4))
     alive = [True] * 4
@@ -375,7 +403,7 @@ def _epa(
         n = normals[k]
         sa, sb = a.world(n[None], idx)[0], b.world(-n[None], idx)[0]
         w = sa - sb
-        if np.dot(n, w) - dists[k] <= tol or len(faces) >= max_faces:
+        if _dot(n, w) - dists[k] <= tol or len(faces) >= max_faces:
             break
         horizon: list[tuple[int, int]] = []
         alive[k] = False
@@ -394,17 +422,17 @@ def _epa(
     dist, k = best
     n, f = normals[k], faces[k]
     P = np.array([verts[j] for j in f])
-    m = np.cross(P[1] - P[0], P[2] - P[0])
+    m = _cross(P[1] - P[0], P[2] - P[0])
     target = dist * n  # the origin's projection on the face
     lam = np.array(
         [
-            np.dot(m, np.cross(P[1] - target, P[2] - target)),
-            np.dot(m, np.cross(P[2] - target, P[0] - target)),
-            np.dot(m, np.cross(P[0] - target, P[1] - target)),
+            _dot(m, _cross(P[1] - target, P[2] - target)),
+            _dot(m, _cross(P[2] - target, P[0] - target)),
+            _dot(m, _cross(P[0] - target, P[1] - target)),
         ]
-    ) / np.dot(m, m)
-    pa = lam @ np.array([va[j] for j in f])
-    pb = lam @ np.array([vb[j] for j in f])
+    ) / _dot(m, m)
+    pa = _combine(lam, np.array([va[j] for j in f]), range(3))
+    pb = _combine(lam, np.array([vb[j] for j in f]), range(3))
     return dist, pa, pb
 
 
@@ -423,7 +451,7 @@ def _visit(
     edge on the horizon (in order around the patch)."""
     if not alive[g]:
         return
-    if np.dot(normals[g], w) - dists[g] <= 0:
+    if _dot(normals[g], w) - dists[g] <= 0:
         horizon.append((g, e))
         return
     alive[g] = False
@@ -512,7 +540,7 @@ def gjk(
         dist[i], pa[i], pb[i] = _epa(a, b, int(i), Y[i], YA[i], YB[i], epa_tol, epa_faces)
         sign[i] = 1.0
     x = pa - pb
-    length = np.linalg.norm(x, axis=-1, keepdims=True)
+    length = _norm(x)[:, None]
     n12 = np.where(length > 0, sign[:, None] * x / np.where(length > 0, length, 1.0), 0.0)
     if not depth:
         dist[inside] = 0.0
@@ -527,9 +555,10 @@ def _plane_mesh(P: Array, T: Array, vertices: Array) -> Distance:
     """The plane (half-space ``z <= 0`` of ``P``) against a mesh: its lowest vertex."""
     shape = np.broadcast_shapes(P.shape[:-2], T.shape[:-2])
     P, T = np.broadcast_to(P, (*shape, 4, 4)), np.broadcast_to(T, (*shape, 4, 4))
-    world = np.einsum("...ij,vj->...vi", T[..., :3, :3], vertices) + T[..., None, :3, 3]
+    R = T[..., None, :3, :3]
+    world = T[..., None, :3, 3] + np.stack([_dot(R[..., i, :], vertices) for i in range(3)], -1)
     o, n = P[..., :3, 3], P[..., :3, 2]
-    heights = np.einsum("...vi,...i->...v", world - o[..., None, :], n)
+    heights = _dot(world - o[..., None, :], n[..., None, :])
     k = np.argmin(heights, axis=-1)
     low = np.take_along_axis(world, k[..., None, None], axis=-2)[..., 0, :]
     h = np.take_along_axis(heights, k[..., None], axis=-1)[..., 0]
