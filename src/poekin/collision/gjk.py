@@ -449,7 +449,7 @@ def _visit(
     """EPA's walk over the faces that ``w`` sees, entering face ``g`` by its edge ``e``: a
     face it sees is removed and its other two edges walked; a face it does not see puts the
     edge on the horizon (in order around the patch)."""
-    if not alive[g]:
+    if g < 0 or not alive[g]:  # an edge left unjoined (rounding): nothing across it
         return
     if _dot(normals[g], w) - dists[g] <= 0:
         horizon.append((g, e))
