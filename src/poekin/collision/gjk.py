@@ -33,11 +33,13 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from poekin import arrays
 from poekin.collision import primitives
 from poekin.collision.primitives import Distance
 from poekin.errors import InputError
+from poekin.kernel import _fast
 
-__all__ = ["KINDS", "distance", "gjk"]
+__all__ = ["GEOM_TYPES", "KINDS", "distance", "gjk", "pair_distances"]
 
 Array = NDArray[Any]  # float64, or the bool and int arrays of masks and indices
 Support = Callable[[Array, Array], Array]  # (local directions (N, 3), item indices) -> points
@@ -57,6 +59,21 @@ _PLANE = {
     "box": primitives.plane_box,
     "ellipsoid": primitives.plane_ellipsoid,
 }
+#: MuJoCo's geom type numbers (``mjtGeom``), as the compiled kernel takes the kinds.
+GEOM_TYPES = {
+    "plane": 0,
+    "sphere": 2,
+    "capsule": 3,
+    "ellipsoid": 4,
+    "cylinder": 5,
+    "box": 6,
+    "mesh": 7,
+}
+# the compiled twin (poekin/kernel/_distance.h), None without a C compiler; the tests set it to
+# None for the reference
+_kernel: Any = _fast._kernel  # type: ignore[attr-defined]
+# gjk's defaults: tol, max_iter, epa_tol, epa_faces
+_DEFAULTS = (1e-10, 200, 1e-9, 1000)
 # every face of a simplex of 4 slots: 4 vertices, 6 edges, 4 triangles, the tetrahedron
 _FACES = [c for k in (1, 2, 3, 4) for c in itertools.combinations(range(4), k)]
 
@@ -87,6 +104,9 @@ def distance(kind1: str, pose1: Any, size1: Any, kind2: str, pose2: Any, size2: 
             raise InputError(f"distance: unknown shape kind {k!r}; use 'plane' or one of {KINDS}")
     if kind1 == kind2 == "plane":
         raise InputError("distance: two planes have no distance; give at most one plane")
+    fast = _compiled(kind1, pose1, size1, kind2, pose2, size2, (*_DEFAULTS, True, True))
+    if fast is not None:
+        return fast
     flip = kind2 == "plane" or (kind1, kind2) in {(b, a) for a, b in _CLOSED if a != b}
     if flip:
         found = distance(kind2, pose2, size2, kind1, pose1, size1)
@@ -517,6 +537,11 @@ def gjk(
         InputError: an unknown kind, a pose not ``(..., 4, 4)``, a negative size, a mesh's
             vertices not ``(V, 3)``, NaN.
     """
+    fast = _compiled(
+        kind1, pose1, size1, kind2, pose2, size2, (tol, max_iter, epa_tol, epa_faces, depth, False)
+    )
+    if fast is not None:
+        return fast
     T1, s1 = _check("gjk", kind1, pose1, size1, "pose1")
     T2, s2 = _check("gjk", kind2, pose2, size2, "pose2")
     if kind2 == "plane" and kind1 == "mesh":
@@ -563,3 +588,159 @@ def _plane_mesh(P: Array, T: Array, vertices: Array) -> Distance:
     low = np.take_along_axis(world, k[..., None, None], axis=-2)[..., 0, :]
     h = np.take_along_axis(heights, k[..., None], axis=-1)[..., 0]
     return Distance(h, np.stack([low - h[..., None] * n, low], -2))
+
+
+# --------------------------------------------------------------------------------------------
+# the compiled twin
+
+
+def _compiled(
+    kind1: str,
+    pose1: Any,
+    size1: Any,
+    kind2: str,
+    pose2: Any,
+    size2: Any,
+    options: tuple[float, int, float, int, bool, bool],
+) -> Distance | None:
+    """The compiled kernel's answer (the reference's bits) for NumPy input that the reference
+    accepts; None without the kernel, for JAX and PyTorch input, and for input the reference
+    refuses (it then says why). ``options``: gjk's four, ``depth``, and whether the closed
+    forms serve (:func:`distance`) or GJK (:func:`gjk`)."""
+    values = (pose1, size1, pose2, size2)
+    if _kernel is None or any(arrays.kind_of(v) is not None for v in values):
+        return None
+    closed = options[5]
+    if not closed and "plane" in (kind1, kind2) and {kind1, kind2} != {"plane", "mesh"}:
+        return None
+    try:
+        T1, s1 = _check("distance", kind1, pose1, size1, "pose1")
+        T2, s2 = _check("distance", kind2, pose2, size2, "pose2")
+        shapes = [T1.shape[:-2], T2.shape[:-2]]
+        shapes += [s.shape[:-1] for k, s in ((kind1, s1), (kind2, s2)) if k not in _NO_ROWS]
+        shape = np.broadcast_shapes(*shapes)
+    except (InputError, ValueError, TypeError):
+        return None
+    n = int(np.prod(shape))
+    args = []
+    for kind, T, s in ((kind1, T1, s1), (kind2, T2, s2)):
+        if kind == "mesh":
+            rows = np.ascontiguousarray(s)
+        else:
+            rows = np.zeros((n, 3))
+            if kind != "plane":
+                k = min(3, s.shape[-1])
+                rows[:, :k] = np.broadcast_to(s[..., :k], (*shape, k)).reshape(n, k)
+        poses = np.ascontiguousarray(np.broadcast_to(T, (*shape, 4, 4)).reshape(n, 4, 4))
+        args += [GEOM_TYPES[kind], poses, rows]
+    tol, max_iter, epa_tol, epa_faces, depth, _ = options
+    dist, points = _kernel.distance(
+        *args, (float(tol), int(max_iter), float(epa_tol), int(epa_faces), int(depth), int(closed))
+    )
+    return Distance(dist.reshape(shape), points.reshape(*shape, 2, 3))
+
+
+_NO_ROWS = ("plane", "mesh")  # kinds whose sizes have no batch axes
+
+
+def pair_distances(
+    kinds: Sequence[str],
+    sizes: Any,
+    pairs: Any,
+    poses: Any,
+    vertices: Sequence[Any | None] | None = None,
+) -> Distance:
+    """The signed distances and witness points of ``P`` pairs of ``G`` shapes (a model's
+    collision geoms) at a batch of their world poses: :func:`distance` of each pair, in one
+    compiled call where the kernel is built (the same bits), pair by pair otherwise.
+
+    Args:
+        kinds: the ``G`` shapes' kinds (as :func:`distance` names them).
+        sizes: their sizes ``(G, k)`` (MuJoCo's ``geom_size``; ignored for planes and meshes).
+        pairs: the pairs ``(P, 2)``, indices of the shapes (two planes have no distance).
+        poses: the shapes' world poses ``(..., G, 4, 4)``.
+        vertices: for each shape, its vertices ``(V, 3)`` if a mesh, else None (or no list
+            where there is no mesh).
+
+    Returns:
+        The signed distances ``(..., P)`` and witness points ``(..., P, 2, 3)``, the first of
+        each pair on ``pairs[p, 0]``.
+
+    Raises:
+        InputError: an unknown kind, pairs out of range or of two planes, a mesh without
+            vertices, poses not ``(..., G, 4, 4)``, and the shapes' own errors.
+    """
+    g = len(kinds)
+    for k in kinds:
+        if k not in GEOM_TYPES:
+            raise InputError(
+                f"pair_distances: unknown shape kind {k!r}; use 'plane' or one of {KINDS}"
+            )
+    S = np.asarray(sizes, dtype=np.float64)
+    if S.ndim != 2 or S.shape[0] != g:
+        raise InputError(f"pair_distances: expected sizes of shape ({g}, k), got {S.shape}")
+    S = np.ascontiguousarray(np.pad(S[:, :3], ((0, 0), (0, max(0, 3 - S.shape[1])))))
+    P = np.asarray(pairs)
+    if P.ndim != 2 or P.shape[1] != 2 or P.dtype.kind not in "iu":
+        raise InputError(
+            f"pair_distances: expected pairs of shape (P, 2) of integers, got {P.shape}"
+        )
+    if P.size and (P.min() < 0 or P.max() >= g):
+        raise InputError(f"pair_distances: pairs must be indices of the {g} shapes, 0 to {g - 1}")
+    for a, b in P:
+        if kinds[a] == kinds[b] == "plane":
+            raise InputError(
+                f"pair_distances: shapes {a} and {b} are two planes; they have no distance"
+            )
+    T = np.asarray(poses, dtype=np.float64)
+    if T.ndim < 3 or T.shape[-3:] != (g, 4, 4):
+        raise InputError(
+            f"pair_distances: expected poses of shape (..., {g}, 4, 4), got shape {T.shape}"
+        )
+    verts = list(vertices) if vertices is not None else [None] * g
+    if len(verts) != g or any(
+        (v is None) == (k == "mesh") for k, v in zip(kinds, verts, strict=True)
+    ):
+        raise InputError(
+            "pair_distances: give vertices (V, 3) for each mesh and None for each other shape"
+        )
+    eye = np.eye(4)
+    for k, row, v in zip(kinds, S, verts, strict=True):
+        _check("pair_distances", k, eye, v if k == "mesh" else row, "pose")
+    if not np.all(np.isfinite(T)):
+        raise InputError("pair_distances: poses contain NaN or inf; every value must be finite")
+    shape = T.shape[:-3]
+    if _kernel is None:
+        found = [
+            distance(
+                kinds[a],
+                T[..., a, :, :],
+                verts[a] if kinds[a] == "mesh" else S[a],
+                kinds[b],
+                T[..., b, :, :],
+                verts[b] if kinds[b] == "mesh" else S[b],
+            )
+            for a, b in P
+        ]
+        if not found:
+            return Distance(np.zeros((*shape, 0)), np.zeros((*shape, 0, 2, 3)))
+        return Distance(
+            np.stack([f.distance for f in found], -1), np.stack([f.points for f in found], -3)
+        )
+    meshes = [np.asarray(v, dtype=np.float64).reshape(-1, 3) for v in verts if v is not None]
+    num = np.array([0 if v is None else len(v) for v in verts], dtype=np.int32)
+    adr = np.concatenate([[0], np.cumsum(num)[:-1]]).astype(np.int32)
+    mesh_vert = np.ascontiguousarray(np.concatenate(meshes) if meshes else np.zeros((0, 3)))
+    types = np.array([GEOM_TYPES[k] for k in kinds], dtype=np.int32)
+    flat = np.ascontiguousarray(T.reshape(-1, g, 4, 4))
+    dist, points = _kernel.pair_distances(
+        types,
+        S,
+        adr,
+        num,
+        mesh_vert,
+        np.ascontiguousarray(P, dtype=np.int32),
+        flat,
+        (*_DEFAULTS, 1, 1),
+    )
+    return Distance(dist.reshape(*shape, len(P)), points.reshape(*shape, len(P), 2, 3))

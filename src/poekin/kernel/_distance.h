@@ -26,9 +26,11 @@ enum {
 #define DG_TINY 1e-30
 #define DG_PARALLEL_EPS 1e-14
 
+/* gjk.gjk's options, and closed: 1 for gjk.distance (the closed forms where there is one), 0
+ * for gjk.gjk (GJK whatever the kinds; a plane only against a mesh) */
 typedef struct {
     double tol, epa_tol;
-    int max_iter, epa_faces, depth;
+    int max_iter, epa_faces, depth, closed;
 } DgOptions;
 
 /* One shape: its kind, its frame, its sizes or vertices, and the radius around its core
@@ -786,12 +788,14 @@ static int dg_gjk_pair(const DgShape *A, const DgShape *B, const DgOptions *opt,
 }
 
 /* gjk.distance for one pair: a closed form where there is one (either order), else GJK and
- * EPA; the points in the order given. -1 out of memory. Two planes never reach here. */
+ * EPA (gjk.gjk: opt->closed 0); the points in the order given. -1 out of memory. Two planes
+ * never reach here. */
 static int dg_distance(const DgShape *A, const DgShape *B, const DgOptions *opt, DgWork *W,
                        double *dist, double *pts) {
     int ka = A->kind, kb = B->kind;
-    int flip = kb == DG_PLANE || (kb == DG_SPHERE && (ka == DG_CAPSULE || ka == DG_BOX ||
-                                                      ka == DG_CYLINDER));
+    int flip = kb == DG_PLANE || (opt->closed && kb == DG_SPHERE && (ka == DG_CAPSULE ||
+                                                                      ka == DG_BOX ||
+                                                                      ka == DG_CYLINDER));
     if (flip) {
         double q[6];
         int rc = dg_distance(B, A, opt, W, dist, q);
@@ -806,6 +810,7 @@ static int dg_distance(const DgShape *A, const DgShape *B, const DgOptions *opt,
             dg_plane_shape(A->T, B, dist, pts);
         return 0;
     }
+    if (!opt->closed) return dg_gjk_pair(A, B, opt, W, dist, pts);
     if (ka == DG_SPHERE) {
         switch (kb) {
         case DG_SPHERE: dg_sphere_sphere(A, B, dist, pts); return 0;

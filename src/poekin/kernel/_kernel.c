@@ -1025,8 +1025,8 @@ static int dg_known(int kind) {
 }
 
 static int dg_options(PyObject *o, DgOptions *opt) {
-    return PyArg_ParseTuple(o, "didii", &opt->tol, &opt->max_iter, &opt->epa_tol,
-                            &opt->epa_faces, &opt->depth);
+    return PyArg_ParseTuple(o, "didiii", &opt->tol, &opt->max_iter, &opt->epa_tol,
+                            &opt->epa_faces, &opt->depth, &opt->closed);
 }
 
 static PyObject *dg_result(npy_intp nd, const npy_intp *dims, PyArrayObject **dist,
@@ -1046,7 +1046,8 @@ static PyObject *dg_result(npy_intp nd, const npy_intp *dims, PyArrayObject **di
 
 /* distance(kind1, T1, S1, kind2, T2, S2, options) -> (dist (N,), points (N, 2, 3)): kinds
  * MuJoCo's geom types (not two planes), T (N, 4, 4), S (N, 3) sizes or a mesh's vertices
- * (V, 3), options (tol, max_iter, epa_tol, epa_faces, depth); the arrays C-contiguous float64 */
+ * (V, 3), options (tol, max_iter, epa_tol, epa_faces, depth, closed: 0 for gjk.gjk); the arrays
+ * C-contiguous float64 */
 static PyObject *distance(PyObject *Py_UNUSED(mod), PyObject *args) {
     DgTask t;
     memset(&t, 0, sizeof t);
