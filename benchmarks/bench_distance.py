@@ -46,7 +46,7 @@ from bench_fk import machine_info, package_version  # the FK benchmark's machine
 from mj_geoms import GeomPair, random_poses, random_sizes  # the tests' MuJoCo pair
 
 import poekin
-from poekin.collision import gjk, primitives
+from poekin.collision import gjk
 from poekin.io.sources import load_model
 
 
@@ -84,7 +84,7 @@ def _mujoco_loop(
 
 
 def _capsules(T1: np.ndarray, S1: np.ndarray, T2: np.ndarray, S2: np.ndarray) -> Any:
-    return primitives.capsule_capsule(T1, S1, T2, S2)
+    return gjk.distance("capsule", T1, S1, "capsule", T2, S2)  # the closed form
 
 
 def _cylinders(T1: np.ndarray, S1: np.ndarray, T2: np.ndarray, S2: np.ndarray) -> Any:

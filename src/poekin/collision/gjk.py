@@ -22,6 +22,15 @@ millisecond per pair), to ``epa_tol`` (default ``1e-9`` m) on polytopes (boxes, 
 far as ``epa_faces`` faces take it on curved shapes (cylinders, ellipsoids), whose depth EPA
 approaches from below; the measured worst against MuJoCo is in the tests. Shapes that only
 touch, within ``tol``, report their GJK distance (``0`` to within ``tol``).
+
+This NumPy code is the reference. :func:`distance`, :func:`gjk` and :func:`pair_distances`
+run its compiled twin (``poekin/kernel/_distance.h``, scalar C pair by pair, on
+``poekin.set_threads`` threads) for NumPy input wherever the kernel is built: the same
+operations in the same order, so the same bits (``tests/kernel/test_distance_kernel.py``),
+EPA included (``benchmarks/bench_distance.py``: on cylinders, GJK some 20 times faster, EPA
+some 300). Every sum of products is written out here entry by entry for that (no einsum, BLAS
+or ``np.linalg``, whose order of summation varies). JAX arrays and PyTorch tensors take the
+array-generic closed forms of :mod:`~poekin.collision.primitives`.
 """
 
 from __future__ import annotations

@@ -30,6 +30,10 @@ on both sides and every square root a positive argument, so ``jax.grad`` and PyT
 autograd give finite derivatives everywhere (at coincident centres and parallel axes
 included, where the witness direction is a choice; the distance is differentiable wherever
 the closest points are unique).
+
+Every dot product and matrix-vector product is summed entry by entry in one fixed order, so that
+the compiled twin (``poekin/kernel/_distance.h``, which :func:`poekin.collision.gjk.distance`
+runs for NumPy input) gives the same bits.
 """
 
 from __future__ import annotations
