@@ -31,6 +31,7 @@ setup(
                 f"src/poekin/kernel/{name}.h"
                 for name in (
                     "_kernel_core",
+                    "_distance",
                     "_ik_all",
                     "_ik_common",
                     "_ik_core",

@@ -22,22 +22,33 @@ millisecond per pair), to ``epa_tol`` (default ``1e-9`` m) on polytopes (boxes, 
 far as ``epa_faces`` faces take it on curved shapes (cylinders, ellipsoids), whose depth EPA
 approaches from below; the measured worst against MuJoCo is in the tests. Shapes that only
 touch, within ``tol``, report their GJK distance (``0`` to within ``tol``).
+
+This NumPy code is the reference. :func:`distance`, :func:`gjk` and :func:`pair_distances`
+run its compiled twin (``poekin/kernel/_distance.h``, scalar C pair by pair, on
+``poekin.set_threads`` threads) for NumPy input wherever the kernel is built: the same
+operations in the same order, so the same bits (``tests/kernel/test_distance_kernel.py``),
+EPA included (``benchmarks/bench_distance.py``: on cylinders, GJK some 20 times faster, EPA
+some 300). Every sum of products is written out here entry by entry for that (no einsum, BLAS
+or ``np.linalg``, whose order of summation varies). JAX arrays and PyTorch tensors take the
+array-generic closed forms of :mod:`~poekin.collision.primitives`.
 """
 
 from __future__ import annotations
 
 import itertools
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
+from poekin import arrays
 from poekin.collision import primitives
 from poekin.collision.primitives import Distance
 from poekin.errors import InputError
+from poekin.kernel import _fast
 
-__all__ = ["KINDS", "distance", "gjk"]
+__all__ = ["GEOM_TYPES", "KINDS", "distance", "gjk", "pair_distances"]
 
 Array = NDArray[Any]  # float64, or the bool and int arrays of masks and indices
 Support = Callable[[Array, Array], Array]  # (local directions (N, 3), item indices) -> points
@@ -57,6 +68,21 @@ _PLANE = {
     "box": primitives.plane_box,
     "ellipsoid": primitives.plane_ellipsoid,
 }
+#: MuJoCo's geom type numbers (``mjtGeom``), as the compiled kernel takes the kinds.
+GEOM_TYPES = {
+    "plane": 0,
+    "sphere": 2,
+    "capsule": 3,
+    "ellipsoid": 4,
+    "cylinder": 5,
+    "box": 6,
+    "mesh": 7,
+}
+# the compiled twin (poekin/kernel/_distance.h), None without a C compiler; the tests set it to
+# None for the reference
+_kernel: Any = _fast._kernel  # type: ignore[attr-defined]
+# gjk's defaults: tol, max_iter, epa_tol, epa_faces
+_DEFAULTS = (1e-10, 200, 1e-9, 1000)
 # every face of a simplex of 4 slots: 4 vertices, 6 edges, 4 triangles, the tetrahedron
 _FACES = [c for k in (1, 2, 3, 4) for c in itertools.combinations(range(4), k)]
 
@@ -87,6 +113,9 @@ def distance(kind1: str, pose1: Any, size1: Any, kind2: str, pose2: Any, size2: 
             raise InputError(f"distance: unknown shape kind {k!r}; use 'plane' or one of {KINDS}")
     if kind1 == kind2 == "plane":
         raise InputError("distance: two planes have no distance; give at most one plane")
+    fast = _compiled(kind1, pose1, size1, kind2, pose2, size2, (*_DEFAULTS, True, True))
+    if fast is not None:
+        return fast
     flip = kind2 == "plane" or (kind1, kind2) in {(b, a) for a, b in _CLOSED if a != b}
     if flip:
         found = distance(kind2, pose2, size2, kind1, pose1, size1)
@@ -128,8 +157,9 @@ class _Shape:
     def world(self, d: Array, idx: Array) -> Array:
         """The support points (world) of the items ``idx`` in world directions ``d (M, 3)``."""
         R = self.R[idx]
-        local = np.einsum("nji,nj->ni", R, d)
-        out: Array = self.p[idx] + np.einsum("nij,nj->ni", R, self.support(local, idx))
+        local = np.stack([_dot(R[:, :, i], d) for i in range(3)], -1)  # R^T d
+        s = self.support(local, idx)
+        out: Array = self.p[idx] + np.stack([_dot(R[:, i, :], s) for i in range(3)], -1)
         return out
 
     @staticmethod
@@ -148,7 +178,7 @@ class _Shape:
         return self._sign(d) * self.size[idx, :3]
 
     def _cylinder(self, d: Array, idx: Array) -> Array:
-        rho = np.hypot(d[:, 0], d[:, 1])
+        rho = np.sqrt(d[:, 0] * d[:, 0] + d[:, 1] * d[:, 1])
         scale = np.where(rho > 0, self.size[idx, 0] / np.where(rho > 0, rho, 1.0), 0.0)
         return np.stack(
             [d[:, 0] * scale, d[:, 1] * scale, self._sign(d[:, 2]) * self.size[idx, 1]], -1
@@ -157,11 +187,11 @@ class _Shape:
     def _ellipsoid(self, d: Array, idx: Array) -> Array:
         radii = self.size[idx, :3]
         m = radii * d
-        length = np.linalg.norm(m, axis=-1, keepdims=True)
+        length = np.sqrt(_dot(m, m))[:, None]
         return np.where(length > 0, radii * m / np.where(length > 0, length, 1.0), 0.0)
 
     def _mesh(self, d: Array, idx: Array) -> Array:
-        best = np.argmax(d @ self.vertices.T, axis=-1)
+        best = np.argmax(_dot(d[:, None, :], self.vertices[None]), axis=-1)
         return self.vertices[best]  # type: ignore[no-any-return]
 
 
@@ -203,7 +233,34 @@ def _check(func: str, kind: str, pose: Any, size: Any, name: str) -> tuple[Array
 
 
 def _dot(a: Array, b: Array) -> Array:
-    out: Array = np.einsum("...i,...i->...", a, b)
+    """``a . b`` over the last axis of 3, summed in this order (the compiled twin's)."""
+    out: Array = a[..., 0] * b[..., 0] + a[..., 1] * b[..., 1] + a[..., 2] * b[..., 2]
+    return out
+
+
+def _cross(a: Array, b: Array) -> Array:
+    """``a x b`` over the last axis."""
+    return np.stack(
+        [
+            a[..., 1] * b[..., 2] - a[..., 2] * b[..., 1],
+            a[..., 2] * b[..., 0] - a[..., 0] * b[..., 2],
+            a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0],
+        ],
+        -1,
+    )
+
+
+def _norm(a: Array) -> Array:
+    """``|a|`` over the last axis of 3."""
+    out: Array = np.sqrt(_dot(a, a))
+    return out
+
+
+def _combine(w: Array, Y: Array, slots: Sequence[int]) -> Array:
+    """``sum_k w[..., k] Y[..., slots[k], :]``, summed in the order of ``slots``."""
+    out: Array = w[..., 0, None] * Y[..., slots[0], :]
+    for k in range(1, len(slots)):
+        out = out + w[..., k, None] * Y[..., slots[k], :]
     return out
 
 
@@ -222,27 +279,27 @@ def _face_weights(Y: Array, face: tuple[int, ...]) -> tuple[Array, Array]:
         mu = -_dot(P[0], e) / np.where(ok, ee, 1.0)
         return np.stack([1 - mu, mu], -1), ok
     if len(face) == 3:
-        n = np.cross(P[1] - P[0], P[2] - P[0])
+        n = _cross(P[1] - P[0], P[2] - P[0])
         nn = _dot(n, n)
         scale = _dot(P[1] - P[0], P[1] - P[0]) * _dot(P[2] - P[0], P[2] - P[0])
         ok = nn > 1e-24 * scale
         den = np.where(ok, nn, 1.0)
         lam = [
-            _dot(n, np.cross(P[1], P[2])),
-            _dot(n, np.cross(P[2], P[0])),
-            _dot(n, np.cross(P[0], P[1])),
+            _dot(n, _cross(P[1], P[2])),
+            _dot(n, _cross(P[2], P[0])),
+            _dot(n, _cross(P[0], P[1])),
         ]
         return np.stack(lam, -1) / den[:, None], ok
     a, b, c, d = P
-    vol = _dot(b - a, np.cross(c - a, d - a))
-    edges = np.linalg.norm(b - a, axis=-1) * np.linalg.norm(c - a, axis=-1)
-    ok = np.abs(vol) > 1e-12 * edges * np.linalg.norm(d - a, axis=-1)
+    vol = _dot(b - a, _cross(c - a, d - a))
+    edges = _norm(b - a) * _norm(c - a)
+    ok = np.abs(vol) > 1e-12 * edges * _norm(d - a)
     den = np.where(ok, vol, 1.0)
     lam = [
-        _dot(b, np.cross(c, d)),
-        -_dot(a, np.cross(c, d)),
-        _dot(a, np.cross(b, d)),
-        -_dot(a, np.cross(b, c)),
+        _dot(b, _cross(c, d)),
+        -_dot(a, _cross(c, d)),
+        _dot(a, _cross(b, d)),
+        -_dot(a, _cross(b, c)),
     ]
     return np.stack(lam, -1) / den[:, None], ok
 
@@ -257,7 +314,7 @@ def _closest(Y: Array, used: NDArray[np.bool_]) -> tuple[Array, NDArray[np.bool_
     for face in _FACES:
         lam, ok = _face_weights(Y, face)
         ok &= used[:, list(face)].all(axis=1) & (lam >= 0).all(axis=1)
-        x = np.einsum("mk,mki->mi", lam, Y[:, list(face)])
+        x = _combine(lam, Y, face)
         norm2 = np.where(ok, _dot(x, x), np.inf)
         better = norm2 < best
         if not better.any():
@@ -284,7 +341,7 @@ def _run_gjk(
     inside = np.zeros(n, dtype=bool)
     everyone = np.arange(n)
     d = a.p - b.p
-    d = np.where((np.linalg.norm(d, axis=-1) > 0)[:, None], d, [1.0, 0.0, 0.0])
+    d = np.where((_dot(d, d) > 0)[:, None], d, [1.0, 0.0, 0.0])
     sa, sb = a.world(-d, everyone), b.world(d, everyone)
     Y[:, 0], YA[:, 0], YB[:, 0], used[:, 0], lam[:, 0] = sa - sb, sa, sb, True, 1.0
     x = Y[:, 0].copy()
@@ -306,7 +363,7 @@ def _run_gjk(
         slot = np.argmin(used[go], axis=1)  # the first free slot
         Y[go, slot], YA[go, slot], YB[go, slot], used[go, slot] = w, sa, sb, True
         weights, members = _closest(Y[go], used[go])
-        x_new = np.einsum("mk,mki->mi", weights, Y[go])
+        x_new = _combine(weights, Y[go], range(4))
         progress = _dot(x_new, x_new) < _dot(x[go], x[go])
         keep = go[progress]
         x[keep], lam[keep], used[keep] = x_new[progress], weights[progress], members[progress]
@@ -316,9 +373,9 @@ def _run_gjk(
         full = members[progress].all(axis=1)
         inside[keep[full]] = True
         active = keep[~full]
-    pa = np.einsum("nk,nki->ni", lam, YA)
-    pb = np.einsum("nk,nki->ni", lam, YB)
-    dist = np.linalg.norm(pa - pb, axis=-1)
+    pa = _combine(lam, YA, range(4))
+    pb = _combine(lam, YB, range(4))
+    dist = _norm(pa - pb)
     return dist, pa, pb, inside, Y, YA, YB
 
 
@@ -348,8 +405,8 @@ def _epa(
 
     def add(f: tuple[int, int, int]) -> None:
         p0, p1, p2 = (verts[k] for k in f)
-        n = np.cross(p1 - p0, p2 - p0)
-        length = float(np.linalg.norm(n))
+        n = _cross(p1 - p0, p2 - p0)
+        length = float(_norm(n))
         faces.append(f)
         adj.append([(-1, -1)] * 3)
         if length <= 1e-300:  # a degenerate face is never the nearest
@@ -357,12 +414,12 @@ def _epa(
             dists.append(np.inf)
             return
         normals.append(n / length)
-        dists.append(float(np.dot(n, p0)) / length)
+        dists.append(float(_dot(n, p0)) / length)
 
     for f in ((0, 1, 2), (0, 3, 1), (0, 2, 3), (1, 3, 2)):
         p0, p1, p2 = (Y[k] for k in f)
         other = Y[({0, 1, 2, 3} - set(f)).pop()]
-        outward = np.dot(np.cross(p1 - p0, p2 - p0), other - p0) < 0
+        outward = _dot(_cross(p1 - p0, p2 - p0), other - p0) < 0
         add(f if outward else (f[0], f[2], f[1]))
     _link(faces, adj, range(4))
     alive = [True] * 4
@@ -375,7 +432,7 @@ def _epa(
         n = normals[k]
         sa, sb = a.world(n[None], idx)[0], b.world(-n[None], idx)[0]
         w = sa - sb
-        if np.dot(n, w) - dists[k] <= tol or len(faces) >= max_faces:
+        if _dot(n, w) - dists[k] <= tol or len(faces) >= max_faces:
             break
         horizon: list[tuple[int, int]] = []
         alive[k] = False
@@ -394,17 +451,17 @@ def _epa(
     dist, k = best
     n, f = normals[k], faces[k]
     P = np.array([verts[j] for j in f])
-    m = np.cross(P[1] - P[0], P[2] - P[0])
+    m = _cross(P[1] - P[0], P[2] - P[0])
     target = dist * n  # the origin's projection on the face
     lam = np.array(
         [
-            np.dot(m, np.cross(P[1] - target, P[2] - target)),
-            np.dot(m, np.cross(P[2] - target, P[0] - target)),
-            np.dot(m, np.cross(P[0] - target, P[1] - target)),
+            _dot(m, _cross(P[1] - target, P[2] - target)),
+            _dot(m, _cross(P[2] - target, P[0] - target)),
+            _dot(m, _cross(P[0] - target, P[1] - target)),
         ]
-    ) / np.dot(m, m)
-    pa = lam @ np.array([va[j] for j in f])
-    pb = lam @ np.array([vb[j] for j in f])
+    ) / _dot(m, m)
+    pa = _combine(lam, np.array([va[j] for j in f]), range(3))
+    pb = _combine(lam, np.array([vb[j] for j in f]), range(3))
     return dist, pa, pb
 
 
@@ -421,9 +478,9 @@ def _visit(
     """EPA's walk over the faces that ``w`` sees, entering face ``g`` by its edge ``e``: a
     face it sees is removed and its other two edges walked; a face it does not see puts the
     edge on the horizon (in order around the patch)."""
-    if not alive[g]:
+    if g < 0 or not alive[g]:  # an edge left unjoined (rounding): nothing across it
         return
-    if np.dot(normals[g], w) - dists[g] <= 0:
+    if _dot(normals[g], w) - dists[g] <= 0:
         horizon.append((g, e))
         return
     alive[g] = False
@@ -489,6 +546,11 @@ def gjk(
         InputError: an unknown kind, a pose not ``(..., 4, 4)``, a negative size, a mesh's
             vertices not ``(V, 3)``, NaN.
     """
+    fast = _compiled(
+        kind1, pose1, size1, kind2, pose2, size2, (tol, max_iter, epa_tol, epa_faces, depth, False)
+    )
+    if fast is not None:
+        return fast
     T1, s1 = _check("gjk", kind1, pose1, size1, "pose1")
     T2, s2 = _check("gjk", kind2, pose2, size2, "pose2")
     if kind2 == "plane" and kind1 == "mesh":
@@ -512,7 +574,7 @@ def gjk(
         dist[i], pa[i], pb[i] = _epa(a, b, int(i), Y[i], YA[i], YB[i], epa_tol, epa_faces)
         sign[i] = 1.0
     x = pa - pb
-    length = np.linalg.norm(x, axis=-1, keepdims=True)
+    length = _norm(x)[:, None]
     n12 = np.where(length > 0, sign[:, None] * x / np.where(length > 0, length, 1.0), 0.0)
     if not depth:
         dist[inside] = 0.0
@@ -527,10 +589,167 @@ def _plane_mesh(P: Array, T: Array, vertices: Array) -> Distance:
     """The plane (half-space ``z <= 0`` of ``P``) against a mesh: its lowest vertex."""
     shape = np.broadcast_shapes(P.shape[:-2], T.shape[:-2])
     P, T = np.broadcast_to(P, (*shape, 4, 4)), np.broadcast_to(T, (*shape, 4, 4))
-    world = np.einsum("...ij,vj->...vi", T[..., :3, :3], vertices) + T[..., None, :3, 3]
+    R = T[..., None, :3, :3]
+    world = T[..., None, :3, 3] + np.stack([_dot(R[..., i, :], vertices) for i in range(3)], -1)
     o, n = P[..., :3, 3], P[..., :3, 2]
-    heights = np.einsum("...vi,...i->...v", world - o[..., None, :], n)
+    heights = _dot(world - o[..., None, :], n[..., None, :])
     k = np.argmin(heights, axis=-1)
     low = np.take_along_axis(world, k[..., None, None], axis=-2)[..., 0, :]
     h = np.take_along_axis(heights, k[..., None], axis=-1)[..., 0]
     return Distance(h, np.stack([low - h[..., None] * n, low], -2))
+
+
+# --------------------------------------------------------------------------------------------
+# the compiled twin
+
+
+def _compiled(
+    kind1: str,
+    pose1: Any,
+    size1: Any,
+    kind2: str,
+    pose2: Any,
+    size2: Any,
+    options: tuple[float, int, float, int, bool, bool],
+) -> Distance | None:
+    """The compiled kernel's answer (the reference's bits) for NumPy input that the reference
+    accepts; None without the kernel, for JAX and PyTorch input, and for input the reference
+    refuses (it then says why). ``options``: gjk's four, ``depth``, and whether the closed
+    forms serve (:func:`distance`) or GJK (:func:`gjk`)."""
+    values = (pose1, size1, pose2, size2)
+    if _kernel is None or any(arrays.kind_of(v) is not None for v in values):
+        return None
+    closed = options[5]
+    if not closed and "plane" in (kind1, kind2) and {kind1, kind2} != {"plane", "mesh"}:
+        return None
+    try:
+        T1, s1 = _check("distance", kind1, pose1, size1, "pose1")
+        T2, s2 = _check("distance", kind2, pose2, size2, "pose2")
+        shapes = [T1.shape[:-2], T2.shape[:-2]]
+        shapes += [s.shape[:-1] for k, s in ((kind1, s1), (kind2, s2)) if k not in _NO_ROWS]
+        shape = np.broadcast_shapes(*shapes)
+    except (InputError, ValueError, TypeError):
+        return None
+    n = int(np.prod(shape))
+    args = []
+    for kind, T, s in ((kind1, T1, s1), (kind2, T2, s2)):
+        if kind == "mesh":
+            rows = np.ascontiguousarray(s)
+        else:
+            rows = np.zeros((n, 3))
+            if kind != "plane":
+                k = min(3, s.shape[-1])
+                rows[:, :k] = np.broadcast_to(s[..., :k], (*shape, k)).reshape(n, k)
+        poses = np.ascontiguousarray(np.broadcast_to(T, (*shape, 4, 4)).reshape(n, 4, 4))
+        args += [GEOM_TYPES[kind], poses, rows]
+    tol, max_iter, epa_tol, epa_faces, depth, _ = options
+    dist, points = _kernel.distance(
+        *args, (float(tol), int(max_iter), float(epa_tol), int(epa_faces), int(depth), int(closed))
+    )
+    return Distance(dist.reshape(shape), points.reshape(*shape, 2, 3))
+
+
+_NO_ROWS = ("plane", "mesh")  # kinds whose sizes have no batch axes
+
+
+def pair_distances(
+    kinds: Sequence[str],
+    sizes: Any,
+    pairs: Any,
+    poses: Any,
+    vertices: Sequence[Any | None] | None = None,
+) -> Distance:
+    """The signed distances and witness points of ``P`` pairs of ``G`` shapes (a model's
+    collision geoms) at a batch of their world poses: :func:`distance` of each pair, in one
+    compiled call where the kernel is built (the same bits), pair by pair otherwise.
+
+    Args:
+        kinds: the ``G`` shapes' kinds (as :func:`distance` names them).
+        sizes: their sizes ``(G, k)`` (MuJoCo's ``geom_size``; ignored for planes and meshes).
+        pairs: the pairs ``(P, 2)``, indices of the shapes (two planes have no distance).
+        poses: the shapes' world poses ``(..., G, 4, 4)``.
+        vertices: for each shape, its vertices ``(V, 3)`` if a mesh, else None (or no list
+            where there is no mesh).
+
+    Returns:
+        The signed distances ``(..., P)`` and witness points ``(..., P, 2, 3)``, the first of
+        each pair on ``pairs[p, 0]``.
+
+    Raises:
+        InputError: an unknown kind, pairs out of range or of two planes, a mesh without
+            vertices, poses not ``(..., G, 4, 4)``, and the shapes' own errors.
+    """
+    g = len(kinds)
+    for k in kinds:
+        if k not in GEOM_TYPES:
+            raise InputError(
+                f"pair_distances: unknown shape kind {k!r}; use 'plane' or one of {KINDS}"
+            )
+    S = np.asarray(sizes, dtype=np.float64)
+    if S.ndim != 2 or S.shape[0] != g:
+        raise InputError(f"pair_distances: expected sizes of shape ({g}, k), got {S.shape}")
+    S = np.ascontiguousarray(np.pad(S[:, :3], ((0, 0), (0, max(0, 3 - S.shape[1])))))
+    P = np.asarray(pairs)
+    if P.ndim != 2 or P.shape[1] != 2 or P.dtype.kind not in "iu":
+        raise InputError(
+            f"pair_distances: expected pairs of shape (P, 2) of integers, got {P.shape}"
+        )
+    if P.size and (P.min() < 0 or P.max() >= g):
+        raise InputError(f"pair_distances: pairs must be indices of the {g} shapes, 0 to {g - 1}")
+    for a, b in P:
+        if kinds[a] == kinds[b] == "plane":
+            raise InputError(
+                f"pair_distances: shapes {a} and {b} are two planes; they have no distance"
+            )
+    T = np.asarray(poses, dtype=np.float64)
+    if T.ndim < 3 or T.shape[-3:] != (g, 4, 4):
+        raise InputError(
+            f"pair_distances: expected poses of shape (..., {g}, 4, 4), got shape {T.shape}"
+        )
+    verts = list(vertices) if vertices is not None else [None] * g
+    if len(verts) != g or any(
+        (v is None) == (k == "mesh") for k, v in zip(kinds, verts, strict=True)
+    ):
+        raise InputError(
+            "pair_distances: give vertices (V, 3) for each mesh and None for each other shape"
+        )
+    eye = np.eye(4)
+    for k, row, v in zip(kinds, S, verts, strict=True):
+        _check("pair_distances", k, eye, v if k == "mesh" else row, "pose")
+    if not np.all(np.isfinite(T)):
+        raise InputError("pair_distances: poses contain NaN or inf; every value must be finite")
+    shape = T.shape[:-3]
+    if _kernel is None:
+        found = [
+            distance(
+                kinds[a],
+                T[..., a, :, :],
+                verts[a] if kinds[a] == "mesh" else S[a],
+                kinds[b],
+                T[..., b, :, :],
+                verts[b] if kinds[b] == "mesh" else S[b],
+            )
+            for a, b in P
+        ]
+        if not found:
+            return Distance(np.zeros((*shape, 0)), np.zeros((*shape, 0, 2, 3)))
+        return Distance(
+            np.stack([f.distance for f in found], -1), np.stack([f.points for f in found], -3)
+        )
+    meshes = [np.asarray(v, dtype=np.float64).reshape(-1, 3) for v in verts if v is not None]
+    num = np.array([0 if v is None else len(v) for v in verts], dtype=np.int32)
+    adr = np.concatenate([[0], np.cumsum(num)[:-1]]).astype(np.int32)
+    mesh_vert = np.ascontiguousarray(np.concatenate(meshes) if meshes else np.zeros((0, 3)))
+    types = np.array([GEOM_TYPES[k] for k in kinds], dtype=np.int32)
+    flat = np.ascontiguousarray(T.reshape(-1, g, 4, 4))
+    dist, points = _kernel.pair_distances(
+        types,
+        S,
+        adr,
+        num,
+        mesh_vert,
+        np.ascontiguousarray(P, dtype=np.int32),
+        flat,
+        (*_DEFAULTS, 1, 1),
+    )
+    return Distance(dist.reshape(*shape, len(P)), points.reshape(*shape, len(P), 2, 3))

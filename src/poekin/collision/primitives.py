@@ -30,6 +30,10 @@ on both sides and every square root a positive argument, so ``jax.grad`` and PyT
 autograd give finite derivatives everywhere (at coincident centres and parallel axes
 included, where the witness direction is a choice; the distance is differentiable wherever
 the closest points are unique).
+
+Every dot product and matrix-vector product is summed entry by entry in one fixed order, so that
+the compiled twin (``poekin/kernel/_distance.h``, which :func:`poekin.collision.gjk.distance`
+runs for NumPy input) gives the same bits.
 """
 
 from __future__ import annotations
@@ -121,7 +125,8 @@ def _prepare(
 
 
 def _dot(a: Any, b: Any, xp: Any) -> Any:
-    return xp.sum(a * b, axis=-1)
+    """``a . b`` over the last axis of 3, summed in this order (the compiled twin's)."""
+    return a[..., 0] * b[..., 0] + a[..., 1] * b[..., 1] + a[..., 2] * b[..., 2]
 
 
 def _clip(x: Any, lo: Any, hi: Any, xp: Any) -> Any:
@@ -159,13 +164,15 @@ def _frame(T: Any) -> tuple[Any, Any]:
 
 
 def _to_local(R: Any, v: Any, xp: Any) -> Any:
-    """``R^T v`` for world vectors ``v (..., 3)``."""
-    return xp.sum(R * v[..., :, None], axis=-2)
+    """``R^T v`` for world vectors ``v (..., 3)``, each entry summed in the order of
+    :func:`_dot`."""
+    return xp.stack([_dot(R[..., :, i], v, xp) for i in range(3)], -1)
 
 
 def _to_world(R: Any, v: Any, xp: Any) -> Any:
-    """``R v`` for local vectors ``v (..., 3)``."""
-    return xp.sum(R * v[..., None, :], axis=-1)
+    """``R v`` for local vectors ``v (..., 3)``, each entry summed in the order of
+    :func:`_dot`."""
+    return xp.stack([_dot(R[..., i, :], v, xp) for i in range(3)], -1)
 
 
 def _z_axis(like: Any, xp: Any) -> Any:

@@ -930,6 +930,233 @@ static PyObject *ik_all(PyObject *Py_UNUSED(mod), PyObject *args) {
     return Py_BuildValue("(NNi)", q, valid, -1);
 }
 
+/* ------------------------------------------------------------------------------------------ */
+/* distance and pair_distances: the compiled twin of poekin.collision.gjk.distance */
+
+#include "_distance.h"
+
+/* Pairs per thread below which another thread does not pay for its start. */
+#define DG_MIN_PER_THREAD 1024
+
+/* N pairs (kind1 T1[i] S1[i], kind2 T2[i] S2[i]), or (pairs set) B configurations of G geoms
+ * posed by poses (B, G, 4, 4), P pairs of them each, in [lo, hi). */
+typedef struct {
+    DgOptions opt;
+    npy_intp lo, hi;
+    int kind[2];
+    const double *T[2], *S[2], *V[2];
+    npy_intp nv[2];
+    const int32_t *types, *pairs, *mesh_adr, *mesh_num;
+    const double *sizes, *mesh_vert, *poses;
+    npy_intp G, P;
+    double *dist, *pts;
+    int failed;
+} DgTask;
+
+static void dg_task(void *arg) {
+    DgTask *t = (DgTask *)arg;
+    DgWork W;
+    memset(&W, 0, sizeof W);
+    DgShape A, B;
+    for (npy_intp i = t->lo; i < t->hi; ++i) {
+        if (t->pairs == NULL) {
+            dg_shape(&A, t->kind[0], t->T[0] + 16 * i, t->V[0] ? DG_ZERO : t->S[0] + 3 * i,
+                     t->V[0], t->nv[0]);
+            dg_shape(&B, t->kind[1], t->T[1] + 16 * i, t->V[1] ? DG_ZERO : t->S[1] + 3 * i,
+                     t->V[1], t->nv[1]);
+        } else {
+            npy_intp b = i / t->P, p = i % t->P;
+            int32_t g1 = t->pairs[2 * p], g2 = t->pairs[2 * p + 1];
+            const double *pose = t->poses + 16 * t->G * b;
+            int mesh1 = t->types[g1] == DG_MESH, mesh2 = t->types[g2] == DG_MESH;
+            dg_shape(&A, t->types[g1], pose + 16 * g1, t->sizes + 3 * g1,
+                     mesh1 ? t->mesh_vert + 3 * (npy_intp)t->mesh_adr[g1] : NULL,
+                     mesh1 ? t->mesh_num[g1] : 0);
+            dg_shape(&B, t->types[g2], pose + 16 * g2, t->sizes + 3 * g2,
+                     mesh2 ? t->mesh_vert + 3 * (npy_intp)t->mesh_adr[g2] : NULL,
+                     mesh2 ? t->mesh_num[g2] : 0);
+        }
+        if (dg_distance(&A, &B, &t->opt, &W, t->dist + i, t->pts + 6 * i) < 0) {
+            t->failed = 1;
+            break;
+        }
+    }
+    dg_free_work(&W);
+}
+
+/* run the task on n items, on up to g_threads threads; -1 out of memory */
+static int dg_run(DgTask proto, npy_intp n) {
+    DgTask tasks[MAX_THREADS];
+    Share shares[MAX_THREADS];
+    npy_intp chunk;
+    int nt = split_batch(n, DG_MIN_PER_THREAD, g_threads, &chunk);
+    for (int k = 0; k < nt; ++k) {
+        tasks[k] = proto;
+        tasks[k].lo = k * chunk < n ? k * chunk : n;
+        tasks[k].hi = tasks[k].lo + chunk < n ? tasks[k].lo + chunk : n;
+        shares[k] = (Share){dg_task, &tasks[k]};
+    }
+    if (n >= MIN_CONFIGS_NO_GIL) {
+        Py_BEGIN_ALLOW_THREADS run_shares(shares, nt);
+        Py_END_ALLOW_THREADS
+    } else {
+        run_shares(shares, nt);
+    }
+    for (int k = 0; k < nt; ++k)
+        if (tasks[k].failed) return -1;
+    return 0;
+}
+
+/* a C-contiguous, aligned, native float64 (or int32) array of nd dimensions, the last ones
+ * `tail` (-1: any) */
+static int dg_array(PyObject *o, int type, int nd, npy_intp t1, npy_intp t2) {
+    if (!PyArray_Check(o)) return 0;
+    PyArrayObject *a = (PyArrayObject *)o;
+    if (PyArray_TYPE(a) != type || !PyArray_IS_C_CONTIGUOUS(a) || !PyArray_ISALIGNED(a) ||
+        PyArray_ISBYTESWAPPED(a) || PyArray_NDIM(a) != nd)
+        return 0;
+    if (t2 >= 0 && PyArray_DIM(a, nd - 1) != t2) return 0;
+    if (t1 >= 0 && PyArray_DIM(a, nd - 2) != t1) return 0;
+    return 1;
+}
+
+static int dg_known(int kind) {
+    return kind == DG_PLANE || (kind >= DG_SPHERE && kind <= DG_MESH);
+}
+
+static int dg_options(PyObject *o, DgOptions *opt) {
+    return PyArg_ParseTuple(o, "didiii", &opt->tol, &opt->max_iter, &opt->epa_tol,
+                            &opt->epa_faces, &opt->depth, &opt->closed);
+}
+
+static PyObject *dg_result(npy_intp nd, const npy_intp *dims, PyArrayObject **dist,
+                           PyArrayObject **pts) {
+    npy_intp pdims[NPY_MAXDIMS];
+    for (int i = 0; i < nd; ++i) pdims[i] = dims[i];
+    pdims[nd] = 2, pdims[nd + 1] = 3;
+    *dist = (PyArrayObject *)PyArray_SimpleNew((int)nd, (npy_intp *)dims, NPY_FLOAT64);
+    *pts = (PyArrayObject *)PyArray_SimpleNew((int)nd + 2, pdims, NPY_FLOAT64);
+    if (*dist == NULL || *pts == NULL) {
+        Py_XDECREF(*dist);
+        Py_XDECREF(*pts);
+        return NULL;
+    }
+    return Py_None;
+}
+
+/* distance(kind1, T1, S1, kind2, T2, S2, options) -> (dist (N,), points (N, 2, 3)): kinds
+ * MuJoCo's geom types (not two planes), T (N, 4, 4), S (N, 3) sizes or a mesh's vertices
+ * (V, 3), options (tol, max_iter, epa_tol, epa_faces, depth, closed: 0 for gjk.gjk); the arrays
+ * C-contiguous float64 */
+static PyObject *distance(PyObject *Py_UNUSED(mod), PyObject *args) {
+    DgTask t;
+    memset(&t, 0, sizeof t);
+    PyObject *pose1, *size1, *pose2, *size2, *options;
+    if (!PyArg_ParseTuple(args, "iOOiOOO", &t.kind[0], &pose1, &size1, &t.kind[1], &pose2, &size2,
+                          &options) ||
+        !dg_options(options, &t.opt))
+        return NULL;
+    PyObject *T[2] = {pose1, pose2}, *S[2] = {size1, size2};
+    npy_intp n = -1;
+    for (int k = 0; k < 2; ++k) {
+        int mesh = t.kind[k] == DG_MESH;
+        if (!dg_known(t.kind[k]) || !dg_array(T[k], NPY_FLOAT64, 3, 4, 4) ||
+            !dg_array(S[k], NPY_FLOAT64, 2, -1, 3) ||
+            (k == 1 && PyArray_DIM((PyArrayObject *)T[k], 0) != n) ||
+            (!mesh && PyArray_DIM((PyArrayObject *)S[k], 0) !=
+                          PyArray_DIM((PyArrayObject *)T[k], 0)) ||
+            (mesh && PyArray_DIM((PyArrayObject *)S[k], 0) == 0)) {
+            PyErr_SetString(PyExc_ValueError,
+                            "distance(kind1, T1, S1, kind2, T2, S2, options): known kinds, T "
+                            "(N, 4, 4), S (N, 3) or a mesh's (V, 3), C-contiguous float64");
+            return NULL;
+        }
+        n = PyArray_DIM((PyArrayObject *)T[k], 0);
+        t.T[k] = PyArray_DATA((PyArrayObject *)T[k]);
+        t.S[k] = PyArray_DATA((PyArrayObject *)S[k]);
+        t.V[k] = mesh ? t.S[k] : NULL;
+        t.nv[k] = mesh ? PyArray_DIM((PyArrayObject *)S[k], 0) : 0;
+    }
+    if (t.kind[0] == DG_PLANE && t.kind[1] == DG_PLANE) {
+        PyErr_SetString(PyExc_ValueError, "distance: two planes");
+        return NULL;
+    }
+    PyArrayObject *dist, *pts;
+    if (dg_result(1, &n, &dist, &pts) == NULL) return NULL;
+    t.dist = PyArray_DATA(dist), t.pts = PyArray_DATA(pts);
+    if (dg_run(t, n) < 0) {
+        Py_DECREF(dist);
+        Py_DECREF(pts);
+        return PyErr_NoMemory();
+    }
+    return Py_BuildValue("(NN)", dist, pts);
+}
+
+/* pair_distances(types, sizes, mesh_adr, mesh_num, mesh_vert, pairs, poses, options) ->
+ * (dist (B, P), points (B, P, 2, 3)): G geoms of MuJoCo's types (int32 (G,)) and sizes
+ * (G, 3), meshes as vertices mesh_vert[mesh_adr[g]:][:mesh_num[g]] ((V, 3)), the P pairs
+ * (int32 (P, 2), geom indices, not two planes) at the geoms' world poses (B, G, 4, 4) */
+static PyObject *pair_distances(PyObject *Py_UNUSED(mod), PyObject *args) {
+    DgTask t;
+    memset(&t, 0, sizeof t);
+    PyObject *types, *sizes, *adr, *num, *vert, *pairs, *poses, *options;
+    if (!PyArg_ParseTuple(args, "OOOOOOOO", &types, &sizes, &adr, &num, &vert, &pairs, &poses,
+                          &options) ||
+        !dg_options(options, &t.opt))
+        return NULL;
+    int ok = dg_array(types, NPY_INT32, 1, -1, -1) && dg_array(sizes, NPY_FLOAT64, 2, -1, 3) &&
+             dg_array(adr, NPY_INT32, 1, -1, -1) && dg_array(num, NPY_INT32, 1, -1, -1) &&
+             dg_array(vert, NPY_FLOAT64, 2, -1, 3) && dg_array(pairs, NPY_INT32, 2, -1, 2) &&
+             dg_array(poses, NPY_FLOAT64, 4, 4, 4);
+    npy_intp G = ok ? PyArray_DIM((PyArrayObject *)types, 0) : 0;
+    if (ok)
+        ok = PyArray_DIM((PyArrayObject *)sizes, 0) == G &&
+             PyArray_DIM((PyArrayObject *)adr, 0) == G &&
+             PyArray_DIM((PyArrayObject *)num, 0) == G &&
+             PyArray_DIM((PyArrayObject *)poses, 1) == G;
+    if (ok) {
+        t.types = PyArray_DATA((PyArrayObject *)types);
+        t.mesh_adr = PyArray_DATA((PyArrayObject *)adr);
+        t.mesh_num = PyArray_DATA((PyArrayObject *)num);
+        t.pairs = PyArray_DATA((PyArrayObject *)pairs);
+        npy_intp V = PyArray_DIM((PyArrayObject *)vert, 0);
+        for (npy_intp g = 0; g < G && ok; ++g) {
+            ok = dg_known(t.types[g]);
+            if (t.types[g] == DG_MESH)
+                ok = ok && t.mesh_adr[g] >= 0 && t.mesh_num[g] > 0 &&
+                     (npy_intp)t.mesh_adr[g] + t.mesh_num[g] <= V;
+        }
+        npy_intp P = PyArray_DIM((PyArrayObject *)pairs, 0);
+        for (npy_intp p = 0; p < P && ok; ++p) {
+            int32_t a = t.pairs[2 * p], b = t.pairs[2 * p + 1];
+            ok = a >= 0 && a < G && b >= 0 && b < G &&
+                 !(t.types[a] == DG_PLANE && t.types[b] == DG_PLANE);
+        }
+    }
+    if (!ok) {
+        PyErr_SetString(PyExc_ValueError,
+                        "pair_distances: int32 types (G,), float64 sizes (G, 3), int32 mesh_adr "
+                        "and mesh_num (G,), mesh_vert (V, 3), int32 pairs (P, 2) of geoms (not "
+                        "two planes), poses (B, G, 4, 4), C-contiguous");
+        return NULL;
+    }
+    t.sizes = PyArray_DATA((PyArrayObject *)sizes);
+    t.mesh_vert = PyArray_DATA((PyArrayObject *)vert);
+    t.poses = PyArray_DATA((PyArrayObject *)poses);
+    t.G = G;
+    t.P = PyArray_DIM((PyArrayObject *)pairs, 0);
+    npy_intp dims[2] = {PyArray_DIM((PyArrayObject *)poses, 0), t.P};
+    PyArrayObject *dist, *pts;
+    if (dg_result(2, dims, &dist, &pts) == NULL) return NULL;
+    t.dist = PyArray_DATA(dist), t.pts = PyArray_DATA(pts);
+    if (dg_run(t, dims[0] * dims[1]) < 0) {
+        Py_DECREF(dist);
+        Py_DECREF(pts);
+        return PyErr_NoMemory();
+    }
+    return Py_BuildValue("(NN)", dist, pts);
+}
+
 static PyObject *set_threads(PyObject *Py_UNUSED(mod), PyObject *arg) {
     long n = PyLong_AsLong(arg);
     if (n == -1 && PyErr_Occurred()) return NULL;
@@ -967,6 +1194,11 @@ static PyMethodDef module_methods[] = {
     {"get_width", get_width, METH_NOARGS, "get_width() -> configurations per block"},
     {"ik_all", ik_all, METH_VARARGS,
      "ik_all(kind, params, T, limits) -> (q, valid, bad): every closed-form IK branch"},
+    {"distance", distance, METH_VARARGS,
+     "distance(kind1, T1, S1, kind2, T2, S2, options) -> (dist, points): gjk.distance's twin"},
+    {"pair_distances", pair_distances, METH_VARARGS,
+     "pair_distances(types, sizes, mesh_adr, mesh_num, mesh_vert, pairs, poses, options) -> "
+     "(dist, points)"},
     {"expose_python", expose_python, METH_VARARGS,
      "expose_python(get, call): FastMethod's __get__ and __call__ for tools that trace Python"},
     {NULL, NULL, 0, NULL},
