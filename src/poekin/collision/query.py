@@ -28,6 +28,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from poekin import lie
+from poekin.collision.gjk import pair_distances
 from poekin.collision.model import GEOM_TYPES, CollisionModel, model_of
 from poekin.collision.obstacles import Mesh, Obstacle, as_obstacles, kind_of, mjcf_size
 from poekin.errors import InputError, did_you_mean
@@ -209,11 +210,26 @@ def _margin(margin: Any, what: str) -> float:
     return value
 
 
+def _shapes(scene: _Scene, n_geoms: int) -> tuple[list[str], FloatArray, list[Any]]:
+    """The scene's shapes as :func:`poekin.collision.gjk.pair_distances` takes them: each
+    geom's kind, its ``geom_size`` and, for a mesh, its vertices (MuJoCo's, in the geom's
+    frame: the convex hull's support is theirs)."""
+    model = scene.model
+    kinds = [GEOM_TYPES[int(t)] for t in model.geom_type[:n_geoms]]
+    vertices: list[Any] = []
+    for g, kind in enumerate(kinds):
+        if kind != "mesh":
+            vertices.append(None)
+            continue
+        m = int(model.geom_dataid[g])
+        start, count = int(model.mesh_vertadr[m]), int(model.mesh_vertnum[m])
+        vertices.append(np.array(model.mesh_vert[start : start + count], dtype=np.float64))
+    return kinds, np.array(model.geom_size[:n_geoms], dtype=np.float64), vertices
+
+
 def _measure(
     tree: Any, qpos: ArrayLike, obstacles: Any, margin: float, ignore: Iterable[Any]
 ) -> tuple[FloatArray, FloatArray, _Scene]:
-    import mujoco
-
     collision = model_of(tree)
     scene = _scene(tree, collision, as_obstacles(obstacles), ignore)
     frames = np.asarray(tree.fk(qpos), dtype=np.float64)  # checks qpos
@@ -222,21 +238,15 @@ def _measure(
     frames = np.concatenate([frames, extra], axis=-3).reshape(-1, tree.n_frames + 2, 4, 4)
     poses = frames[:, scene.frame] @ scene.local  # (B, G, 4, 4)
     n_pairs = scene.pairs.shape[0]
-    distance = np.full((poses.shape[0], n_pairs), np.inf)
-    points = np.full((poses.shape[0], n_pairs, 2, 3), np.nan)
-    model = scene.model
-    data = mujoco.MjData(model)
-    n_geoms = poses.shape[1]
-    fromto = np.zeros(6)
-    pairs = scene.pairs.tolist()
-    for c in range(poses.shape[0]):
-        data.geom_xpos[:n_geoms] = poses[c, :, :3, 3]
-        data.geom_xmat[:n_geoms] = poses[c, :, :3, :3].reshape(n_geoms, 9)
-        for p, (g1, g2) in enumerate(pairs):
-            d = mujoco.mj_geomDistance(model, data, g1, g2, margin, fromto)
-            if d < margin:
-                distance[c, p] = d
-                points[c, p] = fromto.reshape(2, 3)
+    if n_pairs == 0:
+        distance = np.full((poses.shape[0], 0), np.inf)
+        points = np.full((poses.shape[0], 0, 2, 3), np.nan)
+    else:
+        kinds, sizes, vertices = _shapes(scene, poses.shape[1])
+        found = pair_distances(kinds, sizes, scene.pairs, poses, vertices)
+        far = found.distance >= margin  # not measured, as MuJoCo's distmax leaves them
+        distance = np.where(far, np.inf, found.distance)
+        points = np.where(far[..., None, None], np.nan, found.points)
     return (
         distance.reshape(*batch, n_pairs),
         points.reshape(*batch, n_pairs, 2, 3),
