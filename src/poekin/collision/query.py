@@ -227,6 +227,32 @@ def _shapes(scene: _Scene, n_geoms: int) -> tuple[list[str], FloatArray, list[An
     return kinds, np.array(model.geom_size[:n_geoms], dtype=np.float64), vertices
 
 
+def _mujoco_pairs(
+    scene: _Scene, poses: FloatArray, pairs: IntArray, margin: float
+) -> tuple[FloatArray, FloatArray]:
+    """``(B, p)`` distances and ``(B, p, 2, 3)`` witness points of ``pairs`` by MuJoCo's
+    ``mj_geomDistance`` at the geoms' world ``poses (B, G, 4, 4)`` (``inf`` and NaN beyond
+    ``margin``)."""
+    import mujoco
+
+    model = scene.model
+    data = mujoco.MjData(model)
+    n_geoms = poses.shape[1]
+    distance = np.full((poses.shape[0], len(pairs)), np.inf)
+    points = np.full((poses.shape[0], len(pairs), 2, 3), np.nan)
+    fromto = np.zeros(6)
+    listed = pairs.tolist()
+    for c in range(poses.shape[0]):
+        data.geom_xpos[:n_geoms] = poses[c, :, :3, 3]
+        data.geom_xmat[:n_geoms] = poses[c, :, :3, :3].reshape(n_geoms, 9)
+        for p, (g1, g2) in enumerate(listed):
+            d = mujoco.mj_geomDistance(model, data, g1, g2, margin, fromto)
+            if d < margin:
+                distance[c, p] = d
+                points[c, p] = fromto.reshape(2, 3)
+    return distance, points
+
+
 def _measure(
     tree: Any, qpos: ArrayLike, obstacles: Any, margin: float, ignore: Iterable[Any]
 ) -> tuple[FloatArray, FloatArray, _Scene]:
@@ -243,10 +269,19 @@ def _measure(
         points = np.full((poses.shape[0], 0, 2, 3), np.nan)
     else:
         kinds, sizes, vertices = _shapes(scene, poses.shape[1])
-        found = pair_distances(kinds, sizes, scene.pairs, poses, vertices)
-        far = found.distance >= margin  # not measured, as MuJoCo's distmax leaves them
-        distance = np.where(far, np.inf, found.distance)
-        points = np.where(far[..., None, None], np.nan, found.points)
+        mesh = np.array([kinds[i] == "mesh" or kinds[j] == "mesh" for i, j in scene.pairs.tolist()])
+        distance = np.empty((poses.shape[0], n_pairs))
+        points = np.empty((poses.shape[0], n_pairs, 2, 3))
+        if not mesh.all():  # poekin's distances, compiled
+            found = pair_distances(kinds, sizes, scene.pairs[~mesh], poses, vertices)
+            distance[:, ~mesh], points[:, ~mesh] = found.distance, found.points
+        if mesh.any():  # a convex mesh: MuJoCo's, whose hull walk beats a support over V vertices
+            distance[:, mesh], points[:, mesh] = _mujoco_pairs(
+                scene, poses, scene.pairs[mesh], margin
+            )
+        far = distance >= margin  # not measured, as MuJoCo's distmax leaves them
+        distance = np.where(far, np.inf, distance)
+        points = np.where(far[..., None, None], np.nan, points)
     return (
         distance.reshape(*batch, n_pairs),
         points.reshape(*batch, n_pairs, 2, 3),
