@@ -358,6 +358,9 @@ class Chain:
     # T_world_base and T_flange_tool that with_base and with_tool folded into screws and home
     _base: FloatArray | None = dataclasses.field(default=None, repr=False, kw_only=True)
     _tool: FloatArray | None = dataclasses.field(default=None, repr=False, kw_only=True)
+    # the tree (loaded from a model file) whose joints from the world these are
+    # (Tree.chain), which knows the robot's collision geometry; None: none known
+    _tree: Any = dataclasses.field(default=None, repr=False, compare=False, kw_only=True)
 
     def __post_init__(self) -> None:
         n = len(self.joint_names)
@@ -644,6 +647,7 @@ class Chain:
             self,
             screws=arrays.as_numpy(params.screws, "params.screws"),
             home=arrays.as_numpy(params.home, "params.home"),
+            _tree=None,  # the model file's geometry sits on its own kinematics, not these
         )
 
     @_fast.fast_method("_jacobian_space_kernel")
@@ -734,6 +738,10 @@ class Chain:
         params: ChainParams | None = None,
         nearest_branch: bool = False,
         posture: float | ArrayLike = 0.0,
+        avoid: bool = False,
+        obstacles: Any = (),
+        margin: float = 0.005,
+        ignore: Sequence[tuple[str, str]] = (),
     ) -> IKResult:
         """Joint values that put the end frame at ``T``: numerical inverse kinematics, inside
         the joint limits, batched (:mod:`poekin.ik.numerical` describes the algorithm).
@@ -784,6 +792,16 @@ class Chain:
                 (in the norm ``sum w_i dq_i^2``: only the weights' ratios matter, the target
                 comes first; :mod:`poekin.wholebody.chains`); 0, the default, is the usual
                 solve. NumPy.
+            avoid: keep every checked pair of the robot's collision geometry (with itself
+                and with ``obstacles``) at least ``margin`` apart: a constraint inside the
+                solve, linearised each iteration with the witness points' Jacobians
+                (:mod:`poekin.ik.collision_free`); ``success`` then also means collision-free.
+                Needs a chain loaded from a model file (:func:`poekin.load`). NumPy.
+            obstacles: with ``avoid``: :class:`poekin.collision.Box`, ``Sphere``,
+                ``Capsule``, ``Plane`` or ``Mesh`` obstacles, in the chain's world (its base
+                frame) or attached to a frame of the model.
+            margin: with ``avoid``: the distance every pair keeps (m, >= 0; default 5 mm).
+            ignore: with ``avoid``: pairs of names (geoms, bodies, obstacles) not to check.
 
         Returns:
             An :class:`~poekin.ik.IKResult`: ``q`` ``(..., n)`` (always within the joint
@@ -809,6 +827,23 @@ class Chain:
             >>> bool(found.success), found.q.shape
             (True, (6,))
         """
+        listed = [not (isinstance(a, tuple | list) and len(a) == 0) for a in (obstacles, ignore)]
+        if avoid is not False or any(listed) or margin != 0.005:
+            return self._ik_avoid(
+                T,
+                q0,
+                seed,
+                _numerical().settings(
+                    pos_tol=pos_tol,
+                    ori_tol=ori_tol,
+                    position_only=position_only,
+                    orientation_weight=orientation_weight,
+                    max_iterations=max_iterations,
+                    max_attempts=max_attempts,
+                ),
+                (avoid, obstacles, margin, ignore),
+                (max_total_iterations, params, nearest_branch, posture),
+            )
         if not (isinstance(posture, int | float) and posture == 0):
             return self._ik_posture(
                 T,
@@ -988,6 +1023,46 @@ class Chain:
             gain=gain,
             damping=damping,
             s=s,
+        )
+
+    def _ik_avoid(
+        self,
+        T: ArrayLike,
+        q0: ArrayLike | None,
+        seed: int,
+        options: Any,
+        collision: tuple[Any, Any, Any, Any],
+        others: tuple[Any, ...],
+    ) -> IKResult:
+        """:meth:`ik` with ``avoid`` (:mod:`poekin.ik.collision_free`)."""
+        from poekin.collision.avoid import check_margin
+        from poekin.collision.obstacles import as_obstacles
+        from poekin.ik import collision_free
+        from poekin.ik.numerical import _inputs, check_seed
+
+        avoid, obstacles, margin, ignore = collision
+        if avoid is not True:
+            raise InputError(
+                "obstacles=, margin= and ignore= take effect with avoid=True: pass it"
+                if avoid is False
+                else f"avoid must be True or False, got {avoid!r:.40}"
+            )
+        if others[:3] != (None, None, False) or not (
+            isinstance(others[3], int | float) and others[3] == 0
+        ):
+            raise InputError(
+                "avoid=True is a NumPy solve of the chain's own parameters: it takes no "
+                "max_total_iterations, params, nearest_branch or posture"
+            )
+        if arrays.kind_of(T) is not None or arrays.kind_of(q0) is not None:
+            raise InputError("avoid=True takes NumPy arrays: convert JAX or PyTorch values first")
+        scene = collision_free.chain_scene(
+            self, as_obstacles(obstacles), check_margin(margin, "ik"), ignore
+        )
+        seed = check_seed(seed)
+        arr, start = _inputs(self, T, q0)
+        return collision_free.solve(
+            self, arr, start, scene.tree.qpos0, seed=seed, options=options, scene=scene
         )
 
     def _ik_posture(

@@ -1126,6 +1126,7 @@ class Tree:
             robot=self.robot,
             qpos_indices=tuple(int(self.qpos_adr[k]) for k in joints) if independent else None,
             _base=self._base if start < 0 else None,
+            _tree=self if start < 0 and independent else None,
         )
 
     def ik(
