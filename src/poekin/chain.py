@@ -1098,7 +1098,15 @@ class Chain:
         return solve_chain(self, T, q0, posture=posture, seed=seed, options=options)
 
     def ik_all(
-        self, T: ArrayLike, *, near: ArrayLike | None = None, refine: bool = True
+        self,
+        T: ArrayLike,
+        *,
+        near: ArrayLike | None = None,
+        refine: bool = True,
+        obstacles: Any = None,
+        collision_free: bool = False,
+        margin: float = 0.0,
+        ignore: Sequence[tuple[str, str]] = (),
     ) -> IKSolutions:
         """Every closed-form inverse kinematics solution: the joint values that put the end
         frame at ``T``, all branches at once (:mod:`poekin.ik.analytic`).
@@ -1116,11 +1124,21 @@ class Chain:
                 equivalents nearest them (:func:`poekin.wrap`), the branches ordered by their
                 distance to them, valid ones first.
             refine: False refuses a chain only near a supported geometry instead of refining.
+            obstacles: check each branch for collisions (the robot with itself, and with these
+                :mod:`poekin.collision` obstacles; ``[]`` for itself alone): ``collides``
+                ``(..., k)``. None (the default): no check. Needs a chain loaded from a model
+                file (:func:`poekin.load`).
+            collision_free: ``valid`` also requires the branch not to collide (checked with
+                ``obstacles``, or the robot alone if None); with ``near``, the valid branches
+                still come first.
+            margin: a pair closer than this (m, >= 0) collides (0: only pairs that overlap).
+            ignore: pairs of names (geoms, bodies, obstacles) not to check.
 
         Returns:
             :class:`~poekin.ik.analytic.IKSolutions`: ``q`` ``(..., k, 6)`` (``k = 8``),
-            ``valid`` ``(..., k)``, and ``pos_err``, ``ori_err`` ``(..., k)``. Each angle is
-            within the limits where a whole turn brings it there.
+            ``valid`` ``(..., k)``, ``collides`` ``(..., k)`` (with the check), and
+            ``pos_err``, ``ori_err`` ``(..., k)``. Each angle is within the limits where a
+            whole turn brings it there.
 
         Raises:
             AnalyticIKError: the chain fits no supported geometry; the message names the
@@ -1128,7 +1146,43 @@ class Chain:
             InputError: ``T`` is not ``(..., 4, 4)`` finite rigid transforms.
         """
         solutions: IKSolutions = _analytic().ik_all(self, T, near=near, refine=refine)
-        return solutions
+        if obstacles is None and collision_free is False and margin == 0.0 and not ignore:
+            return solutions
+        return self._branch_collisions(solutions, obstacles, collision_free, margin, ignore, near)
+
+    def _branch_collisions(
+        self,
+        found: IKSolutions,
+        obstacles: Any,
+        collision_free: bool,
+        margin: float,
+        ignore: Sequence[tuple[str, str]],
+        near: ArrayLike | None,
+    ) -> IKSolutions:
+        """:meth:`ik_all`'s ``collides``, and with ``collision_free`` its ``valid``."""
+        from poekin.collision.avoid import check_margin
+        from poekin.collision.obstacles import as_obstacles
+        from poekin.ik.collision_free import chain_scene
+
+        if not isinstance(collision_free, bool | np.bool_):
+            raise InputError(f"collision_free must be True or False, got {collision_free!r:.40}")
+        scene = chain_scene(self, as_obstacles(() if obstacles is None else obstacles), 0.0, ignore)
+        q = found.q.reshape(-1, self.n_joints)
+        qpos = scene.qpos(q, scene.tree.qpos0)
+        hit = scene.tree.in_collision(
+            qpos, scene.obstacles, margin=check_margin(margin, "ik_all"), ignore=scene.ignore
+        )
+        collides = np.asarray(hit, dtype=bool).reshape(found.valid.shape)
+        valid = found.valid & ~collides if collision_free else found.valid
+        order = np.argsort(~valid, axis=-1, kind="stable") if near is not None else None
+        if order is None:
+            return dataclasses.replace(found, valid=valid, collides=collides)
+        return dataclasses.replace(
+            found,
+            q=np.take_along_axis(found.q, order[..., None], axis=-2),
+            valid=np.take_along_axis(valid, order, axis=-1),
+            collides=np.take_along_axis(collides, order, axis=-1),
+        )
 
     def follow(
         self,
