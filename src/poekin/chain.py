@@ -963,6 +963,10 @@ class Chain:
         damping: float = 1e-12,
         position_only: bool = False,
         orientation_weight: float = 0.3,
+        avoid: bool = False,
+        obstacles: Any = (),
+        margin: float = 0.005,
+        avoid_gain: float = 0.85,
     ) -> Any:
         """One control tick of differential IK: the joint velocity that moves the end frame
         toward ``T`` in one ``dt``, every joint within its limits at ``q + qvel dt`` and
@@ -986,6 +990,14 @@ class Chain:
             damping: the step's Tikhonov damping ``lam |qvel dt|^2`` (m^2).
             position_only: move the frame's origin only, whatever its orientation.
             orientation_weight: metres per radian in the residual.
+            avoid: add mink's velocity damper for every checked collision pair (the robot
+                with itself and with ``obstacles``) closer than ``margin`` + 5 cm:
+                ``d_k + J_k qvel dt >= d_k - avoid_gain (d_k - margin)``, so that no pair
+                closes more than ``avoid_gain`` of its gap above ``margin`` in one tick, and
+                one closer than ``margin`` is pushed out (:mod:`poekin.collision.avoid`).
+                NumPy; needs a chain loaded from a model file.
+            obstacles, margin: with ``avoid``: the obstacles and the distance kept (m).
+            avoid_gain: with ``avoid``: the damper's gain, in ``(0, 1]``.
 
         Returns:
             ``(..., n)`` joint velocities (rad/s, m/s), in the inputs' library.
@@ -1005,6 +1017,14 @@ class Chain:
         """
         from poekin.ik import step
 
+        if avoid is not False:
+            return self._ik_step_avoid(
+                T,
+                q,
+                dt,
+                (velocity_limits, gain, damping, position_only, orientation_weight),
+                (avoid, obstacles, margin, avoid_gain),
+            )
         if type(T) is np.ndarray and type(q) is np.ndarray:  # the kernel, with the least around it
             quick = step.step_quick(
                 self, T, q, dt, velocity_limits, gain, damping, position_only, orientation_weight
@@ -1064,6 +1084,55 @@ class Chain:
         return collision_free.solve(
             self, arr, start, scene.tree.qpos0, seed=seed, options=options, scene=scene
         )
+
+    def _ik_step_avoid(
+        self,
+        T: ArrayLike,
+        q: ArrayLike,
+        dt: float,
+        options: tuple[Any, ...],
+        collision: tuple[Any, ...],
+    ) -> FloatArray:
+        """:meth:`ik_step` with ``avoid`` (:func:`poekin.ik.collision_free.step`)."""
+        from poekin.collision.avoid import check_margin
+        from poekin.collision.obstacles import as_obstacles
+        from poekin.ik import collision_free, step
+        from poekin.ik.numerical import broadcast_together, check_targets
+
+        velocity_limits, gain, damping, position_only, orientation_weight = options
+        avoid, obstacles, margin, avoid_gain = collision
+        if avoid is not True:
+            raise InputError(f"avoid must be True or False, got {avoid!r:.40}")
+        if arrays.kind_of(T) is not None or arrays.kind_of(q) is not None:
+            raise InputError("avoid=True takes NumPy arrays: convert JAX or PyTorch values first")
+        g = step._number(avoid_gain, "avoid_gain", "1/step", zero=False)
+        if g > 1:
+            raise InputError(f"avoid_gain must be in (0, 1], got {g}")
+        dt = step._number(dt, "dt", "s", zero=False)
+        s = _numerical().settings(
+            position_only=position_only, orientation_weight=orientation_weight
+        )
+        scene = collision_free.chain_scene(
+            self, as_obstacles(obstacles), check_margin(margin, "ik_step"), ()
+        )
+        T_arr, q_arr = broadcast_together(
+            check_targets(T), as_joint_values(q, self.n_joints, what="q values"), "q"
+        )
+        batch = q_arr.shape[:-1]
+        reach = np.array(step._velocity_limits(velocity_limits, self.n_joints)) * dt
+        qvel = collision_free.step(
+            self,
+            T_arr.reshape(-1, 4, 4),
+            q_arr.reshape(-1, self.n_joints),
+            dt,
+            reach,
+            step._number(gain, "gain", "1/step", zero=True),
+            step._number(damping, "damping", "m^2", zero=True) + step.FLOOR,
+            s,
+            scene,
+            g,
+        )
+        return qvel.reshape(*batch, self.n_joints)
 
     def _ik_posture(
         self,
@@ -1193,6 +1262,9 @@ class Chain:
         tol: float = 1e-4,
         ori_tol: float = 1e-3,
         samples: int | None = None,
+        obstacles: Any = None,
+        margin: float = 0.0,
+        ignore: Sequence[tuple[str, str]] = (),
     ) -> FollowResult:
         """Inverse kinematics along a path of end-frame poses: joint values for samples of it,
         each solved from the one before, the branch kept, re-sampled until the end frame stays
@@ -1216,12 +1288,19 @@ class Chain:
                 (in joint space) of two samples (m), > 0.
             ori_tol: the largest angle of its rotation from the path's there (rad), > 0.
             samples: a callable path's first samples, uniform in ``s`` (default 11), >= 2.
+            obstacles: check every sample for collisions (the robot with itself and with
+                these :mod:`poekin.collision` obstacles; ``[]``: itself alone): the path ends
+                before the first colliding sample, reason ``"collision"``, ``pair`` the pair.
+                None (the default): no check. Needs a chain loaded from a model file.
+            margin: with ``obstacles``: a pair closer than this collides (m, >= 0).
+            ignore: with ``obstacles``: pairs of names not to check.
 
         Returns:
             A :class:`~poekin.motion.follow.FollowResult`: ``q`` ``(K, n)``, ``s`` ``(K,)``,
             ``T`` ``(K, 4, 4)`` (the poses reached), ``fraction``, ``reason`` (``"done"``,
-            ``"joint_limit"``, ``"singular"``, ``"unreachable"`` or ``"jump"``), ``detail``,
-            ``joint`` (at its limit), ``sigma_min`` (where singular), ``branch``.
+            ``"joint_limit"``, ``"singular"``, ``"unreachable"``, ``"jump"`` or
+            ``"collision"``), ``detail``, ``joint`` (at its limit), ``sigma_min`` (where
+            singular), ``branch``, ``pair`` (the colliding pair).
 
         Raises:
             InputError: a path that is not poses (nor a callable returning them), ``q0`` of
@@ -1239,11 +1318,23 @@ class Chain:
             >>> done.reason, done.fraction, done.max_deviation <= 1e-4
             ('done', 1.0, True)
         """
-        from poekin.motion.follow import follow
+        from poekin.motion.follow import collision_stop, follow
 
-        return follow(
+        if obstacles is not None:  # checked before the path is followed
+            from poekin.collision.avoid import check_margin
+            from poekin.collision.obstacles import as_obstacles
+            from poekin.ik.collision_free import chain_scene
+
+            scene = chain_scene(
+                self, as_obstacles(obstacles), check_margin(margin, "follow"), ignore
+            )
+        found = follow(
             self, T_path, q0, max_step=max_step, tol=tol, ori_tol=ori_tol, samples=samples
         )
+        if obstacles is None:
+            return found
+        qpos = scene.qpos(np.asarray(found.q), scene.tree.qpos0)
+        return collision_stop(found, scene.tree, qpos, scene.obstacles, scene.margin, scene.ignore)
 
     def __repr__(self) -> str:
         joints = ", ".join(

@@ -1326,6 +1326,9 @@ class Tree:
         samples: int | None = None,
         freeze: Collection[str] = (),
         position_only: Collection[str] = (),
+        obstacles: Any = None,
+        margin: float = 0.0,
+        ignore: Collection[tuple[str, str]] = (),
     ) -> Any:
         """IK along a pose path for one frame, the whole body solved, other frames held: the
         tree's :meth:`poekin.Chain.follow` (:func:`poekin.motion.follow.follow_tree`).
@@ -1350,6 +1353,10 @@ class Tree:
             freeze: joints kept at ``qpos0`` (the fingers).
             position_only: held frames held by their position only (a quadruped's feet,
                 which turn as the body moves).
+            obstacles: check every sample for collisions (with itself and these obstacles;
+                ``[]``: itself alone): the path ends before the first colliding sample,
+                reason ``"collision"``, ``pair`` the pair. None (the default): no check.
+            margin, ignore: with ``obstacles``: as for :meth:`in_collision`.
 
         Returns:
             A :class:`~poekin.motion.follow.FollowResult` with ``q`` ``(K, nq)`` (``qpos``) and
@@ -1359,9 +1366,14 @@ class Tree:
             UnknownFrameError: ``frame`` or a held frame names no body or site.
             InputError: as :meth:`poekin.Chain.follow`, and ``frame`` held too.
         """
-        from poekin.motion.follow import follow_tree
+        from poekin.motion.follow import collision_stop, follow_tree
 
-        return follow_tree(
+        if obstacles is not None:  # checked before the path is followed
+            from poekin.collision.avoid import check_margin
+            from poekin.collision.obstacles import as_obstacles
+
+            checks = (as_obstacles(obstacles), check_margin(margin, "follow"), tuple(ignore))
+        found = follow_tree(
             self,
             T_path,
             qpos0,
@@ -1374,6 +1386,9 @@ class Tree:
             freeze=tuple(freeze),
             position_only=tuple(position_only),
         )
+        if obstacles is None:
+            return found
+        return collision_stop(found, self, np.asarray(found.q), *checks)
 
     def distances(
         self,

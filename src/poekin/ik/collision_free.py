@@ -43,7 +43,7 @@ from numpy.typing import NDArray
 
 from poekin import lie
 from poekin._poe import chain_terms
-from poekin.collision.avoid import ACTIVATION, pair_rows
+from poekin.collision.avoid import ACTIVATION, damper_rows, pair_rows
 from poekin.errors import ModelError
 from poekin.ik import _rng
 from poekin.ik.numerical import (
@@ -68,7 +68,7 @@ if TYPE_CHECKING:
     from poekin.chain import Chain
     from poekin.tree import Tree
 
-__all__ = ["BACKTRACKS", "ELASTIC", "Scene", "chain_scene", "inequality_qp", "solve"]
+__all__ = ["BACKTRACKS", "ELASTIC", "Scene", "chain_scene", "inequality_qp", "solve", "step"]
 
 FloatArray = NDArray[np.float64]
 BoolArray = NDArray[np.bool_]
@@ -355,3 +355,46 @@ def solve(
         iterations.reshape(batch),
         attempts.reshape(batch),
     )
+
+
+def step(
+    chain: Chain,
+    T: FloatArray,
+    q: FloatArray,
+    dt: float,
+    reach: FloatArray,
+    gain: float,
+    damping: float,
+    s: Settings,
+    scene: Scene,
+    damper_gain: float,
+) -> FloatArray:
+    """:meth:`poekin.Chain.ik_step` with ``avoid``: ``(N, n)`` velocities for ``(N, 4, 4)``
+    targets and ``(N, n)`` ``q`` (validated), the step ``x = qvel dt`` minimising ``|J x -
+    gain r|^2 + damping |x|^2`` within the limits and ``reach = v_max dt`` and the velocity
+    damper's rows (:func:`poekin.collision.avoid.damper_rows`: no pair closes more than
+    ``damper_gain`` of its gap above ``margin`` in one tick), by :func:`inequality_qp`."""
+    terms = chain_terms(chain)
+    measured = pair_rows(
+        scene.tree,
+        scene.qpos(q, scene.tree.qpos0),
+        scene.obstacles,
+        activation=scene.margin + ACTIVATION,
+        ignore=scene.ignore,
+    )
+    G, h = damper_rows(measured, scene.margin, damper_gain)
+    G = G[..., list(scene.dofs)]
+    out = np.zeros_like(q)
+    for i in range(len(q)):
+        R = tuple(tuple(np.atleast_1d(T[i, a, b]) for b in range(3)) for a in range(3))
+        goal = (R, tuple(np.atleast_1d(T[i, a, 3]) for a in range(3)))
+        J, r, _, _ = _evaluate(chain, q[i], goal, s)
+        lo = np.clip(terms.limits[:, 0] - q[i], -reach, reach)
+        hi = np.clip(terms.limits[:, 1] - q[i], -reach, reach)
+        near = np.isfinite(h[i])
+        H = J.T @ J + damping * np.eye(len(q[i]))
+        x = inequality_qp(
+            H, J.T @ (gain * r), np.minimum(lo, 0.0), np.maximum(hi, 0.0), G[i][near], h[i][near]
+        )
+        out[i] = np.clip(x, lo, hi) / dt
+    return out
