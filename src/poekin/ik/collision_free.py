@@ -166,7 +166,12 @@ def inequality_qp(
     size = n + k
     Hz = np.zeros((size, size))
     Hz[:n, :n] = H
-    Hz[n:, n:] = np.eye(k) * ELASTIC * max(1.0, float(np.max(np.diag(H))))
+    # the slacks scaled so that their block of the Hessian is H's size, not ELASTIC times it:
+    # s_k = c t_k with c^2 = 1 / ELASTIC (a Hessian block of H's scale keeps the KKT systems
+    # well conditioned)
+    weight = max(1.0, float(np.max(np.diag(H))))
+    c_slack = 1.0 / np.sqrt(ELASTIC)
+    Hz[n:, n:] = np.eye(k) * weight
     c = np.concatenate([-g, np.zeros(k)])
     lower = np.flatnonzero(np.isfinite(lo))
     upper = np.flatnonzero(np.isfinite(hi))
@@ -174,9 +179,9 @@ def inequality_qp(
     A[np.arange(len(lower)), lower] = 1.0
     A[len(lower) + np.arange(len(upper)), upper] = -1.0
     A[len(lower) + len(upper) :, :n] = G
-    A[len(lower) + len(upper) + broken, n + np.arange(k)] = 1.0
+    A[len(lower) + len(upper) + broken, n + np.arange(k)] = c_slack
     b = np.concatenate([lo[lower], -hi[upper], h])
-    z = np.concatenate([np.zeros(n), np.maximum(h[broken], 0.0)])
+    z = np.concatenate([np.zeros(n), np.maximum(h[broken], 0.0) / c_slack])
     working: list[int] = []
     for _ in range(4 * len(b) + 8):
         grad = Hz @ z + c
@@ -184,7 +189,11 @@ def inequality_qp(
         m = len(working)
         K = np.zeros((size + m, size + m))
         K[:size, :size], K[:size, size:], K[size:, :size] = Hz, -Aw.T, Aw
-        sol = np.linalg.lstsq(K, np.concatenate([-grad, np.zeros(m)]), rcond=None)[0]
+        rhs = np.concatenate([-grad, np.zeros(m)])
+        try:
+            sol = np.linalg.solve(K, rhs)
+        except np.linalg.LinAlgError:  # working rows that depend on each other
+            sol = np.linalg.lstsq(K, rhs, rcond=None)[0]
         p, lam = sol[:size], sol[size:]
         if np.max(np.abs(p), initial=0.0) <= _QP_TOL * (1.0 + np.max(np.abs(z))):
             if m == 0 or lam.min() >= -_QP_TOL * (1.0 + np.max(np.abs(grad))):
