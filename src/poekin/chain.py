@@ -358,6 +358,9 @@ class Chain:
     # T_world_base and T_flange_tool that with_base and with_tool folded into screws and home
     _base: FloatArray | None = dataclasses.field(default=None, repr=False, kw_only=True)
     _tool: FloatArray | None = dataclasses.field(default=None, repr=False, kw_only=True)
+    # the tree (loaded from a model file) whose joints from the world these are
+    # (Tree.chain), which knows the robot's collision geometry; None: none known
+    _tree: Any = dataclasses.field(default=None, repr=False, compare=False, kw_only=True)
 
     def __post_init__(self) -> None:
         n = len(self.joint_names)
@@ -644,6 +647,7 @@ class Chain:
             self,
             screws=arrays.as_numpy(params.screws, "params.screws"),
             home=arrays.as_numpy(params.home, "params.home"),
+            _tree=None,  # the model file's geometry sits on its own kinematics, not these
         )
 
     @_fast.fast_method("_jacobian_space_kernel")
@@ -734,6 +738,10 @@ class Chain:
         params: ChainParams | None = None,
         nearest_branch: bool = False,
         posture: float | ArrayLike = 0.0,
+        avoid: bool = False,
+        obstacles: Any = (),
+        margin: float = 0.005,
+        ignore: Sequence[tuple[str, str]] = (),
     ) -> IKResult:
         """Joint values that put the end frame at ``T``: numerical inverse kinematics, inside
         the joint limits, batched (:mod:`poekin.ik.numerical` describes the algorithm).
@@ -784,6 +792,16 @@ class Chain:
                 (in the norm ``sum w_i dq_i^2``: only the weights' ratios matter, the target
                 comes first; :mod:`poekin.wholebody.chains`); 0, the default, is the usual
                 solve. NumPy.
+            avoid: keep every checked pair of the robot's collision geometry (with itself
+                and with ``obstacles``) at least ``margin`` apart: a constraint inside the
+                solve, linearised each iteration with the witness points' Jacobians
+                (:mod:`poekin.ik.collision_free`); ``success`` then also means collision-free.
+                Needs a chain loaded from a model file (:func:`poekin.load`). NumPy.
+            obstacles: with ``avoid``: :class:`poekin.collision.Box`, ``Sphere``,
+                ``Capsule``, ``Plane`` or ``Mesh`` obstacles, in the chain's world (its base
+                frame) or attached to a frame of the model.
+            margin: with ``avoid``: the distance every pair keeps (m, >= 0; default 5 mm).
+            ignore: with ``avoid``: pairs of names (geoms, bodies, obstacles) not to check.
 
         Returns:
             An :class:`~poekin.ik.IKResult`: ``q`` ``(..., n)`` (always within the joint
@@ -809,6 +827,23 @@ class Chain:
             >>> bool(found.success), found.q.shape
             (True, (6,))
         """
+        listed = [not (isinstance(a, tuple | list) and len(a) == 0) for a in (obstacles, ignore)]
+        if avoid is not False or any(listed) or margin != 0.005:
+            return self._ik_avoid(
+                T,
+                q0,
+                seed,
+                _numerical().settings(
+                    pos_tol=pos_tol,
+                    ori_tol=ori_tol,
+                    position_only=position_only,
+                    orientation_weight=orientation_weight,
+                    max_iterations=max_iterations,
+                    max_attempts=max_attempts,
+                ),
+                (avoid, obstacles, margin, ignore),
+                (max_total_iterations, params, nearest_branch, posture),
+            )
         if not (isinstance(posture, int | float) and posture == 0):
             return self._ik_posture(
                 T,
@@ -928,6 +963,10 @@ class Chain:
         damping: float = 1e-12,
         position_only: bool = False,
         orientation_weight: float = 0.3,
+        avoid: bool = False,
+        obstacles: Any = (),
+        margin: float = 0.005,
+        avoid_gain: float = 0.85,
     ) -> Any:
         """One control tick of differential IK: the joint velocity that moves the end frame
         toward ``T`` in one ``dt``, every joint within its limits at ``q + qvel dt`` and
@@ -951,6 +990,14 @@ class Chain:
             damping: the step's Tikhonov damping ``lam |qvel dt|^2`` (m^2).
             position_only: move the frame's origin only, whatever its orientation.
             orientation_weight: metres per radian in the residual.
+            avoid: add mink's velocity damper for every checked collision pair (the robot
+                with itself and with ``obstacles``) closer than ``margin`` + 5 cm:
+                ``d_k + J_k qvel dt >= d_k - avoid_gain (d_k - margin)``, so that no pair
+                closes more than ``avoid_gain`` of its gap above ``margin`` in one tick, and
+                one closer than ``margin`` is pushed out (:mod:`poekin.collision.avoid`).
+                NumPy; needs a chain loaded from a model file.
+            obstacles, margin: with ``avoid``: the obstacles and the distance kept (m).
+            avoid_gain: with ``avoid``: the damper's gain, in ``(0, 1]``.
 
         Returns:
             ``(..., n)`` joint velocities (rad/s, m/s), in the inputs' library.
@@ -970,6 +1017,14 @@ class Chain:
         """
         from poekin.ik import step
 
+        if avoid is not False:
+            return self._ik_step_avoid(
+                T,
+                q,
+                dt,
+                (velocity_limits, gain, damping, position_only, orientation_weight),
+                (avoid, obstacles, margin, avoid_gain),
+            )
         if type(T) is np.ndarray and type(q) is np.ndarray:  # the kernel, with the least around it
             quick = step.step_quick(
                 self, T, q, dt, velocity_limits, gain, damping, position_only, orientation_weight
@@ -989,6 +1044,95 @@ class Chain:
             damping=damping,
             s=s,
         )
+
+    def _ik_avoid(
+        self,
+        T: ArrayLike,
+        q0: ArrayLike | None,
+        seed: int,
+        options: Any,
+        collision: tuple[Any, Any, Any, Any],
+        others: tuple[Any, ...],
+    ) -> IKResult:
+        """:meth:`ik` with ``avoid`` (:mod:`poekin.ik.collision_free`)."""
+        from poekin.collision.avoid import check_margin
+        from poekin.collision.obstacles import as_obstacles
+        from poekin.ik import collision_free
+        from poekin.ik.numerical import _inputs, check_seed
+
+        avoid, obstacles, margin, ignore = collision
+        if avoid is not True:
+            raise InputError(
+                "obstacles=, margin= and ignore= take effect with avoid=True: pass it"
+                if avoid is False
+                else f"avoid must be True or False, got {avoid!r:.40}"
+            )
+        if others[:3] != (None, None, False) or not (
+            isinstance(others[3], int | float) and others[3] == 0
+        ):
+            raise InputError(
+                "avoid=True is a NumPy solve of the chain's own parameters: it takes no "
+                "max_total_iterations, params, nearest_branch or posture"
+            )
+        if arrays.kind_of(T) is not None or arrays.kind_of(q0) is not None:
+            raise InputError("avoid=True takes NumPy arrays: convert JAX or PyTorch values first")
+        scene = collision_free.chain_scene(
+            self, as_obstacles(obstacles), check_margin(margin, "ik"), ignore
+        )
+        seed = check_seed(seed)
+        arr, start = _inputs(self, T, q0)
+        return collision_free.solve(
+            self, arr, start, scene.tree.qpos0, seed=seed, options=options, scene=scene
+        )
+
+    def _ik_step_avoid(
+        self,
+        T: ArrayLike,
+        q: ArrayLike,
+        dt: float,
+        options: tuple[Any, ...],
+        collision: tuple[Any, ...],
+    ) -> FloatArray:
+        """:meth:`ik_step` with ``avoid`` (:func:`poekin.ik.collision_free.step`)."""
+        from poekin.collision.avoid import check_margin
+        from poekin.collision.obstacles import as_obstacles
+        from poekin.ik import collision_free, step
+        from poekin.ik.numerical import broadcast_together, check_targets
+
+        velocity_limits, gain, damping, position_only, orientation_weight = options
+        avoid, obstacles, margin, avoid_gain = collision
+        if avoid is not True:
+            raise InputError(f"avoid must be True or False, got {avoid!r:.40}")
+        if arrays.kind_of(T) is not None or arrays.kind_of(q) is not None:
+            raise InputError("avoid=True takes NumPy arrays: convert JAX or PyTorch values first")
+        g = step._number(avoid_gain, "avoid_gain", "1/step", zero=False)
+        if g > 1:
+            raise InputError(f"avoid_gain must be in (0, 1], got {g}")
+        dt = step._number(dt, "dt", "s", zero=False)
+        s = _numerical().settings(
+            position_only=position_only, orientation_weight=orientation_weight
+        )
+        scene = collision_free.chain_scene(
+            self, as_obstacles(obstacles), check_margin(margin, "ik_step"), ()
+        )
+        T_arr, q_arr = broadcast_together(
+            check_targets(T), as_joint_values(q, self.n_joints, what="q values"), "q"
+        )
+        batch = q_arr.shape[:-1]
+        reach = np.array(step._velocity_limits(velocity_limits, self.n_joints)) * dt
+        qvel = collision_free.step(
+            self,
+            T_arr.reshape(-1, 4, 4),
+            q_arr.reshape(-1, self.n_joints),
+            dt,
+            reach,
+            step._number(gain, "gain", "1/step", zero=True),
+            step._number(damping, "damping", "m^2", zero=True) + step.FLOOR,
+            s,
+            scene,
+            g,
+        )
+        return qvel.reshape(*batch, self.n_joints)
 
     def _ik_posture(
         self,
@@ -1023,7 +1167,15 @@ class Chain:
         return solve_chain(self, T, q0, posture=posture, seed=seed, options=options)
 
     def ik_all(
-        self, T: ArrayLike, *, near: ArrayLike | None = None, refine: bool = True
+        self,
+        T: ArrayLike,
+        *,
+        near: ArrayLike | None = None,
+        refine: bool = True,
+        obstacles: Any = None,
+        collision_free: bool = False,
+        margin: float = 0.0,
+        ignore: Sequence[tuple[str, str]] = (),
     ) -> IKSolutions:
         """Every closed-form inverse kinematics solution: the joint values that put the end
         frame at ``T``, all branches at once (:mod:`poekin.ik.analytic`).
@@ -1041,11 +1193,21 @@ class Chain:
                 equivalents nearest them (:func:`poekin.wrap`), the branches ordered by their
                 distance to them, valid ones first.
             refine: False refuses a chain only near a supported geometry instead of refining.
+            obstacles: check each branch for collisions (the robot with itself, and with these
+                :mod:`poekin.collision` obstacles; ``[]`` for itself alone): ``collides``
+                ``(..., k)``. None (the default): no check. Needs a chain loaded from a model
+                file (:func:`poekin.load`).
+            collision_free: ``valid`` also requires the branch not to collide (checked with
+                ``obstacles``, or the robot alone if None); with ``near``, the valid branches
+                still come first.
+            margin: a pair closer than this (m, >= 0) collides (0: only pairs that overlap).
+            ignore: pairs of names (geoms, bodies, obstacles) not to check.
 
         Returns:
             :class:`~poekin.ik.analytic.IKSolutions`: ``q`` ``(..., k, 6)`` (``k = 8``),
-            ``valid`` ``(..., k)``, and ``pos_err``, ``ori_err`` ``(..., k)``. Each angle is
-            within the limits where a whole turn brings it there.
+            ``valid`` ``(..., k)``, ``collides`` ``(..., k)`` (with the check), and
+            ``pos_err``, ``ori_err`` ``(..., k)``. Each angle is within the limits where a
+            whole turn brings it there.
 
         Raises:
             AnalyticIKError: the chain fits no supported geometry; the message names the
@@ -1053,7 +1215,43 @@ class Chain:
             InputError: ``T`` is not ``(..., 4, 4)`` finite rigid transforms.
         """
         solutions: IKSolutions = _analytic().ik_all(self, T, near=near, refine=refine)
-        return solutions
+        if obstacles is None and collision_free is False and margin == 0.0 and not ignore:
+            return solutions
+        return self._branch_collisions(solutions, obstacles, collision_free, margin, ignore, near)
+
+    def _branch_collisions(
+        self,
+        found: IKSolutions,
+        obstacles: Any,
+        collision_free: bool,
+        margin: float,
+        ignore: Sequence[tuple[str, str]],
+        near: ArrayLike | None,
+    ) -> IKSolutions:
+        """:meth:`ik_all`'s ``collides``, and with ``collision_free`` its ``valid``."""
+        from poekin.collision.avoid import check_margin
+        from poekin.collision.obstacles import as_obstacles
+        from poekin.ik.collision_free import chain_scene
+
+        if not isinstance(collision_free, bool | np.bool_):
+            raise InputError(f"collision_free must be True or False, got {collision_free!r:.40}")
+        scene = chain_scene(self, as_obstacles(() if obstacles is None else obstacles), 0.0, ignore)
+        q = found.q.reshape(-1, self.n_joints)
+        qpos = scene.qpos(q, scene.tree.qpos0)
+        hit = scene.tree.in_collision(
+            qpos, scene.obstacles, margin=check_margin(margin, "ik_all"), ignore=scene.ignore
+        )
+        collides = np.asarray(hit, dtype=bool).reshape(found.valid.shape)
+        valid = found.valid & ~collides if collision_free else found.valid
+        order = np.argsort(~valid, axis=-1, kind="stable") if near is not None else None
+        if order is None:
+            return dataclasses.replace(found, valid=valid, collides=collides)
+        return dataclasses.replace(
+            found,
+            q=np.take_along_axis(found.q, order[..., None], axis=-2),
+            valid=np.take_along_axis(valid, order, axis=-1),
+            collides=np.take_along_axis(collides, order, axis=-1),
+        )
 
     def follow(
         self,
@@ -1064,6 +1262,9 @@ class Chain:
         tol: float = 1e-4,
         ori_tol: float = 1e-3,
         samples: int | None = None,
+        obstacles: Any = None,
+        margin: float = 0.0,
+        ignore: Sequence[tuple[str, str]] = (),
     ) -> FollowResult:
         """Inverse kinematics along a path of end-frame poses: joint values for samples of it,
         each solved from the one before, the branch kept, re-sampled until the end frame stays
@@ -1087,12 +1288,19 @@ class Chain:
                 (in joint space) of two samples (m), > 0.
             ori_tol: the largest angle of its rotation from the path's there (rad), > 0.
             samples: a callable path's first samples, uniform in ``s`` (default 11), >= 2.
+            obstacles: check every sample for collisions (the robot with itself and with
+                these :mod:`poekin.collision` obstacles; ``[]``: itself alone): the path ends
+                before the first colliding sample, reason ``"collision"``, ``pair`` the pair.
+                None (the default): no check. Needs a chain loaded from a model file.
+            margin: with ``obstacles``: a pair closer than this collides (m, >= 0).
+            ignore: with ``obstacles``: pairs of names not to check.
 
         Returns:
             A :class:`~poekin.motion.follow.FollowResult`: ``q`` ``(K, n)``, ``s`` ``(K,)``,
             ``T`` ``(K, 4, 4)`` (the poses reached), ``fraction``, ``reason`` (``"done"``,
-            ``"joint_limit"``, ``"singular"``, ``"unreachable"`` or ``"jump"``), ``detail``,
-            ``joint`` (at its limit), ``sigma_min`` (where singular), ``branch``.
+            ``"joint_limit"``, ``"singular"``, ``"unreachable"``, ``"jump"`` or
+            ``"collision"``), ``detail``, ``joint`` (at its limit), ``sigma_min`` (where
+            singular), ``branch``, ``pair`` (the colliding pair).
 
         Raises:
             InputError: a path that is not poses (nor a callable returning them), ``q0`` of
@@ -1110,11 +1318,23 @@ class Chain:
             >>> done.reason, done.fraction, done.max_deviation <= 1e-4
             ('done', 1.0, True)
         """
-        from poekin.motion.follow import follow
+        from poekin.motion.follow import collision_stop, follow
 
-        return follow(
+        if obstacles is not None:  # checked before the path is followed
+            from poekin.collision.avoid import check_margin
+            from poekin.collision.obstacles import as_obstacles
+            from poekin.ik.collision_free import chain_scene
+
+            scene = chain_scene(
+                self, as_obstacles(obstacles), check_margin(margin, "follow"), ignore
+            )
+        found = follow(
             self, T_path, q0, max_step=max_step, tol=tol, ori_tol=ori_tol, samples=samples
         )
+        if obstacles is None:
+            return found
+        qpos = scene.qpos(np.asarray(found.q), scene.tree.qpos0)
+        return collision_stop(found, scene.tree, qpos, scene.obstacles, scene.margin, scene.ignore)
 
     def __repr__(self) -> str:
         joints = ", ".join(

@@ -1126,6 +1126,7 @@ class Tree:
             robot=self.robot,
             qpos_indices=tuple(int(self.qpos_adr[k]) for k in joints) if independent else None,
             _base=self._base if start < 0 else None,
+            _tree=self if start < 0 and independent else None,
         )
 
     def ik(
@@ -1147,6 +1148,10 @@ class Tree:
         weights: Mapping[str, float] | None = None,
         posture: float | ArrayLike = 0.0,
         freeze: Collection[str] = (),
+        avoid: bool = False,
+        obstacles: Any = (),
+        margin: float = 0.005,
+        ignore: Collection[tuple[str, str]] = (),
     ) -> Any:
         """Inverse kinematics: the ``qpos`` that puts one frame, or many at once, at targets.
 
@@ -1194,6 +1199,12 @@ class Tree:
                 ``qpos`` in the norm ``sum w_i dq_i^2`` (only the ratios matter: the targets
                 come first); the floating base is never pulled.
             freeze: many: names of joints kept at ``qpos`` (a humanoid's fingers).
+            avoid: one frame: keep every checked collision pair (the robot with itself and
+                with ``obstacles``, the joints held at ``qpos`` included) at least ``margin``
+                apart, a constraint inside the solve (:mod:`poekin.ik.collision_free`, as
+                :meth:`poekin.Chain.ik`); ``success`` then also means collision-free.
+            obstacles, margin, ignore: with ``avoid``: as for :meth:`distances` (``margin``
+                the distance kept, m, default 5 mm).
 
         Returns:
             One frame: an :class:`~poekin.ik.IKResult` whose ``q`` is the whole ``(..., nq)``
@@ -1216,6 +1227,24 @@ class Tree:
         """
         from poekin.ik.numerical import settings
 
+        listed = [not (isinstance(a, tuple | list) and len(a) == 0) for a in (obstacles, ignore)]
+        collision = None
+        if avoid is not False or any(listed) or margin != 0.005:
+            from poekin.collision.avoid import check_margin
+            from poekin.collision.obstacles import as_obstacles
+
+            if avoid is not True:
+                raise InputError(
+                    "obstacles=, margin= and ignore= take effect with avoid=True: pass it"
+                    if avoid is False
+                    else f"avoid must be True or False, got {avoid!r:.40}"
+                )
+            if isinstance(T, Mapping):
+                raise InputError(
+                    "avoid=True solves one frame, tree.ik(T, frame, qpos, avoid=True); a dict "
+                    "of targets does not take it yet (issue #29)"
+                )
+            collision = (as_obstacles(obstacles), check_margin(margin, "ik"), tuple(ignore))
         if isinstance(T, Mapping):
             from poekin.wholebody import solve
 
@@ -1273,7 +1302,16 @@ class Tree:
             max_iterations=max_iterations,
             max_attempts=100 if max_attempts is None else max_attempts,
         )
-        return solve_tree(self, T, frame, qpos, warm_start=warm_start, seed=seed, options=options)
+        return solve_tree(
+            self,
+            T,
+            frame,
+            qpos,
+            warm_start=warm_start,
+            seed=seed,
+            options=options,
+            collision=collision,
+        )
 
     def follow(
         self,
@@ -1288,6 +1326,9 @@ class Tree:
         samples: int | None = None,
         freeze: Collection[str] = (),
         position_only: Collection[str] = (),
+        obstacles: Any = None,
+        margin: float = 0.0,
+        ignore: Collection[tuple[str, str]] = (),
     ) -> Any:
         """IK along a pose path for one frame, the whole body solved, other frames held: the
         tree's :meth:`poekin.Chain.follow` (:func:`poekin.motion.follow.follow_tree`).
@@ -1312,6 +1353,10 @@ class Tree:
             freeze: joints kept at ``qpos0`` (the fingers).
             position_only: held frames held by their position only (a quadruped's feet,
                 which turn as the body moves).
+            obstacles: check every sample for collisions (with itself and these obstacles;
+                ``[]``: itself alone): the path ends before the first colliding sample,
+                reason ``"collision"``, ``pair`` the pair. None (the default): no check.
+            margin, ignore: with ``obstacles``: as for :meth:`in_collision`.
 
         Returns:
             A :class:`~poekin.motion.follow.FollowResult` with ``q`` ``(K, nq)`` (``qpos``) and
@@ -1321,9 +1366,14 @@ class Tree:
             UnknownFrameError: ``frame`` or a held frame names no body or site.
             InputError: as :meth:`poekin.Chain.follow`, and ``frame`` held too.
         """
-        from poekin.motion.follow import follow_tree
+        from poekin.motion.follow import collision_stop, follow_tree
 
-        return follow_tree(
+        if obstacles is not None:  # checked before the path is followed
+            from poekin.collision.avoid import check_margin
+            from poekin.collision.obstacles import as_obstacles
+
+            checks = (as_obstacles(obstacles), check_margin(margin, "follow"), tuple(ignore))
+        found = follow_tree(
             self,
             T_path,
             qpos0,
@@ -1336,6 +1386,9 @@ class Tree:
             freeze=tuple(freeze),
             position_only=tuple(position_only),
         )
+        if obstacles is None:
+            return found
+        return collision_stop(found, self, np.asarray(found.q), *checks)
 
     def distances(
         self,

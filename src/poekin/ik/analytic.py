@@ -114,6 +114,10 @@ class IKSolutions:
         valid: ``(..., k)`` True where the branch solves the target exactly (to 1e-12 of the
             arm's size) and lies within the limits.
         geometry: the :class:`Geometry` that was solved.
+        collides: ``(..., k)`` where asked for (:meth:`poekin.Chain.ik_all` with
+            ``obstacles``): True where the branch's configuration has a checked pair of the
+            robot's collision geometry (with itself or an obstacle) closer than the margin;
+            else None.
     """
 
     q: FloatArray
@@ -121,6 +125,7 @@ class IKSolutions:
     geometry: Geometry
     _chain: Chain = dataclasses.field(repr=False)
     _targets: FloatArray = dataclasses.field(repr=False)
+    collides: BoolArray | None = None
 
     @functools.cached_property
     def pos_err(self) -> FloatArray:

@@ -91,8 +91,10 @@ def solve_tree(
     warm_start: bool,
     seed: int,
     options: Settings,
+    collision: tuple[tuple[Any, ...], float, tuple[Any, ...]] | None = None,
 ) -> IKResult:
-    """:meth:`poekin.Tree.ik`."""
+    """:meth:`poekin.Tree.ik`; ``collision``: ``(obstacles, margin, ignore)`` of
+    ``avoid=True`` (:mod:`poekin.ik.collision_free`), validated."""
     how = plan(tree, frame)
     if arrays.namespace_of([T, qpos], "targets and qpos")[1] is not None:
         raise InputError(
@@ -106,7 +108,27 @@ def solve_tree(
     if how.base is not None:
         targets = lie.inverse(tree.pose(q, how.base)) @ targets
     start: Any = q[..., list(how.indices)] if warm_start else None
-    found = solve(how.chain, np.ascontiguousarray(targets), start, seed=seed, options=options)
+    if collision is None:
+        found = solve(how.chain, np.ascontiguousarray(targets), start, seed=seed, options=options)
+    else:
+        from poekin.ik import collision_free
+
+        joints = [tree.joint_names.index(name) for name in how.chain.joint_names]
+        scene = collision_free.Scene(
+            tree,
+            how.indices,
+            tuple(int(tree._dof_adr[k]) for k in joints),
+            *collision,
+        )
+        found = collision_free.solve(
+            how.chain,
+            np.ascontiguousarray(targets),
+            start,
+            q,
+            seed=seed,
+            options=options,
+            scene=scene,
+        )
     out = np.array(q, dtype=np.float64)  # a copy, every other joint as given
     out[..., list(how.indices)] = found.q
     return dataclasses.replace(found, q=out)

@@ -37,7 +37,12 @@ of ``s`` ends the path at its first sample, with the reason:
 * ``"singular"``: the next pose is reachable, but not from here without leaving the branch or
   moving more than ``max_step``, at a configuration whose Jacobian's smallest singular value
   (``sigma_min``) is below :data:`SINGULAR_TOL`;
-* ``"jump"``: the same away from any singularity.
+* ``"jump"``: the same away from any singularity;
+* ``"collision"`` (asked for with ``obstacles=``): a sample where a checked pair of the robot's
+  collision geometry, with itself or an obstacle, is closer than ``margin``
+  (:meth:`poekin.Tree.in_collision`). The samples are checked once the path is followed; the
+  path ends at the sample before the first colliding one, and ``pair`` names the closest pair
+  there (the stretch between two samples is not checked).
 
 A path followed to its end has reason ``"done"`` and ``fraction`` 1. No I/O here.
 """
@@ -70,12 +75,13 @@ __all__ = [
     "S_RESOLUTION",
     "FollowResult",
     "Reason",
+    "collision_stop",
     "follow",
 ]
 
 FloatArray = NDArray[np.float64]
 BoolArray = NDArray[np.bool_]
-Reason = Literal["done", "joint_limit", "singular", "unreachable", "jump"]
+Reason = Literal["done", "joint_limit", "singular", "unreachable", "jump", "collision"]
 PathFunction = Callable[[FloatArray], ArrayLike]
 
 #: The largest move of any joint between two samples (rad, or m for a prismatic joint).
@@ -122,6 +128,8 @@ class FollowResult:
         max_deviation: the largest position deviation from the path at the samples' midpoints
             (m), at most ``tol``.
         max_ori_deviation: the largest rotation deviation there (rad), at most ``ori_tol``.
+        pair: with ``"collision"``, the names of the closest pair at the first colliding
+            sample (robot geoms or obstacles); else None.
     """
 
     q: FloatArray
@@ -135,6 +143,7 @@ class FollowResult:
     branch: int | None
     max_deviation: float
     max_ori_deviation: float
+    pair: tuple[str, str] | None = None
 
     @property
     def done(self) -> bool:
@@ -805,3 +814,48 @@ def _tree_stop(
             )
         why = "the solve from the last sample finds no solution nearby"
     return _Stop("jump", f"a jump at s = {s_a:.6g}: {why}")
+
+
+# --- collisions: the first colliding sample ends the path ---------------------------------------
+
+
+def collision_stop(
+    found: FollowResult,
+    tree: Tree,
+    qpos: FloatArray,
+    obstacles: tuple[object, ...],
+    margin: float,
+    ignore: tuple[tuple[str, str], ...],
+) -> FollowResult:
+    """``found`` cut at its first sample whose configuration ``qpos (K, nq)`` (the tree's, for
+    ``found.q``) has a checked pair closer than ``margin`` (m): reason ``"collision"``, the
+    samples before it kept (the start alone if it collides), ``pair`` the closest pair there;
+    ``found`` itself if no sample collides."""
+    measured = tree.distances(qpos, obstacles, margin=margin, ignore=ignore)
+    close = measured.distance < margin
+    hit = np.flatnonzero(close.any(axis=-1))
+    if not hit.size:
+        return found
+    k = int(hit[0])
+    worst = int(np.argmin(measured.distance[k]))
+    pair = measured.pairs[worst]
+    depth = 1000 * float(measured.distance[k, worst])
+    keep = max(k, 1)
+    q, s, T = (np.array(a[:keep]) for a in (found.q, found.s, found.T))
+    for a in (q, s, T):
+        a.flags.writeable = False
+    return dataclasses.replace(
+        found,
+        q=q,
+        s=s,
+        T=T,
+        fraction=float(s[-1]) if k else 0.0,
+        reason="collision",
+        detail=(
+            f"a collision at s = {float(found.s[k]):.6g}: {pair[0]} and {pair[1]} at "
+            f"{depth:.1f} mm (margin {1000 * margin:.1f} mm)"
+        ),
+        joint=None,
+        sigma_min=None,
+        pair=pair,
+    )
