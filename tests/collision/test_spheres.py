@@ -133,3 +133,52 @@ def test_bad_input_is_one_clear_error(kwargs: dict[str, object], message: str) -
     with pytest.raises(InputError, match=message) as info:
         fit_spheres(**kwargs)  # type: ignore[arg-type]
     assert "\n" not in str(info.value)
+
+
+def test_a_robots_spheres_cover_its_geoms_where_mujoco_puts_them() -> None:
+    """poekin.collision.spheres on the UR5e (capsules and a cylinder): at random
+    configurations, points drawn inside each collision geom where MuJoCo's FK puts it lie in
+    some sphere of that geom (centres by poekin's FK), and no sphere's surface is farther from
+    a capsule than the stated error."""
+    import mujoco
+    from helpers import load_quiet
+
+    import poekin
+    from poekin.collision import model_of
+    from poekin.collision.spheres import spheres
+
+    loaded = load_quiet("universal_robots_ur5e")
+    tree = poekin.load_tree(loaded)
+    found = spheres(tree, count=6)
+    collision = model_of(tree)
+    model = collision.mj_model
+    data = mujoco.MjData(model)
+    rng = np.random.default_rng(3)
+    qpos = poekin.sample_qpos(tree, 5, seed=4, within_limits=True)
+    for q in qpos:
+        data.qpos[:] = q
+        mujoco.mj_kinematics(model, data)
+        centers = found.world(tree, q)
+        for g, kind in enumerate(collision.geom_types):
+            r, h = collision.geom_sizes[g][:2]
+            u = rng.uniform(-1.0, 1.0, (400, 3))
+            u = u[np.linalg.norm(u[:, :2], axis=1) <= 1.0]
+            local = np.column_stack([r * u[:, 0], r * u[:, 1], h * u[:, 2]])  # in the cylinder
+            if kind == "capsule":  # and in its caps
+                local = np.vstack([local, rng.normal(size=(200, 3))])
+                local[-200:] *= (
+                    r * rng.uniform(0, 1, (200, 1)) / np.linalg.norm(local[-200:], axis=1)[:, None]
+                )
+                local[-200:, 2] += np.where(rng.uniform(size=200) < 0.5, -h, h)
+            points = local @ data.geom_xmat[g].reshape(3, 3).T + data.geom_xpos[g]
+            mine = found.geoms == g
+            gap = np.linalg.norm(points[:, None] - centers[mine][None], axis=-1) - found.radii[mine]
+            assert np.all(gap.min(axis=1) <= 1e-9), (collision.geom_names[g], gap.min(axis=1).max())
+            if kind == "capsule":  # the spheres reach at most `error` out of it
+                axis = data.geom_xmat[g].reshape(3, 3)[:, 2]
+                for c, R in zip(centers[mine], found.radii[mine], strict=True):
+                    surface = c + R * rng.normal(size=(100, 3)) / 1.0
+                    surface = c + R * (surface - c) / np.linalg.norm(surface - c, axis=1)[:, None]
+                    t = np.clip((surface - data.geom_xpos[g]) @ axis, -h, h)
+                    near = data.geom_xpos[g] + t[:, None] * axis
+                    assert np.max(np.linalg.norm(surface - near, axis=1) - r) <= found.error + 1e-9

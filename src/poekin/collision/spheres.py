@@ -33,7 +33,7 @@ from numpy.typing import NDArray
 from poekin.collision import gjk, primitives
 from poekin.errors import InputError
 
-__all__ = ["KINDS", "Spheres", "fit_spheres"]
+__all__ = ["KINDS", "RobotSpheres", "Spheres", "fit_spheres", "spheres"]
 
 KINDS = ("sphere", "capsule", "cylinder", "box", "mesh")
 _MAX_SPHERES = 100_000  # a tolerance finer than this many spheres allow is refused
@@ -208,3 +208,86 @@ def _grid_to(
         else:
             coarse = mid
     return fits
+
+
+class RobotSpheres(NamedTuple):
+    """Spheres covering every collision geom of a robot, each fixed to a body.
+
+    Attributes:
+        bodies: ``(S,)`` each sphere's body, an index of ``tree.body_names`` (-1: the world).
+        centers: ``(S, 3)`` each sphere's centre in its body's frame (m).
+        radii: ``(S,)`` their radii (m).
+        geoms: ``(S,)`` the collision geom each sphere covers, an index of the collision
+            model's ``geom_names``.
+        error: how far (m) any sphere reaches outside the geom it covers, at most.
+    """
+
+    bodies: NDArray[np.intp]
+    centers: NDArray[np.float64]
+    radii: NDArray[np.float64]
+    geoms: NDArray[np.intp]
+    error: float
+
+    def world(self, tree: Any, qpos: Any) -> NDArray[np.float64]:
+        """``(..., S, 3)`` the centres in the world at ``qpos (..., nq)`` (``tree.fk``)."""
+        frames = np.asarray(tree.fk(qpos), dtype=np.float64)
+        world = np.broadcast_to(np.eye(4), (*frames.shape[:-3], 1, 4, 4))
+        frames = np.concatenate([frames, world], axis=-3)  # index -1: the world
+        T = frames[..., self.bodies, :, :]
+        out: NDArray[np.float64] = (T[..., :3, :3] @ self.centers[..., None])[..., 0] + T[
+            ..., :3, 3
+        ]
+        return out
+
+
+def spheres(tree: Any, *, count: int | None = None, tolerance: float | None = None) -> RobotSpheres:
+    """Spheres covering a robot's collision geometry (:func:`poekin.collision.model_of`), as
+    cuRobo approximates its links: :func:`fit_spheres` on each geom (a plane is skipped: it is
+    no link), the centres moved into the geom's body frame.
+
+    Args:
+        tree: a tree loaded from a model file.
+        count: the most spheres per geom (a sphere takes one).
+        tolerance: the most any sphere may reach outside its geom (m).
+
+    Returns:
+        A :class:`RobotSpheres`, ``error`` the largest of the geoms' errors.
+
+    Raises:
+        InputError: neither or both of ``count`` and ``tolerance``, or as :func:`fit_spheres`.
+        ModelError: the tree knows no model file, or its collision meshes are missing.
+    """
+    from poekin.collision.model import GEOM_TYPES, model_of
+
+    collision = model_of(tree)
+    model = collision.mj_model
+    bodies, centers, radii, geoms = [], [], [], []
+    error = 0.0
+    for g, kind in enumerate(collision.geom_types):
+        if kind not in KINDS:
+            if kind == "plane":
+                continue
+            raise InputError(
+                f"spheres: geom {collision.geom_names[g]!r} is a {kind}, which no fit covers"
+            )
+        size: Any = collision.geom_sizes[g]
+        if kind == "mesh":
+            assert GEOM_TYPES[int(model.geom_type[g])] == "mesh"
+            m = int(model.geom_dataid[g])
+            start, n = int(model.mesh_vertadr[m]), int(model.mesh_vertnum[m])
+            size = np.array(model.mesh_vert[start : start + n], dtype=np.float64)
+        fit = fit_spheres(kind, size, count=count, tolerance=tolerance)
+        bodies.append(np.full(len(fit.radii), int(collision.geom_bodies[g]), dtype=np.intp))
+        centers.append(fit.centers @ collision.geom_rot[g].T + collision.geom_pos[g])
+        radii.append(fit.radii)
+        geoms.append(np.full(len(fit.radii), g, dtype=np.intp))
+        error = max(error, float(fit.error))
+    if not radii:
+        raise InputError("spheres: the model has no collision geom to cover")
+    return RobotSpheres(
+        np.concatenate(bodies),
+        np.concatenate(centers),
+        np.concatenate(radii),
+        np.concatenate(geoms),
+        error,
+    )
