@@ -524,6 +524,20 @@ def test_the_page_draws_the_shapes_where_mujoco_puts_them(
             assert_close(name, T[:3, :3], data.geom_xmat[g].reshape(3, 3), TOL)
 
 
+def _witness_drawn(v: Viewer) -> tuple[np.ndarray, np.ndarray]:
+    """The witness spheres shown, ``(2K, 6)``: position and colour, and the lines ``(K, 2,
+    3)`` (K: the pairs within the margin); none while hidden."""
+    balls, lines = v.node("/collision/witness/points"), v.node("/collision/witness/lines")
+    if not balls.visible:
+        assert not lines.visible
+        return np.zeros((0, 6)), np.zeros((0, 2, 3))
+    shown = np.asarray(balls.batched_scales) > 0
+    k = int(shown.sum()) // 2
+    assert np.all(shown[: 2 * k]) and not np.any(shown[2 * k :])
+    drawn = np.hstack([balls.batched_positions, balls.batched_colors])[: 2 * k]
+    return drawn, np.asarray(lines.points[:k], dtype=np.float64)
+
+
 def test_the_page_colours_the_pair_and_draws_its_witness_points(
     viewer: Viewer, reference: mujoco.MjModel
 ) -> None:
@@ -532,29 +546,28 @@ def test_the_page_colours_the_pair_and_draws_its_witness_points(
     viewer.set_option("collision margin [mm]", 20.0)
     viewer.q = FOREARM_DOWN
     pairs = list(viewer.collision_scene.pairs)
-    mj_red, _, points, _ = _mj_state(reference, _labels(reference, tree), FOREARM_DOWN, pairs)
+    mj_red, dist, points, _ = _mj_state(reference, _labels(reference, tree), FOREARM_DOWN, pairs)
     assert _red(viewer) == mj_red == {"forearm_link#1", "table"}
+    depth = dist[pairs.index(("forearm_link#1", "table"))]
     p = pairs.index(("forearm_link#1", "table"))
-    assert_close(
-        "sphere on the forearm", viewer.node("/collision/w0/a").position, points[p, 0], 1e-9
-    )
-    assert_close("sphere on the table", viewer.node("/collision/w0/b").position, points[p, 1], 1e-9)
-    assert_close("line", viewer.node("/collision/w0/line").points[0], points[p], 1e-6)
-    assert viewer.node("/collision/w0/a").visible and tuple(
-        viewer.node("/collision/w0/a").color
-    ) == (225, 20, 20)
-    shown = [n for n in viewer.node_names("witness_point") if viewer.node(n).visible]
-    assert shown == ["/collision/w0/a", "/collision/w0/b"]  # the only pair within 20 mm
+    # the only pair within 20 mm: its two spheres (yellow: it penetrates) and its line
+    balls, line = _witness_drawn(viewer)
+    # the page takes positions in float32: 6e-8 m at the UR5e's reach
+    assert_close("sphere on the forearm, on the table", balls[:, :3], points[p], 1e-6)
+    assert np.all(balls[:, 3:] == [255, 215, 0])
+    assert_close("line", line, points[p][None], 1e-6)
+    label = viewer.node("/collision/depth0")
+    assert label.visible and label.text == f"{depth * 1e3:.1f} mm"
+    assert_close("label", label.position, points[p].mean(axis=0), 1e-6)
     assert "forearm_link#1 / table" in viewer.texts()["collision"]
     viewer.q = CLEAR
-    assert _red(viewer) == set()
-    visible = [n for n in viewer.node_names("witness_point") if viewer.node(n).visible]
-    near = [
-        k
-        for k in range(len(pairs))
-        if _mj_state(reference, _labels(reference, tree), CLEAR, pairs)[1][k] < 0.02
-    ]
-    assert len(visible) == 2 * len(near)
+    assert _red(viewer) == set() and not viewer.node("/collision/depth0").visible
+    _, dist, points, _ = _mj_state(reference, _labels(reference, tree), CLEAR, pairs)
+    near = np.flatnonzero(dist < 0.02)
+    balls, line = _witness_drawn(viewer)
+    order = np.argsort(dist[near])
+    assert_close("witness, clear", line, points[near[order]], 1e-6)
+    assert np.all(balls[:, 3:] == [255, 120, 0])  # apart: orange
     assert viewer.texts()["collision"].startswith("**collision-free**")
 
 
@@ -564,7 +577,7 @@ def test_the_box_and_the_margin(viewer: Viewer) -> None:
     assert viewer.collision is None and "collision" not in viewer.texts()
     assert not any(viewer.node(n).visible for n in viewer.node_names("collision_geom"))
     assert all(viewer.node(n).visible for n in viewer.node_names("obstacle"))  # always drawn
-    assert not any(viewer.node(n).visible for n in viewer.node_names("witness_point"))
+    assert len(_witness_drawn(viewer)[0]) == 0
     assert _red(viewer) == set()
     viewer.q = CLEAR  # the ball still rides on the flange
     ball = viewer.node_poses("obstacle")["/collision/g10"]
@@ -574,8 +587,7 @@ def test_the_box_and_the_margin(viewer: Viewer) -> None:
     viewer.set_option("collision margin [mm]", 100.0)
     state = viewer.collision
     assert state is not None and state.margin == pytest.approx(0.1) and len(state.near) > 2
-    witness = [n for n in viewer.node_names("witness_point") if viewer.node(n).visible]
-    assert len(witness) == 2 * len(state.near)
+    assert len(_witness_drawn(viewer)[0]) == 2 * len(state.near)
     with pytest.raises(InputError, match=r"'collision margin \[mm\]' takes a number in \[0, 100\]"):
         viewer.set_option("collision margin [mm]", 150.0)
     viewer.set_option("collision margin [mm]", 20.0)

@@ -180,7 +180,7 @@ def register(sub: Any, fmt: type[argparse.HelpFormatter]) -> None:
         "  poekin view --base 0 0 0.8 1 0 0 0 --tool 0 0 0.15 1 0 0 0\n"
         "  poekin view --ik\n"
         "  poekin view universal_robots_ur5e --play traj.npz\n"
-        "  poekin view universal_robots_ur5e --collision --obstacles table.json\n"
+        "  poekin view universal_robots_ur5e --collision\n"
         "  poekin view unitree_g1 --ik --frames left_elbow_roll_link,right_elbow_roll_link,"
         "left_foot,right_foot --hold left_foot,right_foot",
         formatter_class=fmt,

@@ -86,11 +86,12 @@ HELD_COLOR = (30, 110, 220)  # a whole-body handle's held frame, met
 TRACE_COLOR = (190, 30, 150)  # the tool trace of a trajectory played
 STOP_COLOR = (200, 20, 20)  # where its path stopped
 COLLISION_COLOR = (40, 170, 210)  # the robot's collision geoms, see-through
-COLLISION_OPACITY = 0.45
+COLLISION_OPACITY = 0.4
 OBSTACLE_COLOR = (160, 130, 95)  # world obstacles
 OBSTACLE_OPACITY = 0.6
 COLLIDING_COLOR = (225, 20, 20)  # a shape in a pair that penetrates
-NEAR_COLOR = (240, 150, 0)  # the witness points of a pair closer than the margin, apart
+WITNESS_COLOR = (255, 215, 0)  # the witness points of a pair that penetrates: on red, yellow
+NEAR_COLOR = (255, 120, 0)  # those of a pair closer than the margin, apart
 _MARGIN_MAX_MM = 100.0
 _PLAY_FPS = 30.0  # frames a second while a trajectory plays
 _SYMBOL = {"space": "S", "body": "B"}
@@ -523,7 +524,7 @@ class Viewer:
 
     def _build_collision_nodes(self, scene: CollisionScene) -> None:
         """A see-through mesh per shape (the robot's collision geoms, hidden while the box is
-        off; the obstacles, always shown), posed each update."""
+        off; the obstacles, always shown), posed each update, and the witness points."""
         for k, shape in enumerate(shapes(scene)):
             name = f"/collision/g{k}"
             handle = self.server.scene.add_mesh_simple(
@@ -538,30 +539,87 @@ class Viewer:
                 visible=shape.obstacle,
             )
             self._add(name, "obstacle" if shape.obstacle else "collision_geom", handle, k)
+        self._build_witness_nodes(scene)
 
-    def _witness(self, j: int) -> tuple[Any, Any, Any]:
-        """The ``j``-th witness pair's two spheres and line (made when first needed)."""
-        name = f"/collision/w{j}"
-        if f"{name}/line" not in self._nodes:
-            scene, e = self.server.scene, self._extent
-            for end in "ab":
-                self._add(
-                    f"{name}/{end}",
-                    "witness_point",
-                    scene.add_icosphere(
-                        f"{name}/{end}", radius=0.008 * e, color=NEAR_COLOR, subdivisions=2
-                    ),
-                    j,
-                )
-            self._add(
-                f"{name}/line",
-                "witness_line",
-                scene.add_line_segments(
-                    f"{name}/line", np.zeros((1, 2, 3)), NEAR_COLOR, thickness=0.004 * e
-                ),
-                j,
-            )
-        return tuple(self._nodes[f"{name}/{part}"].handle for part in ("a", "b", "line"))  # type: ignore[return-value]
+    def _build_witness_nodes(self, scene: CollisionScene) -> None:
+        """The witness points as one batched mesh (two small spheres a pair, one slot per
+        pair: unused ones at scale 0) and their lines as one set of segments: an update sends
+        two messages, however many pairs are near."""
+        import trimesh
+
+        e, n = self._extent, max(len(scene.pairs), 1)
+        ball = trimesh.creation.icosphere(subdivisions=1, radius=0.014 * e)
+        self._add(
+            "/collision/witness/points",
+            "witness_point",
+            self.server.scene.add_batched_meshes_simple(
+                "/collision/witness/points",
+                np.asarray(ball.vertices, dtype=np.float32),
+                np.asarray(ball.faces, dtype=np.uint32),
+                batched_wxyzs=np.tile([1.0, 0.0, 0.0, 0.0], (2 * n, 1)),
+                batched_positions=np.zeros((2 * n, 3)),
+                batched_scales=np.zeros(2 * n),
+                batched_colors=np.tile(np.array(NEAR_COLOR, dtype=np.uint8), (2 * n, 1)),
+                cast_shadow=False,
+                receive_shadow=False,
+                visible=False,
+            ),
+        )
+        self._add(
+            "/collision/witness/lines",
+            "witness_line",
+            self.server.scene.add_line_segments(
+                "/collision/witness/lines",
+                np.zeros((n, 2, 3)),
+                NEAR_COLOR,
+                thickness=0.005 * e,
+                visible=False,
+            ),
+        )
+
+    def _depth_label(self, j: int) -> Any:
+        """The ``j``-th depth label (made when first needed): drawn over everything, at a
+        penetrating pair, whose witness points lie inside the shapes."""
+        name = f"/collision/depth{j}"
+        if name not in self._nodes:
+            handle = self.server.scene.add_label(name, "", anchor="bottom-left", visible=False)
+            self._add(name, "witness_label", handle, j)
+        return self._nodes[name].handle
+
+    def _refresh_witness(self, state: CollisionState | None) -> None:
+        """The witness points and lines of the pairs closer than the margin (yellow where a
+        pair penetrates, orange where it is apart), and a depth label at each penetrating
+        pair; nothing with the box off."""
+        points = self._nodes["/collision/witness/points"].handle
+        lines = self._nodes["/collision/witness/lines"].handle
+        k = 0 if state is None else len(state.near)
+        _set(points, "visible", k > 0)
+        _set(lines, "visible", k > 0)
+        deep = 0
+        if state is not None and k:
+            n = len(lines.points)
+            witness, d = state.witness, state.near_distance
+            colors = np.where((d < 0)[:, None], WITNESS_COLOR, NEAR_COLOR).astype(np.uint8)
+            segments = np.broadcast_to(witness[0, 0], (n, 2, 3)).copy()  # unused: a point
+            segments[:k] = witness
+            lines.points = segments.astype(np.float32)
+            segment_colors = np.broadcast_to(colors[0], (n, 2, 3)).copy()
+            segment_colors[:k] = colors[:, None]
+            _set(lines, "colors", segment_colors)
+            scales = np.zeros(2 * n)
+            scales[: 2 * k] = 1.0
+            _set(points, "batched_scales", scales)
+            points.batched_positions = segments.reshape(2 * n, 3)
+            _set(points, "batched_colors", segment_colors.reshape(2 * n, 3))
+            for j in np.flatnonzero(d < 0).tolist():
+                label = self._depth_label(deep)
+                _set(label, "text", f"{d[j] * 1e3:.1f} mm")
+                label.position = witness[j].mean(axis=0)
+                _set(label, "visible", True)
+                deep += 1
+        for name in self.node_names("witness_label"):
+            if self._nodes[name].index >= deep:
+                _set(self._nodes[name].handle, "visible", False)
 
     def _on_collision_option(self) -> None:
         """The "collision geometry" box or the margin: the robot's collision geoms read (once)
@@ -620,21 +678,7 @@ class Viewer:
                 "color",
                 COLLIDING_COLOR if red else OBSTACLE_COLOR if obstacle else COLLISION_COLOR,
             )
-        shown = 0 if state is None else len(state.near)
-        if state is not None:
-            for j, (points, d) in enumerate(zip(state.witness, state.near_distance, strict=True)):
-                a, b, line = self._witness(j)
-                color = COLLIDING_COLOR if d < 0 else NEAR_COLOR
-                for handle, point in ((a, points[0]), (b, points[1])):
-                    handle.position = point
-                    _set(handle, "color", color)
-                    _set(handle, "visible", True)
-                line.points = points[None].astype(np.float32)
-                _set(line, "colors", np.full((1, 2, 3), color, dtype=np.uint8))
-                _set(line, "visible", True)
-        for name in self.node_names("witness_point") + self.node_names("witness_line"):
-            if self._nodes[name].index >= shown:
-                _set(self._nodes[name].handle, "visible", False)
+        self._refresh_witness(state)
         if state is None:
             self._texts.pop("collision", None)
             _set(self._collision_text, "content", "")
@@ -742,8 +786,8 @@ class Viewer:
         handle), ``ik_marker``, ``ik_miss``, ``solution`` (one batched mesh per part: an
         instance per ghost) and ``solution_label``; the whole-body mode's ``wb_handle``,
         ``wb_marker`` and ``wb_miss``; a trajectory's ``trace`` and ``trace_stop``; the
-        collision view's ``collision_geom``, ``obstacle``, ``witness_point`` and
-        ``witness_line``)."""
+        collision view's ``collision_geom``, ``obstacle``, ``witness_point``, ``witness_line``
+        and ``witness_label``)."""
         return [n for n, node in self._nodes.items() if kind is None or node.kind == kind]
 
     def node_poses(self, kind: str | None = None) -> dict[str, FloatArray]:
