@@ -742,3 +742,35 @@ def test_a_geom_of_the_world_stands_on_the_base(tmp_path: pathlib.Path) -> None:
         assert_close(scene.names[k], poses[k], base @ T, TOL)
     floor = shapes(scene)[0]
     assert_close("floor", np.abs(floor.vertices), [[0.5, 0.4, 0.0]] * 4, 1e-7)
+
+
+def test_a_height_field_is_refused(tmp_path: pathlib.Path) -> None:
+    path = tmp_path / "terrain.xml"
+    path.write_text(
+        ARM_ON_A_FLOOR.replace(
+            '<geom name="floor" type="plane" size="0.5 0.4 0.1"/>',
+            '<geom name="ground" type="hfield" hfield="ground"/>',
+        ).replace(
+            "<worldbody>",
+            '<asset><hfield name="ground" nrow="2" ncol="2" size="1 1 0.1 0.1"/></asset>'
+            "<worldbody>",
+        ),
+        encoding="utf-8",
+    )
+    scene = collision_scene(poekin.load_tree(path))
+    assert scene.kinds == ("hfield", "capsule")
+    with pytest.raises(ModelError, match=r"^the viewer cannot draw collision geom 0, a hfield: "):
+        shapes(scene)
+
+
+def test_the_box_reads_the_geometry_when_first_ticked() -> None:
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", poekin.AssetsStrippedWarning)
+        v = view("universal_robots_ur5e", port=0, open_browser=False)
+    with v:
+        assert v.collision_scene is None and v.options()["collision geometry"] is False
+        v.q = FOREARM_DOWN
+        v.set_option("collision geometry", True)
+        assert v.collision_scene is not None and len(v.node_names("collision_geom")) == 9
+        assert v.collision is not None and v.collision.n_colliding == 0  # no table here
+        assert all(v.node(n).visible for n in v.node_names("collision_geom"))
