@@ -2,10 +2,12 @@
 (README shows the first)
 
     python docs/screenshots.py       # writes docs/view_ur5e.png, view_lynch_park.png,
-                                     # view_ik.png, view_wholebody.png, view_play.png
+                                     # view_ik.png, view_wholebody.png, view_play.png,
+                                     # view_collision.png
     python docs/screenshots.py ik    # only those whose name contains "ik"
 
-Each is a 1280 x 720 page, quantised to 256 colours to stay small.
+Each is a 1280 x 720 page, quantised to 256 colours to stay small. The UR5e's are drawn with its
+meshes: set MENAGERIE_ROOT to a complete Menagerie clone (../shared/menagerie).
 """
 
 from __future__ import annotations
@@ -36,6 +38,11 @@ ARMS_RAISED = {"shoulder_pitch_joint": -0.4, "shoulder_roll_joint": 0.15}
 # the trajectory played: a quintic time scaling over 2 s from Q to PLAY_TO, shown at 1.2 s
 PLAY_TO = [1.6, -0.7, 1.0, -1.9, -1.5708, 0.8]
 PLAY_AT = 1.2
+# the UR5e at the edge of a table (docs/collision.md), leaning on it: the forearm's elbow end
+# 10 mm into the table top, the tool pointing down; seen from the side, the panel on the right
+TABLE = {"half_sizes": [0.3, 0.4, 0.02], "pose": [-0.55, 0.0, -0.02, 1.0, 0.0, 0.0, 0.0]}
+ELBOW_DOWN = [0.3, 0.28, -1.6, -0.25, -1.5708, 0.0]
+SIDE_CAMERA = ([-0.05, -0.8, 0.25], [-0.22, -0.14, 0.16])
 
 
 def _shoot(
@@ -44,13 +51,17 @@ def _shoot(
     tab: str | None,
     out: pathlib.Path,
     ready: str = "geometry: the model's",
+    camera: tuple[list[float], list[float]] | None = None,
 ) -> None:
     """A screenshot of the page with ``tab`` open (None: the first, Joints), once the panel
-    shows ``ready`` (the geometry's note)."""
+    shows ``ready`` (the geometry's note), the camera at ``(position, look_at)`` (None: the
+    viewer's framing of the robot)."""
     page.goto(viewer.url)
     page.wait_for_selector("canvas")
     page.get_by_text(ready).first.wait_for(timeout=120_000)
     viewer.frame_view()
+    for client in viewer.server.get_clients().values() if camera is not None else ():
+        client.camera.position, client.camera.look_at = camera
     if tab is not None:
         page.get_by_role("tab", name=tab).click()
     page.wait_for_timeout(45_000)  # software WebGL on a busy machine draws the labels last
@@ -141,12 +152,31 @@ def _play(page: Page) -> None:
         _shoot(page, v, None, HERE / "view_play.png")
 
 
+def _collision(page: Page) -> None:
+    """The collision view: the UR5e's collision capsules over its meshes at the edge of a
+    table, the forearm and the table red where they overlap, with their witness points, and
+    those of the pairs within 20 mm."""
+    from poekin.collision import Box
+
+    table = Box(TABLE["half_sizes"], pose=TABLE["pose"], name="table")
+    with poekin.view(
+        "universal_robots_ur5e", collision=True, obstacles=[table], port=0, open_browser=False
+    ) as v:
+        v.q = ELBOW_DOWN
+        v.set_option("screw axes", False)
+        v.set_option("home pose M", False)
+        v.set_option("robot opacity", 0.2)  # the capsules inside the meshes show
+        v.wait_geometry()
+        _shoot(page, v, None, HERE / "view_collision.png", camera=SIDE_CAMERA)
+
+
 SHOTS = {
     "view_ur5e": _ur5e,
     "view_lynch_park": _lynch_park,
     "view_ik": _ik,
     "view_wholebody": _wholebody,
     "view_play": _play,
+    "view_collision": _collision,
 }
 
 

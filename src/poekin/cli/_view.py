@@ -64,8 +64,10 @@ def _cmd_view(args: argparse.Namespace, out: TextIO) -> int:
     require_view("'poekin view'")
     from poekin.io.trajectory import load_trajectory
     from poekin.viewer.app import is_loopback, view
+    from poekin.viewer.collision import read_obstacles
 
     base, tool = placement(args)  # checked before the model is read
+    obstacles = () if args.obstacles is None else read_obstacles(args.obstacles)
     trajectory = None
     if args.play is not None:
         trajectory = load_trajectory(args.play, "--play")
@@ -91,6 +93,8 @@ def _cmd_view(args: argparse.Namespace, out: TextIO) -> int:
         hold=None if args.hold is None else _names(args.hold),
         play=trajectory,
         play_name=None if args.play is None else f"--play {args.play}",
+        collision=args.collision,
+        obstacles=obstacles,
     )
     try:
         what = f"end frame {viewer.frame!r}"
@@ -102,6 +106,15 @@ def _cmd_view(args: argparse.Namespace, out: TextIO) -> int:
             what += (
                 f"; playing {args.play}: {len(trajectory.t)} samples over "
                 f"{trajectory.duration:.6g} s"
+            )
+        scene = viewer.collision_scene
+        if scene is not None:
+            n = len(scene.obstacles)
+            drawn = f"{n} obstacle{'s' if n != 1 else ''}"
+            what += (
+                f"; collision: {scene.n_robot} geoms, {drawn}, {len(scene.pairs)} pairs"
+                if args.collision
+                else f"; {drawn} (checked with --collision)"
             )
         print(
             f"poekin view: {viewer.url}  ({viewer.subject.name}, {what}); Ctrl-C to stop",
@@ -158,14 +171,16 @@ def register(sub: Any, fmt: type[argparse.HelpFormatter]) -> None:
         "an IK mode (drag a target handle, the arm follows; every closed-form solution a ghost); "
         "with --frames, whole-body IK (a handle per frame, the whole robot solved at each drag, "
         "the --hold frames met exactly); with --play, a trajectory file played with a time "
-        "slider and a play button, the end frame's path drawn as a trace; with --params, your "
-        "parameters as a ghost arm with diagnose's findings. Needs the extra poekin[view]. "
-        "Ctrl-C stops it.",
+        "slider and a play button, the end frame's path drawn as a trace; with --collision, the "
+        "model's collision geoms, colliding pairs red with their witness points, and the "
+        "obstacles of --obstacles; with --params, your parameters as a ghost arm with "
+        "diagnose's findings. Needs the extra poekin[view]. Ctrl-C stops it.",
         epilog="examples:\n  poekin view\n  poekin view unitree_go2 --no-browser --port 8081\n"
         "  poekin view --params lynch-park-ur5\n"
         "  poekin view --base 0 0 0.8 1 0 0 0 --tool 0 0 0.15 1 0 0 0\n"
         "  poekin view --ik\n"
         "  poekin view universal_robots_ur5e --play traj.npz\n"
+        "  poekin view universal_robots_ur5e --collision\n"
         "  poekin view unitree_g1 --ik --frames left_elbow_roll_link,right_elbow_roll_link,"
         "left_foot,right_foot --hold left_foot,right_foot",
         formatter_class=fmt,
@@ -205,6 +220,20 @@ def register(sub: Any, fmt: type[argparse.HelpFormatter]) -> None:
         help="play this trajectory file (.npz, as poekin path writes it): a time slider, a "
         "play/pause button, the tool's path as a trace; without SOURCE, on the robot it was "
         "made for",
+    )
+    w.add_argument(
+        "--collision",
+        action="store_true",
+        help="show the model's collision geoms (see-through; meshes as their convex hulls), "
+        "the two geoms of a penetrating pair red, and the witness points of the pairs closer "
+        "than the panel's margin (20 mm)",
+    )
+    w.add_argument(
+        "--obstacles",
+        metavar="FILE.json",
+        help='world obstacles, a JSON list: [{"type": "box", "half_sizes": [0.3, 0.4, 0.02], '
+        '"pose": [x, y, z, qw, qx, qy, qz], "name": "table"}, ...] (types box, sphere, '
+        "capsule, plane, mesh); drawn, and checked with --collision",
     )
     w.set_defaults(run=_cmd_view)
 

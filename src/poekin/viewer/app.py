@@ -29,11 +29,19 @@ from numpy.typing import ArrayLike, NDArray
 
 from poekin import lie
 from poekin.chain import Chain, JacobianConvention
+from poekin.collision.obstacles import Obstacle, as_obstacles
 from poekin.dh import Convention, DHTable
-from poekin.errors import InputError, did_you_mean
+from poekin.errors import InputError, PoekinError, did_you_mean
 from poekin.io.trajectory import Trajectory, trajectory_from
 from poekin.tree import Tree
 from poekin.viewer import panel, wholebody
+from poekin.viewer.collision import (
+    DEFAULT_MARGIN,
+    CollisionScene,
+    CollisionState,
+    collision_scene,
+    shapes,
+)
 from poekin.viewer.geometry import Geometry, Part, mjcf_geometry, stand_in, urdf_geometry
 from poekin.viewer.ik import Reach, follow, ghost_poses, pick, reach, support
 from poekin.viewer.loading import Shown, load_params_comparison, load_shown
@@ -77,6 +85,14 @@ SOLUTION_OPACITY = 0.28
 HELD_COLOR = (30, 110, 220)  # a whole-body handle's held frame, met
 TRACE_COLOR = (190, 30, 150)  # the tool trace of a trajectory played
 STOP_COLOR = (200, 20, 20)  # where its path stopped
+COLLISION_COLOR = (40, 170, 210)  # the robot's collision geoms, see-through
+COLLISION_OPACITY = 0.4
+OBSTACLE_COLOR = (160, 130, 95)  # world obstacles
+OBSTACLE_OPACITY = 0.6
+COLLIDING_COLOR = (225, 20, 20)  # a shape in a pair that penetrates
+WITNESS_COLOR = (255, 215, 0)  # the witness points of a pair that penetrates: on red, yellow
+NEAR_COLOR = (255, 120, 0)  # those of a pair closer than the margin, apart
+_MARGIN_MAX_MM = 100.0
 _PLAY_FPS = 30.0  # frames a second while a trajectory plays
 _SYMBOL = {"space": "S", "body": "B"}
 _NO_SOLUTION = "(pick one)"
@@ -151,10 +167,18 @@ class Viewer:
         comparison: Comparison | None = None,
         handles: Handles | None = None,
         playback: Playback | None = None,
+        collision: bool = False,
+        obstacles: Obstacle | Sequence[Obstacle] = (),
         host: str = "127.0.0.1",
         port: int | None = None,
     ) -> None:
         self.subject = subject
+        self._obstacles = as_obstacles(obstacles)
+        self._collision_scene: CollisionScene | None = None
+        self._collision_state: CollisionState | None = None
+        self._collision_s: float | None = None
+        if collision or self._obstacles:  # said before the server starts
+            self._collision_scene = _collision_scene_of(subject, self._obstacles)
         if handles is not None and subject.tree is None:
             raise InputError("whole-body IK needs a tree: a model, not a bare parameter set")
         self._handles = handles
@@ -198,7 +222,7 @@ class Viewer:
         try:
             with self.server.atomic():
                 self._build_scene()
-                self._build_gui()
+                self._build_gui(collision)
                 self._refresh()
                 self._sync_controls()
         except BaseException:
@@ -481,6 +505,190 @@ class Viewer:
             self._show(picked, move_target=False)
             return picked
 
+    # --- collision ------------------------------------------------------------------------------
+
+    @property
+    def collision(self) -> CollisionState | None:
+        """What the collision view shows at :attr:`q` (:class:`poekin.viewer.collision.
+        CollisionState`: the shapes in a penetrating pair, the pairs closer than the margin and
+        their witness points), or None while the "collision geometry" box is off."""
+        if not self._collision_input.value:
+            return None
+        return self._collision_state
+
+    @property
+    def collision_scene(self) -> CollisionScene | None:
+        """The robot's collision geoms and the obstacles drawn
+        (:class:`poekin.viewer.collision.CollisionScene`), or None before any is drawn."""
+        return self._collision_scene
+
+    def _build_collision_nodes(self, scene: CollisionScene) -> None:
+        """A see-through mesh per shape (the robot's collision geoms, hidden while the box is
+        off; the obstacles, always shown), posed each update, and the witness points."""
+        for k, shape in enumerate(shapes(scene)):
+            name = f"/collision/g{k}"
+            handle = self.server.scene.add_mesh_simple(
+                name,
+                shape.vertices,
+                shape.faces,
+                color=OBSTACLE_COLOR if shape.obstacle else COLLISION_COLOR,
+                opacity=OBSTACLE_OPACITY if shape.obstacle else COLLISION_OPACITY,
+                side="double" if shape.kind == "plane" else "front",
+                cast_shadow=False,
+                receive_shadow=False,
+                visible=shape.obstacle,
+            )
+            self._add(name, "obstacle" if shape.obstacle else "collision_geom", handle, k)
+        self._build_witness_nodes(scene)
+
+    def _build_witness_nodes(self, scene: CollisionScene) -> None:
+        """The witness points as one batched mesh (two small spheres a pair, one slot per
+        pair: unused ones at scale 0) and their lines as one set of segments: an update sends
+        two messages, however many pairs are near."""
+        import trimesh
+
+        e, n = self._extent, max(len(scene.pairs), 1)
+        ball = trimesh.creation.icosphere(subdivisions=1, radius=0.014 * e)
+        self._add(
+            "/collision/witness/points",
+            "witness_point",
+            self.server.scene.add_batched_meshes_simple(
+                "/collision/witness/points",
+                np.asarray(ball.vertices, dtype=np.float32),
+                np.asarray(ball.faces, dtype=np.uint32),
+                batched_wxyzs=np.tile([1.0, 0.0, 0.0, 0.0], (2 * n, 1)),
+                batched_positions=np.zeros((2 * n, 3)),
+                batched_scales=np.zeros(2 * n),
+                batched_colors=np.tile(np.array(NEAR_COLOR, dtype=np.uint8), (2 * n, 1)),
+                cast_shadow=False,
+                receive_shadow=False,
+                visible=False,
+            ),
+        )
+        self._add(
+            "/collision/witness/lines",
+            "witness_line",
+            self.server.scene.add_line_segments(
+                "/collision/witness/lines",
+                np.zeros((n, 2, 3)),
+                NEAR_COLOR,
+                thickness=0.005 * e,
+                visible=False,
+            ),
+        )
+
+    def _depth_label(self, j: int) -> Any:
+        """The ``j``-th depth label (made when first needed): drawn over everything, at a
+        penetrating pair, whose witness points lie inside the shapes."""
+        name = f"/collision/depth{j}"
+        if name not in self._nodes:
+            handle = self.server.scene.add_label(name, "", anchor="bottom-left", visible=False)
+            self._add(name, "witness_label", handle, j)
+        return self._nodes[name].handle
+
+    def _refresh_witness(self, state: CollisionState | None) -> None:
+        """The witness points and lines of the pairs closer than the margin (yellow where a
+        pair penetrates, orange where it is apart), and a depth label at each penetrating
+        pair; nothing with the box off."""
+        points = self._nodes["/collision/witness/points"].handle
+        lines = self._nodes["/collision/witness/lines"].handle
+        k = 0 if state is None else len(state.near)
+        _set(points, "visible", k > 0)
+        _set(lines, "visible", k > 0)
+        deep = 0
+        if state is not None and k:
+            n = len(lines.points)
+            witness, d = state.witness, state.near_distance
+            colors = np.where((d < 0)[:, None], WITNESS_COLOR, NEAR_COLOR).astype(np.uint8)
+            segments = np.broadcast_to(witness[0, 0], (n, 2, 3)).copy()  # unused: a point
+            segments[:k] = witness
+            lines.points = segments.astype(np.float32)
+            segment_colors = np.broadcast_to(colors[0], (n, 2, 3)).copy()
+            segment_colors[:k] = colors[:, None]
+            _set(lines, "colors", segment_colors)
+            scales = np.zeros(2 * n)
+            scales[: 2 * k] = 1.0
+            _set(points, "batched_scales", scales)
+            points.batched_positions = segments.reshape(2 * n, 3)
+            _set(points, "batched_colors", segment_colors.reshape(2 * n, 3))
+            for j in np.flatnonzero(d < 0).tolist():
+                label = self._depth_label(deep)
+                _set(label, "text", f"{d[j] * 1e3:.1f} mm")
+                label.position = witness[j].mean(axis=0)
+                _set(label, "visible", True)
+                deep += 1
+        for name in self.node_names("witness_label"):
+            if self._nodes[name].index >= deep:
+                _set(self._nodes[name].handle, "visible", False)
+
+    def _on_collision_option(self) -> None:
+        """The "collision geometry" box or the margin: the robot's collision geoms read (once)
+        and shown, or hidden; a model without them says why and the box goes off."""
+        if self._syncing:
+            return
+        with self._lock:
+            if self._collision_input.value and self._collision_scene is None:
+                try:
+                    scene = _collision_scene_of(self.subject, self._obstacles)
+                except PoekinError as exc:
+                    self._collision_note.content = f"**no collision geometry:** {exc}"
+                    self._syncing = True
+                    try:
+                        self._collision_input.value = False
+                    finally:
+                        self._syncing = False
+                    return
+                self._collision_scene = scene
+                self._build_collision_nodes(scene)
+            self._collision_note.content = ""
+            self._refresh()
+
+    def _refresh_collision(self) -> None:
+        """The shapes at the configuration shown, red where a pair penetrates, and the witness
+        points of the pairs closer than the margin: one query per new configuration."""
+        scene = self._collision_scene
+        if scene is None:
+            return
+        on = bool(self._collision_input.value)
+        state = None
+        if on:
+            margin = float(self._margin_input.value) * 1e-3
+            state = self._collision_state
+            if (
+                state is None
+                or state.margin != margin
+                or not np.array_equal(state.qpos, self._qpos)
+            ):
+                start = time.perf_counter()
+                state = self._collision_state = scene.state(self._qpos, margin)
+                self._collision_s = time.perf_counter() - start
+            poses = state.poses
+        else:
+            poses = scene.poses(self._qpos)  # the obstacles on a frame move with it
+        for k in range(len(scene.names)):
+            name = f"/collision/g{k}"
+            handle = self._nodes[name].handle
+            obstacle = k >= scene.n_robot
+            _set(handle, "visible", on or obstacle)
+            if on or obstacle:
+                self._pose(name, poses[k])
+            red = state is not None and bool(state.colliding[k])
+            _set(
+                handle,
+                "color",
+                COLLIDING_COLOR if red else OBSTACLE_COLOR if obstacle else COLLISION_COLOR,
+            )
+        self._refresh_witness(state)
+        if state is None:
+            self._texts.pop("collision", None)
+            _set(self._collision_text, "content", "")
+            return
+        self._set_text(
+            "collision",
+            self._collision_text,
+            panel.collision_text(scene, state, query_s=self._collision_s),
+        )
+
     # --- the whole-body IK mode ---------------------------------------------------------------
 
     @property
@@ -577,7 +785,9 @@ class Viewer:
         ``ghost_end``, ``ghost_home``, ``part``, ``world``; the IK mode's ``ik_target`` (the
         handle), ``ik_marker``, ``ik_miss``, ``solution`` (one batched mesh per part: an
         instance per ghost) and ``solution_label``; the whole-body mode's ``wb_handle``,
-        ``wb_marker`` and ``wb_miss``; a trajectory's ``trace`` and ``trace_stop``)."""
+        ``wb_marker`` and ``wb_miss``; a trajectory's ``trace`` and ``trace_stop``; the
+        collision view's ``collision_geom``, ``obstacle``, ``witness_point``, ``witness_line``
+        and ``witness_label``)."""
         return [n for n, node in self._nodes.items() if kind is None or node.kind == kind]
 
     def node_poses(self, kind: str | None = None) -> dict[str, FloatArray]:
@@ -698,6 +908,8 @@ class Viewer:
             self._build_wholebody_nodes()
         if self._playback is not None:
             self._build_play_nodes()
+        if self._collision_scene is not None:
+            self._build_collision_nodes(self._collision_scene)
         position, look_at = self._camera(snapshot(subject, self._qpos))
         self.server.initial_camera.position = position
         self.server.initial_camera.look_at = look_at
@@ -1055,7 +1267,7 @@ class Viewer:
 
     # --- panel --------------------------------------------------------------------------------
 
-    def _build_gui(self) -> None:
+    def _build_gui(self, collision: bool) -> None:
         gui, subject = self.server.gui, self.subject
         gui.configure_theme(control_width="large", show_share_button=False)
         title = f"**{subject.name}**, end frame `{subject.end_name}`, {subject.n_joints} joints"
@@ -1078,6 +1290,8 @@ class Viewer:
                 self._build_play_controls()
         with gui.add_folder("Inverse kinematics"):
             self._build_ik_controls()
+        with gui.add_folder("Collision"):
+            self._build_collision_controls(collision)
         tabs = gui.add_tab_group()
         with tabs.add_tab("Joints"):
             self._build_joint_controls()
@@ -1149,6 +1363,8 @@ class Viewer:
                 self._ik_input,
                 self._ik_position_input,
                 self._show_solutions_input,
+                self._collision_input,
+                self._margin_input,
                 *([self._frame_input] if hasattr(self, "_frame_input") else []),
                 *([self._time_input, self._trace_input] if self._playback is not None else []),
                 *([self._align_input] if self.comparison is not None else []),
@@ -1174,6 +1390,29 @@ class Viewer:
             "tool trace", True, hint="the end frame's path over the whole trajectory"
         )
         self._trace_input.on_update(lambda _: self._on_view_option())
+
+    def _build_collision_controls(self, on: bool) -> None:
+        """The "collision geometry" box (disabled for a bare parameter set, which has none),
+        the witness points' margin (mm) and what collides."""
+        gui = self.server.gui
+        self._collision_input: Any = gui.add_checkbox(
+            "collision geometry",
+            on,
+            disabled=self.subject.tree is None,
+            hint="the model's collision geoms (meshes as their convex hulls), red where a pair "
+            "penetrates, with the witness points of the pairs closer than the margin",
+        )
+        self._margin_input: Any = gui.add_slider(
+            "collision margin [mm]", 0.0, _MARGIN_MAX_MM, 1.0, DEFAULT_MARGIN * 1e3
+        )
+        for handle in (self._collision_input, self._margin_input):
+            handle.on_update(lambda _: self._on_collision_option())
+        self._collision_note = gui.add_markdown(
+            ""
+            if self.subject.tree is not None
+            else "a bare parameter set has no collision geometry: show a model"
+        )
+        self._collision_text = gui.add_markdown("")
 
     def _build_ik_controls(self) -> None:
         gui = self.server.gui
@@ -1615,6 +1854,7 @@ class Viewer:
             self._refresh_ik(snap)
             if self._handles is not None:
                 self._refresh_wholebody(snap)
+            self._refresh_collision()
             self._send_poses()
         self.server.flush()
 
@@ -1932,6 +2172,21 @@ def _geometry_loader(shown: Shown) -> Callable[[Subject], Geometry]:
     return lambda s: stand_in(s, why)
 
 
+def _collision_scene_of(subject: Subject, obstacles: tuple[Obstacle, ...]) -> CollisionScene:
+    """The subject's collision geoms and the obstacles.
+
+    Raises:
+        InputError: a bare parameter set (it has no collision geometry), or bad obstacles.
+        ModelError: a tree that knows no model file, or whose collision meshes are missing.
+    """
+    if subject.tree is None:
+        raise InputError(
+            "collision needs a model's collision geometry: show a model (a Menagerie name, an "
+            "MJCF or URDF file), not a bare parameter set"
+        )
+    return collision_scene(subject.tree, obstacles)
+
+
 def _in_jupyter() -> bool:
     try:
         from IPython import get_ipython  # type: ignore[attr-defined]
@@ -1956,6 +2211,8 @@ def view(
     hold: str | Sequence[str] | None = None,
     play: str | os.PathLike[str] | Trajectory | None = None,
     play_name: str | None = None,
+    collision: bool = False,
+    obstacles: Obstacle | Sequence[Obstacle] = (),
 ) -> Viewer:
     """Show a robot in the browser: sliders for its joints, its screw axes, ``T(q)``, its
     Jacobian, the PoE step by step, DH frames, and a parameter set beside it.
@@ -1991,6 +2248,14 @@ def view(
             and the end frame's path as a tool trace.
         play_name: how messages name the trajectory (the command line's ``--play FILE``);
             default ``play FILE``.
+        collision: show the model's collision geoms from the start (the panel's "collision
+            geometry" box ticked; :mod:`poekin.viewer.collision`): see-through, following the
+            robot, the two shapes of a penetrating pair red, and the witness points of every
+            pair closer than the margin (20 mm; the "collision margin [mm]" slider), queried
+            once per new configuration with :meth:`Tree.distances`.
+        obstacles: world obstacles (:class:`poekin.collision.Box`, ``Sphere``, ``Capsule``,
+            ``Plane``, ``Mesh``; in the world or on a frame), always drawn, and checked against
+            the robot while the collision geometry is shown.
 
     Returns:
         The :class:`Viewer`; ``viewer.q = ...`` poses the robot, ``viewer.close()`` stops it.
@@ -1999,7 +2264,8 @@ def view(
         PoekinError: an unknown robot, frame or parameter set, a port in use, ``hold``
             without ``frames`` or naming a frame not among them, ``ik`` on an end frame the IK
             mode does not apply to, a trajectory file that is bad or made for another robot,
-            and the like.
+            and the like; ``collision`` or ``obstacles`` for a bare parameter set, a model
+            whose collision meshes are missing, bad obstacles.
     """
     if hold is not None and frames is None:
         raise InputError("hold names some of the whole-body frames: give frames too")
@@ -2024,6 +2290,8 @@ def view(
         comparison=comparison,
         handles=handles,
         playback=played,
+        collision=collision,
+        obstacles=obstacles,
         host=host,
         port=port,
     )

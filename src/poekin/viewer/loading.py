@@ -68,7 +68,7 @@ def load_shown(
     if not isinstance(model, LoadedModel) and is_urdf(model):
         return Shown(make_subject(load_tree(model, base=B), frame, tool=T), urdf=os.fspath(model))
     loaded = model if isinstance(model, LoadedModel) else load_model(model)
-    tree = tree_from_model(loaded.model, robot=loaded.robot)
+    tree = tree_from_model(loaded.model, robot=loaded.robot, source_file=str(loaded.xml_path))
     tree = tree if B is None else tree.with_base(B)
     keys = keyframes(loaded.model)
     subject = make_subject(tree, frame, keyframes=keys, name=loaded.robot, tool=T)

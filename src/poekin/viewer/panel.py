@@ -16,6 +16,7 @@ from numpy.typing import NDArray
 
 from poekin.dh import DHTable
 from poekin.io.trajectory import Trajectory
+from poekin.viewer.collision import CollisionScene, CollisionState
 from poekin.viewer.ik import IKSupport, Reach
 from poekin.viewer.scene import (
     Comparison,
@@ -30,8 +31,10 @@ from poekin.viewer.scene import (
 from poekin.viewer.wholebody import WholeBodyReach
 
 __all__ = [
+    "COLLISION_ROWS",
     "JACOBIAN_DIGITS",
     "POSE_DIGITS",
+    "collision_text",
     "compare_text",
     "dh_text",
     "ik_text",
@@ -50,6 +53,7 @@ FloatArray = NDArray[np.float64]
 Unit = Literal["rad", "deg"]
 POSE_DIGITS = 6
 JACOBIAN_DIGITS = 4
+COLLISION_ROWS = 8  # the closest pairs listed (every one within the margin is drawn)
 _SYMBOL = {"space": "S", "body": "B"}
 
 
@@ -326,4 +330,43 @@ def trajectory_text(trajectory: Trajectory, what: str) -> str:
     ]
     if trajectory.stopped:
         lines.append(f"**{trajectory.stop_words()}** (the red marker)")
+    return "\n\n".join(lines)
+
+
+def _millimetres(d: float) -> str:
+    """A distance (m) in mm: 0.1 mm, or two digits below 0.05 mm (a graze, not 0)."""
+    mm = d * 1e3
+    return f"{mm:.1f} mm" if abs(mm) >= 0.05 or mm == 0 else f"{mm:.1e} mm"
+
+
+def collision_text(
+    scene: CollisionScene, state: CollisionState, *, query_s: float | None = None
+) -> str:
+    """Collision at the configuration shown: how many pairs penetrate, then each pair closer
+    than the margin (closest first) with its signed distance in mm, the penetrating ones
+    marked, and the query's time."""
+    n_pairs, n_obstacles = len(scene.pairs), len(scene.obstacles)
+    what = f"{scene.n_robot} geoms" + (
+        f", {n_obstacles} obstacle{'s' if n_obstacles != 1 else ''}" if n_obstacles else ""
+    )
+    n = state.n_colliding
+    head = (
+        f"**IN COLLISION**: {n} of {n_pairs} pairs {'penetrates' if n == 1 else 'penetrate'} (red)"
+        if n
+        else f"**collision-free**: none of {n_pairs} pairs penetrates"
+    )
+    margin = f"{state.margin * 1e3:.3g} mm"
+    took = "" if query_s is None else f"; query {query_s * 1e3:.2g} ms"
+    lines = [head, f"{what}; witness points of the pairs closer than {margin}{took}"]
+    rows = [
+        f"{a} / {b}: {_millimetres(d)}{'  COLLIDES' if d < 0 else ''}"
+        for (a, b), d in zip(
+            state.near_pairs[:COLLISION_ROWS],
+            state.near_distance[:COLLISION_ROWS].tolist(),
+            strict=True,
+        )
+    ]
+    if len(state.near) > COLLISION_ROWS:
+        rows.append(f"... and {len(state.near) - COLLISION_ROWS} more")
+    lines.append(_block(rows) if rows else f"no pair closer than {margin}")
     return "\n\n".join(lines)
