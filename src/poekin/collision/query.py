@@ -210,6 +210,9 @@ def _margin(margin: Any, what: str) -> float:
     return value
 
 
+_MUJOCO_KINDS = {"mesh", "hfield"}  # pairs measured by MuJoCo's mj_geomDistance
+
+
 def _shapes(scene: _Scene, n_geoms: int) -> tuple[list[str], FloatArray, list[Any]]:
     """The scene's shapes as :func:`poekin.collision.gjk.pair_distances` takes them: each
     geom's kind, its ``geom_size`` and, for a mesh, its vertices (MuJoCo's, in the geom's
@@ -269,13 +272,17 @@ def _measure(
         points = np.full((poses.shape[0], 0, 2, 3), np.nan)
     else:
         kinds, sizes, vertices = _shapes(scene, poses.shape[1])
-        mesh = np.array([kinds[i] == "mesh" or kinds[j] == "mesh" for i, j in scene.pairs.tolist()])
+        mesh = np.array(
+            [_MUJOCO_KINDS & {kinds[i], kinds[j]} != set() for i, j in scene.pairs.tolist()]
+        )
         distance = np.empty((poses.shape[0], n_pairs))
         points = np.empty((poses.shape[0], n_pairs, 2, 3))
         if not mesh.all():  # poekin's distances, compiled
             found = pair_distances(kinds, sizes, scene.pairs[~mesh], poses, vertices)
             distance[:, ~mesh], points[:, ~mesh] = found.distance, found.points
-        if mesh.any():  # a convex mesh: MuJoCo's, whose hull walk beats a support over V vertices
+        if (
+            mesh.any()
+        ):  # a mesh (MuJoCo's hull walk beats a support over V vertices), a height field
             distance[:, mesh], points[:, mesh] = _mujoco_pairs(
                 scene, poses, scene.pairs[mesh], margin
             )
