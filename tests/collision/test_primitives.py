@@ -146,8 +146,10 @@ def _central(f: object, x: np.ndarray, h: float = 1e-6) -> np.ndarray:
     return out
 
 
-@pytest.mark.parametrize("library", LIBRARIES)
-def test_capsule_gradients_match_central_differences(library: str) -> None:
+@pytest.mark.parametrize(
+    "library", [pytest.param(lib, marks=pytest.mark.slow) for lib in LIBRARIES]
+)
+def test_capsule_gradients_match_central_differences(library: str) -> None:  # 7 to 13 s each
     """d(distance)/d(position, radius, half length) of a capsule pair, by the library's
     reverse mode (under jax.jit for JAX), against central differences of the NumPy distance;
     apart and overlapping."""

@@ -1,9 +1,9 @@
 """The compiled distances (poekin/kernel/_distance.h) against the NumPy reference
 (poekin.collision.primitives and gjk), bit for bit: every pair of kinds, apart, touching and
 overlapping, parallel capsules, coincident shapes and zero sizes, through gjk.distance, gjk.gjk
-and gjk.pair_distances, at this machine's width (CI runs this file at the narrower ones too;
-the distances are scalar C, the same code at every width). The reference is checked against
-MuJoCo in tests/collision; here the kernel is checked against it."""
+and gjk.pair_distances, at this machine's width (the distances are scalar C, the same code at
+every width, so CI's runs at the narrower widths leave this file out). The reference is checked
+against MuJoCo in tests/collision; here the kernel is checked against it."""
 
 from __future__ import annotations
 
@@ -100,7 +100,7 @@ def test_every_pair_of_kinds_gives_the_references_bits(
 @pytest.mark.slow
 def test_many_more_pairs_of_every_kind_give_the_references_bits(reference: Any) -> None:
     for kind1, kind2 in PAIRS:
-        _check_kinds(kind1, kind2, 5 * N_PAIRS, reference)
+        _check_kinds(kind1, kind2, 3 * N_PAIRS, reference)
 
 
 def _check_kinds(kind1: str, kind2: str, n: int, reference: Any) -> None:
