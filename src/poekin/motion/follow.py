@@ -497,12 +497,19 @@ def _follow_closed(
 # --- elsewhere: the numerical solve from the previous sample, one sample at a time ---------------
 
 
-def _follow_numerical(chain: Chain, path: _Path, q0: FloatArray, opts: _Options) -> FollowResult:
-    """Each sample solved by ``chain.ik`` from the one before (one attempt); an interval that
-    fails is bisected, its first half first."""
-    limits = chain.limits
-    assert limits is not None
-    revolute = np.array([t == "revolute" for t in chain.joint_types])
+def _walk(
+    path: _Path,
+    q0: FloatArray,
+    attempt: Callable[
+        [tuple[float, FloatArray], float, FloatArray], tuple[FloatArray, str, tuple[float, float]]
+    ],
+    stop_at: Callable[[tuple[float, FloatArray], FloatArray, FloatArray, str], _Stop],
+) -> tuple[FloatArray, FloatArray, tuple[FloatArray, FloatArray], _Stop | None]:
+    """The samples along ``path`` from ``q0``, one at a time: ``attempt(a, s_b, T_b)`` solves
+    the next from sample ``a`` and says what is wrong with it (``""``: nothing) and the
+    midpoint's deviation; an interval that fails is bisected, its first half first, until it is
+    shorter than :data:`S_RESOLUTION`, where ``stop_at(a, T_b, q_b, why)`` says why the path
+    ends. Returns ``q (K, n)``, ``s (K,)``, the deviations ``(K - 1,)`` and the stop."""
     qs, ss = [q0], [0.0]
     pos_dev: list[float] = []
     ori_dev: list[float] = []
@@ -512,26 +519,44 @@ def _follow_numerical(chain: Chain, path: _Path, q0: FloatArray, opts: _Options)
     stop: _Stop | None = None
     while pending:
         s_b, T_b = pending[-1]
-        s_a, q_a = ss[-1], qs[-1]
-        found = chain.ik(T_b, q_a, max_attempts=1)
-        # angles taken continuously: a joint that turned a whole turn back into its limits
-        # would have to pass through them
-        q_b = np.where(revolute, q_a + _wrap(found.q - q_a), found.q)
-        why, dev = _why(chain, path, (s_a, q_a), (s_b, q_b), bool(found.success), opts)
+        a = (ss[-1], qs[-1])
+        q_b, why, dev = attempt(a, s_b, T_b)
         if not why:
             qs.append(q_b)
             ss.append(s_b)
             pos_dev.append(dev[0])
             ori_dev.append(dev[1])
             pending.pop()
-        elif s_b - s_a >= S_RESOLUTION:
-            s_m = 0.5 * (s_a + s_b)
+        elif s_b - a[0] >= S_RESOLUTION:
+            s_m = 0.5 * (a[0] + s_b)
             pending.append((s_m, path.at(np.array([s_m]))[0]))
         else:
-            stop = _numerical_stop(chain, (s_a, q_a), T_b, q_b, why, opts)
+            stop = stop_at(a, T_b, q_b, why)
             break
-    devs = (np.array(pos_dev), np.array(ori_dev))
-    return _result(chain, np.array(qs), np.array(ss), devs, stop, None)
+    return np.array(qs), np.array(ss), (np.array(pos_dev), np.array(ori_dev)), stop
+
+
+def _follow_numerical(chain: Chain, path: _Path, q0: FloatArray, opts: _Options) -> FollowResult:
+    """Each sample solved by ``chain.ik`` from the one before (one attempt); an interval that
+    fails is bisected, its first half first."""
+    revolute = np.array([t == "revolute" for t in chain.joint_types])
+
+    def attempt(
+        a: tuple[float, FloatArray], s_b: float, T_b: FloatArray
+    ) -> tuple[FloatArray, str, tuple[float, float]]:
+        q_a = a[1]
+        found = chain.ik(T_b, q_a, max_attempts=1)
+        # angles taken continuously: a joint that turned a whole turn back into its limits
+        # would have to pass through them
+        q_b = np.where(revolute, q_a + _wrap(found.q - q_a), found.q)
+        why, dev = _why(chain, path, a, (s_b, q_b), bool(found.success), opts)
+        return q_b, why, dev
+
+    def stop_at(a: tuple[float, FloatArray], T_b: FloatArray, q_b: FloatArray, why: str) -> _Stop:
+        return _numerical_stop(chain, a, T_b, q_b, why, opts)
+
+    qs, ss, devs, stop = _walk(path, q0, attempt, stop_at)
+    return _result(chain, qs, ss, devs, stop, None)
 
 
 def _why(
@@ -734,14 +759,10 @@ def follow_tree(
         )
         return np.asarray(found.qpos, dtype=np.float64), bool(found.success)
 
-    qs, ss = [q0], [0.0]
-    pos_dev: list[float] = []
-    ori_dev: list[float] = []
-    pending = list(zip(path.grid[1:][::-1].tolist(), path.poses[1:][::-1], strict=True))
-    stop: _Stop | None = None
-    while pending:
-        s_b, T_b = pending[-1]
-        s_a, q_a = ss[-1], qs[-1]
+    def attempt(
+        a: tuple[float, FloatArray], s_b: float, T_b: FloatArray
+    ) -> tuple[FloatArray, str, tuple[float, float]]:
+        s_a, q_a = a
         q_b, success = solve(T_b, q_a, 1)
         why = "" if success else "unsolved"
         if not why and _tree_step(tree, q_a, q_b) > opts.max_step:
@@ -753,20 +774,12 @@ def follow_tree(
             dev = (float(p[0]), float(o[0]))
             if p[0] > opts.tol or o[0] > opts.ori_tol:
                 why = "the frame strays from the path between samples"
-        if not why:
-            qs.append(q_b)
-            ss.append(s_b)
-            pos_dev.append(dev[0])
-            ori_dev.append(dev[1])
-            pending.pop()
-        elif s_b - s_a >= S_RESOLUTION:
-            s_m = 0.5 * (s_a + s_b)
-            pending.append((s_m, path.at(np.array([s_m]))[0]))
-        else:
-            stop = _tree_stop(tree, solve, (s_a, q_a), T_b, q_b, why)
-            break
-    q = np.array(qs)
-    s = np.array(ss)
+        return q_b, why, dev
+
+    def stop_at(a: tuple[float, FloatArray], T_b: FloatArray, q_b: FloatArray, why: str) -> _Stop:
+        return _tree_stop(tree, solve, a, T_b, q_b, why)
+
+    q, s, (pos_dev, ori_dev), stop = _walk(path, q0, attempt, stop_at)
     q.flags.writeable = False
     s.flags.writeable = False
     T = np.ascontiguousarray(tree.fk(q)[:, index])
