@@ -1105,10 +1105,10 @@ class Chain:
             raise InputError(f"avoid must be True or False, got {avoid!r:.40}")
         if arrays.kind_of(T) is not None or arrays.kind_of(q) is not None:
             raise InputError("avoid=True takes NumPy arrays: convert JAX or PyTorch values first")
-        g = step._number(avoid_gain, "avoid_gain", "1/step", zero=False)
+        g = step.positive_number(avoid_gain, "avoid_gain", "1/step", zero=False)
         if g > 1:
             raise InputError(f"avoid_gain must be in (0, 1], got {g}")
-        dt = step._number(dt, "dt", "s", zero=False)
+        dt = step.positive_number(dt, "dt", "s", zero=False)
         s = _numerical().settings(
             position_only=position_only, orientation_weight=orientation_weight
         )
@@ -1126,8 +1126,8 @@ class Chain:
             q_arr.reshape(-1, self.n_joints),
             dt,
             reach,
-            step._number(gain, "gain", "1/step", zero=True),
-            step._number(damping, "damping", "m^2", zero=True) + step.FLOOR,
+            step.positive_number(gain, "gain", "1/step", zero=True),
+            step.positive_number(damping, "damping", "m^2", zero=True) + step.FLOOR,
             s,
             scene,
             g,

@@ -67,7 +67,7 @@ from poekin.kernel import _sincos
 if TYPE_CHECKING:
     from poekin.chain import Chain
 
-__all__ = ["max_rounds", "step", "step_entries", "step_quick"]
+__all__ = ["max_rounds", "positive_number", "step", "step_entries", "step_quick"]
 
 FloatArray = NDArray[np.float64]
 Entry = Any
@@ -264,7 +264,9 @@ def _count(v: Sequence[Entry], xp: Any) -> Entry:
     return total
 
 
-def _number(value: object, name: str, unit: str, *, zero: bool) -> float:
+def positive_number(value: object, name: str, unit: str, *, zero: bool) -> float:
+    """``value`` as a float, a finite number ``> 0`` (``>= 0`` with ``zero``), else an
+    :class:`InputError` that names it and its ``unit``."""
     if isinstance(value, bool) or not isinstance(value, int | float | np.integer | np.floating):
         raise InputError(f"{name} must be a number ({unit}), got {value!r:.40}")
     x = float(value)
@@ -300,9 +302,9 @@ def step(
 ) -> Any:
     """:meth:`poekin.Chain.ik_step` (its docstring holds the arguments): ``(..., n)`` joint
     velocities, NumPy arrays, or the JAX arrays or PyTorch tensors given."""
-    dt = _number(dt, "dt", "s", zero=False)
-    gain = _number(gain, "gain", "1/step", zero=True)
-    lam = _number(damping, "damping", "m^2", zero=True) + FLOOR
+    dt = positive_number(dt, "dt", "s", zero=False)
+    gain = positive_number(gain, "gain", "1/step", zero=True)
+    lam = positive_number(damping, "damping", "m^2", zero=True) + FLOOR
     n = chain.n_joints
     if n == 0:
         raise InputError("the chain has no joints: there is nothing to move")
@@ -379,9 +381,9 @@ def _quick_options(
 ) -> tuple[FloatArray, tuple[float, ...], float, int]:
     """The kernel's arguments of :func:`step_quick` for these options, validated: each
     joint's reach ``v dt`` (read-only), the kernel's options, the damping and the rounds."""
-    dt = _number(dt, "dt", "s", zero=False)
-    _number(gain, "gain", "1/step", zero=True)
-    lam = _number(damping, "damping", "m^2", zero=True) + FLOOR
+    dt = positive_number(dt, "dt", "s", zero=False)
+    positive_number(gain, "gain", "1/step", zero=True)
+    lam = positive_number(damping, "damping", "m^2", zero=True) + FLOOR
     s = settings(position_only=position_only, orientation_weight=orientation_weight)
     reach = np.array([v * dt for v in _velocity_limits(velocity_limits, chain.n_joints)])
     reach.flags.writeable = False

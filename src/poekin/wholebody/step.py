@@ -18,7 +18,6 @@ rows, its equality constraints the held frames, its ``ConfigurationLimit`` with 
 
 from __future__ import annotations
 
-import math
 from collections.abc import Collection, Mapping
 from typing import TYPE_CHECKING
 
@@ -28,6 +27,7 @@ from numpy.typing import ArrayLike, NDArray
 from poekin._blas import one_thread
 from poekin.errors import InputError
 from poekin.ik.numerical import settings
+from poekin.ik.step import positive_number
 from poekin.wholebody import qp
 from poekin.wholebody.solve import FLOOR, _problem
 from poekin.wholebody.tasks import parse
@@ -38,16 +38,6 @@ if TYPE_CHECKING:
 __all__ = ["ik_step"]
 
 FloatArray = NDArray[np.float64]
-
-
-def _positive(value: object, name: str, unit: str, *, zero: bool = False) -> float:
-    if isinstance(value, bool) or not isinstance(value, int | float | np.integer | np.floating):
-        raise InputError(f"{name} must be a number ({unit}), got {value!r:.40}")
-    x = float(value)
-    if not (math.isfinite(x) and (x >= 0 if zero else x > 0)):
-        bound = ">= 0" if zero else "> 0"
-        raise InputError(f"{name} must be a finite number {bound} ({unit}), got {x!r}")
-    return x
 
 
 def _velocity_limits(value: ArrayLike | None, tree: Tree) -> FloatArray:
@@ -89,9 +79,9 @@ def ik_step(
     freeze: Collection[str] = (),
 ) -> FloatArray:
     """:meth:`poekin.Tree.ik_step` (its docstring holds the arguments)."""
-    dt = _positive(dt, "dt", "s")
-    gain = _positive(gain, "gain", "1/step", zero=True)
-    damping = _positive(damping, "damping", "m^2", zero=True)
+    dt = positive_number(dt, "dt", "s", zero=False)
+    gain = positive_number(gain, "gain", "1/step", zero=True)
+    damping = positive_number(damping, "damping", "m^2", zero=True)
     tasks = parse(
         tree,
         targets,
