@@ -183,6 +183,10 @@ def inequality_qp(
     b = np.concatenate([lo[lower], -hi[upper], h])
     z = np.concatenate([np.zeros(n), np.maximum(h[broken], 0.0) / c_slack])
     working: list[int] = []
+    # after a full step the iterate is the working set's minimiser, and the next step is zero
+    # but for rounding (some 1e-14 of it on a vertex of an ill-conditioned H): taken as zero,
+    # not tested against a tolerance that rounding can miss (which stepped in place for ever)
+    minimised = False
     for _ in range(4 * len(b) + 8):
         grad = Hz @ z + c
         Aw = A[working]
@@ -195,10 +199,11 @@ def inequality_qp(
         except np.linalg.LinAlgError:  # working rows that depend on each other
             sol = np.linalg.lstsq(K, rhs, rcond=None)[0]
         p, lam = sol[:size], sol[size:]
-        if np.max(np.abs(p), initial=0.0) <= _QP_TOL * (1.0 + np.max(np.abs(z))):
+        if minimised or np.max(np.abs(p), initial=0.0) <= _QP_TOL * (1.0 + np.max(np.abs(z))):
             if m == 0 or lam.min() >= -_QP_TOL * (1.0 + np.max(np.abs(grad))):
                 break
             working.pop(int(np.argmin(lam)))
+            minimised = False
             continue
         Ap = A @ p
         room = A @ z - b
@@ -210,6 +215,7 @@ def inequality_qp(
             if a < alpha:
                 alpha, stop = a, int(i)
         z = z + alpha * p
+        minimised = stop < 0
         if stop >= 0:
             working.append(stop)
     return z[:n]
