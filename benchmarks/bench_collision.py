@@ -3,9 +3,10 @@
 For a batch of random configurations (uniform within the joint ranges), the time per
 configuration of
 
-* poekin: ``tree.in_collision(qpos)`` (one batched call; today measured by MuJoCo's
-  ``mj_geomDistance`` pair by pair on the poses of ``tree.fk``), and ``tree.distances(qpos)``
-  (every pair's distance and witness points);
+* poekin: ``tree.in_collision(qpos)`` (one batched call on the kernel's threads, and on one
+  thread; the kernel skips pairs whose bounds lie clear and stops at a configuration's first
+  hit; mesh pairs go to MuJoCo's ``mj_geomDistance``), and ``tree.distances(qpos)`` (every
+  pair's distance and witness points);
 * MuJoCo: a Python loop of ``mj_kinematics`` + ``mj_collision`` per configuration on the same
   model (the issue's reference), which finds the contacts only.
 
@@ -113,13 +114,20 @@ def _row(label: str, tree: poekin.Tree, model: mujoco.MjModel, n: int, repeats: 
     ours = tree.in_collision(qpos)
     theirs = _mujoco_loop(model, full)
     t_ours = _median_s(lambda: tree.in_collision(qpos), repeats) / n
+    threads = poekin.get_threads()
+    poekin.set_threads(1)
+    try:
+        t_one = _median_s(lambda: tree.in_collision(qpos), repeats) / n
+    finally:
+        poekin.set_threads(threads)
     t_dist = _median_s(lambda: tree.distances(qpos), repeats) / n
     t_mj = _median_s(lambda: _mujoco_loop(model, full), repeats) / n
     agree = "agree" if np.array_equal(ours, theirs) else f"DIFFER ({np.sum(ours != theirs)})"
     note = f"{100 * ours.mean():.1f}% collide (MuJoCo {100 * theirs.mean():.1f}%: {agree})"
     return (
-        f"| {label}, {n} configurations | {1e6 * t_ours:.3g} us | {1e6 * t_dist:.3g} us | "
-        f"{1e6 * t_mj:.3g} us | {t_mj / t_ours:.3g}x | {note} |"
+        f"| {label}, {n} configurations | {1e6 * t_ours:.3g} us ({1e6 * t_one:.3g} us) | "
+        f"{1e6 * t_dist:.3g} us | {1e6 * t_mj:.3g} us | {t_mj / t_ours:.3g}x "
+        f"({t_mj / t_one:.3g}x) | {note} |"
     )
 
 
@@ -210,8 +218,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     )
     print()
     print(
-        "| robot | poekin in_collision / config | poekin distances / config | MuJoCo "
-        "mj_kinematics + mj_collision / config | MuJoCo / poekin in_collision | self-collision |"
+        "| robot | poekin in_collision / config (1 thread) | poekin distances / config | "
+        "MuJoCo mj_kinematics + mj_collision / config | MuJoCo / poekin in_collision "
+        "(1 thread) | self-collision |"
     )
     print("|---|---|---|---|---|---|")
     for row in bench(n, repeats):

@@ -438,6 +438,12 @@ def test_urdf_meshes_against_coal_through_pinocchio() -> None:
         apart = (theirs > 1e-4) & (found.distance[c] > 1e-4)
         np.testing.assert_allclose(found.distance[c][apart], theirs[apart], atol=1e-5)
         assert np.array_equal(found.distance[c] < -1e-4, theirs < -1e-4)
+    # in_collision's short cuts (the boxes first, the meshes only where they are clear, each
+    # configuration's pairs up to its first hit, the bounding spheres) change no answer
+    hits = {m: tree.in_collision(qpos, margin=m) for m in (0.0, 0.03)}
+    for margin, hit in hits.items():
+        np.testing.assert_array_equal(hit, (found.distance < margin).any(axis=-1))
+    assert 0 < hits[0.0].sum() < len(qpos)
 
 
 @pytest.mark.parametrize(
@@ -511,3 +517,37 @@ def test_query_bad_input(ur5e_tree: poekin.Tree) -> None:
         ur5e_tree.distances(np.zeros(5))
     with pytest.raises(InputError, match="in_collision: margin must be a number"):
         ur5e_tree.in_collision(q, margin="far")  # type: ignore[arg-type]
+
+
+@pytest.mark.parametrize("margin", [0.0, 0.02])
+def test_the_kernels_broad_phase_changes_no_answer(
+    ur5e_tree: poekin.Tree, margin: float, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """in_collision (which stops at a configuration's first hit) and distances with a margin
+    (which skip pairs whose bounds lie beyond it) on the kernel give the NumPy reference's
+    answers, which measure every pair: the same booleans, the same bits, on the UR5e's
+    capsules and cylinders with a table, a post, a floor and a ball held by the tool."""
+    from poekin.collision import gjk
+
+    scene = [
+        *_obstacles_near_the_arm(),
+        Plane(pose=[0.0, 0.0, -0.3, 1.0, 0.0, 0.0, 0.0], name="floor"),
+    ]
+    qpos = poekin.sample_qpos(ur5e_tree, 300, seed=21)
+    hit = ur5e_tree.in_collision(qpos, scene, margin=margin)
+    near = ur5e_tree.distances(qpos, scene, margin=margin)
+    monkeypatch.setattr(gjk, "_kernel", None)
+    np.testing.assert_array_equal(hit, ur5e_tree.in_collision(qpos, scene, margin=margin))
+    reference = ur5e_tree.distances(qpos, scene, margin=margin)
+    np.testing.assert_array_equal(near.distance, reference.distance)
+    np.testing.assert_array_equal(near.points, reference.points)
+    assert 0.1 < hit.mean() < 0.9
+    assert np.isinf(near.distance).mean() > 0.5  # most pairs lie beyond the margin
+
+
+def _obstacles_near_the_arm() -> list[object]:
+    return [
+        Box([0.3, 0.4, 0.02], pose=[-0.55, 0.0, -0.02, 1.0, 0.0, 0.0, 0.0], name="table"),
+        Capsule(0.05, 0.3, pose=[0.4, 0.3, 0.3, 1.0, 0.0, 0.0, 0.0], name="post"),
+        Sphere(0.03, pose=[0.0, 0.0, 0.06, 1.0, 0.0, 0.0, 0.0], frame="attachment_site"),
+    ]

@@ -72,7 +72,7 @@ def _assert_bits(found: primitives.Distance, ref: primitives.Distance) -> None:
     assert found.points.shape == np.shape(ref.points)
     bad = found.distance != ref.distance
     assert not bad.any(), (np.flatnonzero(bad)[:5], np.abs(found.distance - ref.distance).max())
-    assert np.array_equal(found.points, ref.points)
+    assert np.array_equal(found.points, ref.points, equal_nan=True)
 
 
 def _draws(seed: int, n: int) -> tuple[np.ndarray, ...]:
@@ -221,6 +221,38 @@ def test_pair_distances_give_the_references_bits(shape: tuple[int, ...], referen
     assert np.array_equal(one.distance, found.distance[..., p])
 
 
+@pytest.mark.parametrize("cutoff", [-0.05, 0.0, 0.1])
+def test_a_cutoff_reports_only_the_nearer_pairs(cutoff: float, reference: Any) -> None:
+    """With a cutoff, a pair at it or beyond is inf (points NaN) and every other pair keeps
+    the bits it has without one (the bounding spheres skip only pairs beyond it), on the
+    kernel and on the reference alike."""
+    rng = np.random.default_rng(8)
+    kinds, sizes, pairs, verts = _model(rng)
+    poses = _poses(rng, 30 * len(kinds), 0.4).reshape(30, len(kinds), 4, 4)
+    whole = gjk.pair_distances(kinds, sizes, pairs, poses, verts)
+    cut = gjk.pair_distances(kinds, sizes, pairs, poses, verts, cutoff)
+    _assert_bits(cut, reference(gjk.pair_distances, kinds, sizes, pairs, poses, verts, cutoff))
+    near = whole.distance < cutoff
+    assert 0 < near.sum() < near.size
+    assert np.array_equal(cut.distance[near], whole.distance[near])
+    assert np.array_equal(cut.points[near], whole.points[near])
+    assert np.all(cut.distance[~near] == np.inf) and np.isnan(cut.points[~near]).all()
+
+
+def test_bounding_radii_are_mujocos() -> None:
+    """Each primitive's bounding radius is MuJoCo's geom_rbound for it."""
+    import mujoco
+
+    spec = mujoco.MjSpec()
+    sizes = {"sphere": [0.1, 0, 0], "capsule": [0.05, 0.2, 0], "cylinder": [0.05, 0.2, 0],
+             "box": [0.1, 0.2, 0.3], "ellipsoid": [0.1, 0.3, 0.2]}  # fmt: skip
+    for kind, size in sizes.items():
+        spec.worldbody.add_geom(type=getattr(mujoco.mjtGeom, f"mjGEOM_{kind.upper()}"), size=size)
+    model = spec.compile()
+    radii = gjk.bounding_radii(list(sizes), np.array(list(sizes.values())), [None] * 5)
+    assert np.allclose(radii, model.geom_rbound, rtol=1e-15, atol=0)
+
+
 def test_no_pairs_give_empty_results() -> None:
     rng = np.random.default_rng(6)
     kinds, sizes, _, verts = _model(rng)
@@ -265,6 +297,8 @@ def test_torch_keeps_the_array_generic_closed_forms() -> None:
         ({"poses": np.full((2, 4, 4), np.nan)}, "poses contain NaN or inf"),
         ({"sizes": -np.ones((2, 3))}, "a capsule's sizes must be finite and >= 0"),
         ({"vertices": [None, np.ones((4, 3))]}, r"give vertices \(V, 3\) for each mesh"),
+        ({"cutoff": np.nan}, "cutoff must be a number"),
+        ({"cutoff": "far"}, r"cutoff must be a number \(m\), got str"),
         (
             {"kinds": ["capsule", "mesh"], "vertices": [None, np.ones((4, 2))]},
             r"a mesh's vertices must be an array of shape \(V, 3\)",

@@ -658,10 +658,16 @@ def pair_distances(
     pairs: Any,
     poses: Any,
     vertices: Sequence[Any | None] | None = None,
+    cutoff: float = np.inf,
 ) -> Distance:
     """The signed distances and witness points of ``P`` pairs of ``G`` shapes (a model's
     collision geoms) at a batch of their world poses: :func:`distance` of each pair, in one
     compiled call where the kernel is built (the same bits), pair by pair otherwise.
+
+    A pair at ``cutoff`` or farther apart is not reported (distance ``inf``, points NaN, as
+    MuJoCo's ``distmax`` leaves it). The kernel does not measure a pair that a bound puts
+    beyond ``cutoff`` by 1e-6 m (the bounding spheres of :func:`bounding_radii`, and a
+    cylinder's capsule): it comes out the same, and no rounding decides which pairs it skips.
 
     Args:
         kinds: the ``G`` shapes' kinds (as :func:`distance` names them).
@@ -670,6 +676,7 @@ def pair_distances(
         poses: the shapes' world poses ``(..., G, 4, 4)``.
         vertices: for each shape, its vertices ``(V, 3)`` if a mesh, else None (or no list
             where there is no mesh).
+        cutoff: the distance (m) from which a pair is not reported; default: all are.
 
     Returns:
         The signed distances ``(..., P)`` and witness points ``(..., P, 2, 3)``, the first of
@@ -718,38 +725,107 @@ def pair_distances(
         _check("pair_distances", k, eye, v if k == "mesh" else row, "pose")
     if not np.all(np.isfinite(T)):
         raise InputError("pair_distances: poses contain NaN or inf; every value must be finite")
+    try:
+        limit = float(cutoff)
+    except (TypeError, ValueError):
+        raise InputError(
+            f"pair_distances: cutoff must be a number (m), got {type(cutoff).__name__}"
+        ) from None
+    if np.isnan(limit):
+        raise InputError("pair_distances: cutoff must be a number (m) or inf, got nan")
     shape = T.shape[:-3]
-    if _kernel is None:
-        found = [
-            distance(
-                kinds[a],
-                T[..., a, :, :],
-                verts[a] if kinds[a] == "mesh" else S[a],
-                kinds[b],
-                T[..., b, :, :],
-                verts[b] if kinds[b] == "mesh" else S[b],
-            )
-            for a, b in P
-        ]
-        if not found:
-            return Distance(np.zeros((*shape, 0)), np.zeros((*shape, 0, 2, 3)))
-        return Distance(
-            np.stack([f.distance for f in found], -1), np.stack([f.points for f in found], -3)
-        )
-    meshes = [np.asarray(v, dtype=np.float64).reshape(-1, 3) for v in verts if v is not None]
-    num = np.array([0 if v is None else len(v) for v in verts], dtype=np.int32)
-    adr = np.concatenate([[0], np.cumsum(num)[:-1]]).astype(np.int32)
-    mesh_vert = np.ascontiguousarray(np.concatenate(meshes) if meshes else np.zeros((0, 3)))
-    types = np.array([GEOM_TYPES[k] for k in kinds], dtype=np.int32)
-    flat = np.ascontiguousarray(T.reshape(-1, g, 4, 4))
-    dist, points = _kernel.pair_distances(
-        types,
-        S,
-        adr,
-        num,
-        mesh_vert,
-        np.ascontiguousarray(P, dtype=np.int32),
-        flat,
-        (*_DEFAULTS, 1, 1),
+    found = posed_pairs(kinds, S, verts, P, T.reshape(-1, g, 4, 4), None, None, limit)
+    assert isinstance(found, Distance)
+    return Distance(
+        found.distance.reshape(*shape, len(P)), found.points.reshape(*shape, len(P), 2, 3)
     )
-    return Distance(dist.reshape(*shape, len(P)), points.reshape(*shape, len(P), 2, 3))
+
+
+def posed_pairs(
+    kinds: Sequence[str],
+    sizes: Array,
+    vertices: Sequence[Any | None],
+    pairs: Any,
+    frames: Array,
+    frame_of: Any,
+    local: Array | None,
+    cutoff: float,
+    hit: bool = False,
+) -> Distance | NDArray[np.bool_]:
+    """:func:`pair_distances` on checked arguments, with the geoms posed on frames: geom
+    ``g`` at ``frames[:, frame_of[g]] @ local[g]`` (:func:`compose`; ``local[g]`` alone where
+    ``frame_of[g] < 0``), or at ``frames[:, g]`` where ``local`` is None. ``frames (B, F, 4,
+    4)``, ``sizes (G, 3)``. With ``hit``, only ``(B,)`` whether some pair is nearer than
+    ``cutoff`` (the kernel stops at the first)."""
+    G = len(kinds)
+    index = np.arange(G) if local is None else np.asarray(frame_of)
+    if _kernel is not None:
+        meshes = [np.asarray(v, dtype=np.float64).reshape(-1, 3) for v in vertices if v is not None]
+        num = np.array([0 if v is None else len(v) for v in vertices], dtype=np.int32)
+        adr = np.concatenate([[0], np.cumsum(num)[:-1]]).astype(np.int32)
+        found = _kernel.pair_distances(
+            np.array([GEOM_TYPES[k] for k in kinds], dtype=np.int32),
+            np.ascontiguousarray(sizes, dtype=np.float64),
+            adr,
+            num,
+            np.ascontiguousarray(np.concatenate(meshes) if meshes else np.zeros((0, 3))),
+            np.ascontiguousarray(pairs, dtype=np.int32),
+            np.ascontiguousarray(frames, dtype=np.float64),
+            np.ascontiguousarray(index, dtype=np.int32),
+            None if local is None else np.ascontiguousarray(local, dtype=np.float64),
+            (*_DEFAULTS, 1, 1),
+            bounding_radii(kinds, sizes, vertices),
+            float(cutoff),
+            hit,
+        )
+        return found if hit else Distance(*found)
+    poses = frames if local is None else compose(frames, index, local)
+    B = poses.shape[0]
+    dist = np.full((B, len(pairs)), np.inf)
+    points = np.full((B, len(pairs), 2, 3), np.nan)
+    for p, (a, b) in enumerate(np.asarray(pairs).tolist()):
+        found = distance(
+            kinds[a],
+            poses[:, a],
+            vertices[a] if kinds[a] == "mesh" else sizes[a],
+            kinds[b],
+            poses[:, b],
+            vertices[b] if kinds[b] == "mesh" else sizes[b],
+        )
+        near = found.distance < cutoff
+        dist[:, p] = np.where(near, found.distance, np.inf)
+        points[:, p] = np.where(near[:, None, None], found.points, np.nan)
+    return np.asarray((dist < cutoff).any(axis=-1)) if hit else Distance(dist, points)
+
+
+def compose(frames: Array, frame_of: Any, local: Array) -> Array:
+    """``(B, G, 4, 4)`` the poses ``frames[:, frame_of[g]] @ local[g]`` (``local[g]`` where
+    ``frame_of[g] < 0``), each entry's four products summed in order, as the kernel sums
+    them. ``frames (B, F, 4, 4)``, ``local (G, 4, 4)``."""
+    index = np.asarray(frame_of)
+    F = frames[:, np.maximum(index, 0)]
+    out = F[..., :, 0, None] * local[:, None, 0, :]
+    for k in (1, 2, 3):
+        out = out + F[..., :, k, None] * local[:, None, k, :]
+    out[:, index < 0] = local[index < 0]
+    return np.asarray(out)
+
+
+def bounding_radii(kinds: Sequence[str], sizes: Array, vertices: Sequence[Any | None]) -> Array:
+    """``(G,)`` the radius about each shape's origin of a sphere that holds it (``inf`` for
+    a plane): MuJoCo's ``geom_rbound``. ``sizes (G, 3)``; ``vertices`` a mesh's, else None."""
+    radii = np.empty(len(kinds))
+    for g, (kind, s, v) in enumerate(zip(kinds, sizes, vertices, strict=True)):
+        if kind == "plane":
+            radii[g] = np.inf
+        elif kind == "mesh":
+            radii[g] = np.sqrt(np.max(np.sum(np.square(np.asarray(v, dtype=np.float64)), axis=-1)))
+        else:
+            radii[g] = {
+                "sphere": s[0],
+                "capsule": s[0] + s[1],
+                "cylinder": np.sqrt(s[0] * s[0] + s[1] * s[1]),
+                "box": np.sqrt(s[0] * s[0] + s[1] * s[1] + s[2] * s[2]),
+                "ellipsoid": max(s[0], s[1], s[2]),
+            }[kind]
+    return radii

@@ -1,16 +1,15 @@
 """Distances between a robot's collision geoms, and between them and obstacles, batched.
 
 For each configuration, every geom's world pose is the tree's FK of its body times the geom's
-pose in the body (:class:`~poekin.collision.model.CollisionModel`); MuJoCo's
-``mj_geomDistance`` then measures each pair on those poses: the signed distance (negative: the
-penetration depth, as MuJoCo reports it) and the two witness points. What that is exactly, by
-the kinds of the pair:
+pose in the body (:class:`~poekin.collision.model.CollisionModel`). Each pair of primitives is
+then measured by :func:`poekin.collision.gjk.posed_pairs` (compiled: the closed forms, GJK and
+EPA, the NumPy reference's bits), a pair with a mesh or a height field by MuJoCo's
+``mj_geomDistance`` on the same poses: the signed distance (negative: the penetration depth)
+and the two witness points. How exact each kind of pair is: docs/collision.md.
 
-* spheres, capsules and planes with each other and with boxes, and box with box: MuJoCo's
-  closed forms, to rounding (checked to 1e-9);
-* cylinders (but with a plane), ellipsoids and meshes (their convex hulls, their vertices in
-  float32 as MuJoCo keeps them): MuJoCo's GJK and EPA, to its convex tolerance
-  (``opt.ccd_tolerance``, 1e-6 by default).
+A query with a margin reports only the pairs nearer than it, and measures only those whose
+bounds (bounding spheres, a cylinder's capsule) do not put them beyond it, as MuJoCo's broad
+phase; :func:`in_collision` stops at each configuration's first pair that hits.
 
 Obstacles are added to a copy of the model as geoms of bodies of their own; an obstacle
 attached to a frame moves with it and, as a geom of that frame's body would, is not paired
@@ -28,9 +27,10 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from poekin import lie
-from poekin.collision.gjk import pair_distances
+from poekin.collision.gjk import compose, posed_pairs
 from poekin.collision.model import GEOM_TYPES, CollisionModel, model_of
 from poekin.collision.obstacles import Mesh, Obstacle, as_obstacles, kind_of, mjcf_size
+from poekin.collision.primitives import Distance
 from poekin.errors import InputError, did_you_mean
 
 __all__ = ["Distances", "distances", "in_collision", "min_distance"]
@@ -231,11 +231,13 @@ def _shapes(scene: _Scene, n_geoms: int) -> tuple[list[str], FloatArray, list[An
 
 
 def _mujoco_pairs(
-    scene: _Scene, poses: FloatArray, pairs: IntArray, margin: float
+    scene: _Scene, poses: FloatArray, pairs: IntArray, margin: float, hit: bool = False
 ) -> tuple[FloatArray, FloatArray]:
     """``(B, p)`` distances and ``(B, p, 2, 3)`` witness points of ``pairs`` by MuJoCo's
-    ``mj_geomDistance`` at the geoms' world ``poses (B, G, 4, 4)`` (``inf`` and NaN beyond
-    ``margin``)."""
+    ``mj_geomDistance`` at the geoms' world ``poses (B, G, 4, 4)`` (``inf`` and NaN at
+    ``margin`` or beyond). A pair whose bounding spheres (MuJoCo's ``geom_rbound``) lie beyond
+    ``margin`` by 1e-6 m is not measured, as MuJoCo's own broad phase skips it; with ``hit``,
+    a configuration's pairs after its first nearer than ``margin`` are not measured either."""
     import mujoco
 
     model = scene.model
@@ -243,52 +245,74 @@ def _mujoco_pairs(
     n_geoms = poses.shape[1]
     distance = np.full((poses.shape[0], len(pairs)), np.inf)
     points = np.full((poses.shape[0], len(pairs), 2, 3), np.nan)
+    if len(pairs) == 0:
+        return distance, points
+    origin = poses[..., :3, 3]  # (B, G, 3)
+    gap = np.linalg.norm(origin[:, pairs[:, 0]] - origin[:, pairs[:, 1]], axis=-1)  # (B, p)
+    rbound = np.asarray(model.geom_rbound)[pairs]  # (p, 2); a plane's is 0: no bound
+    near = ~(gap - rbound.sum(axis=-1) > margin + 1e-6) | (rbound == 0).any(axis=-1)
     fromto = np.zeros(6)
     listed = pairs.tolist()
-    for c in range(poses.shape[0]):
+    for c in np.flatnonzero(near.any(axis=-1)).tolist():
         data.geom_xpos[:n_geoms] = poses[c, :, :3, 3]
         data.geom_xmat[:n_geoms] = poses[c, :, :3, :3].reshape(n_geoms, 9)
-        for p, (g1, g2) in enumerate(listed):
+        for p in np.flatnonzero(near[c]).tolist():
+            g1, g2 = listed[p]
             d = mujoco.mj_geomDistance(model, data, g1, g2, margin, fromto)
             if d < margin:
                 distance[c, p] = d
                 points[c, p] = fromto.reshape(2, 3)
+                if hit:
+                    break
     return distance, points
+
+
+def _posed(
+    tree: Any, qpos: ArrayLike, obstacles: Any, ignore: Iterable[Any]
+) -> tuple[FloatArray, IntArray, FloatArray, _Scene, tuple[int, ...]]:
+    """The tree's frames ``(B, F, 4, 4)`` at ``qpos`` and each geom's frame (``-1``: none)
+    and pose on it, for :func:`poekin.collision.gjk.posed_pairs`; the scene; the batch."""
+    collision = model_of(tree)
+    scene = _scene(tree, collision, as_obstacles(obstacles), ignore)
+    frames = np.asarray(tree.fk(qpos), dtype=np.float64)  # checks qpos
+    batch = frames.shape[:-3]
+    n = tree.n_frames
+    on_base = scene.frame == n
+    local = scene.local.copy()
+    local[on_base] = tree.base @ scene.local[on_base]
+    frame_of = np.where(scene.frame >= n, -1, scene.frame)
+    return frames.reshape(-1, n, 4, 4), frame_of, local, scene, batch
+
+
+def _mesh_pairs(scene: _Scene, kinds: list[str]) -> NDArray[np.bool_]:
+    """``(P,)`` whether each pair has a mesh or a height field (MuJoCo measures it)."""
+    return np.array(
+        [_MUJOCO_KINDS & {kinds[i], kinds[j]} != set() for i, j in scene.pairs.tolist()],
+        dtype=bool,
+    ).reshape(-1)
 
 
 def _measure(
     tree: Any, qpos: ArrayLike, obstacles: Any, margin: float, ignore: Iterable[Any]
 ) -> tuple[FloatArray, FloatArray, _Scene]:
-    collision = model_of(tree)
-    scene = _scene(tree, collision, as_obstacles(obstacles), ignore)
-    frames = np.asarray(tree.fk(qpos), dtype=np.float64)  # checks qpos
-    batch = frames.shape[:-3]
-    extra = np.broadcast_to(np.stack([tree.base, np.eye(4)]), (*batch, 2, 4, 4))
-    frames = np.concatenate([frames, extra], axis=-3).reshape(-1, tree.n_frames + 2, 4, 4)
-    poses = frames[:, scene.frame] @ scene.local  # (B, G, 4, 4)
-    n_pairs = scene.pairs.shape[0]
-    if n_pairs == 0:
-        distance = np.full((poses.shape[0], 0), np.inf)
-        points = np.full((poses.shape[0], 0, 2, 3), np.nan)
-    else:
-        kinds, sizes, vertices = _shapes(scene, poses.shape[1])
-        mesh = np.array(
-            [_MUJOCO_KINDS & {kinds[i], kinds[j]} != set() for i, j in scene.pairs.tolist()]
-        )
-        distance = np.empty((poses.shape[0], n_pairs))
-        points = np.empty((poses.shape[0], n_pairs, 2, 3))
+    frames, frame_of, local, scene, batch = _posed(tree, qpos, obstacles, ignore)
+    B, n_pairs = frames.shape[0], scene.pairs.shape[0]
+    distance = np.full((B, n_pairs), np.inf)
+    points = np.full((B, n_pairs, 2, 3), np.nan)
+    if n_pairs:
+        kinds, sizes, vertices = _shapes(scene, len(frame_of))
+        mesh = _mesh_pairs(scene, kinds)
         if not mesh.all():  # poekin's distances, compiled
-            found = pair_distances(kinds, sizes, scene.pairs[~mesh], poses, vertices)
+            found = posed_pairs(
+                kinds, sizes, vertices, scene.pairs[~mesh], frames, frame_of, local, margin
+            )
+            assert isinstance(found, Distance)
             distance[:, ~mesh], points[:, ~mesh] = found.distance, found.points
-        if (
-            mesh.any()
-        ):  # a mesh (MuJoCo's hull walk beats a support over V vertices), a height field
+        if mesh.any():  # a mesh (MuJoCo's hull walk beats a support over V vertices), a hfield
+            poses = compose(frames, frame_of, local)
             distance[:, mesh], points[:, mesh] = _mujoco_pairs(
                 scene, poses, scene.pairs[mesh], margin
             )
-        far = distance >= margin  # not measured, as MuJoCo's distmax leaves them
-        distance = np.where(far, np.inf, distance)
-        points = np.where(far[..., None, None], np.nan, points)
     return (
         distance.reshape(*batch, n_pairs),
         points.reshape(*batch, n_pairs, 2, 3),
@@ -353,5 +377,20 @@ def in_collision(
     ``margin`` (m; 0: whether any penetrates; touching is not a collision). Arguments as
     :func:`distances`."""
     value = _margin(margin, "in_collision")
-    distance, _, _ = _measure(tree, qpos, obstacles, value, ignore)
-    return np.asarray((distance < value).any(axis=-1))
+    frames, frame_of, local, scene, batch = _posed(tree, qpos, obstacles, ignore)
+    hit = np.zeros(frames.shape[0], dtype=bool)
+    if scene.pairs.shape[0]:
+        kinds, sizes, vertices = _shapes(scene, len(frame_of))
+        mesh = _mesh_pairs(scene, kinds)
+        if not mesh.all():  # compiled: each configuration stops at its first pair that hits
+            hit = np.asarray(
+                posed_pairs(
+                    kinds, sizes, vertices, scene.pairs[~mesh], frames, frame_of, local, value, True
+                )
+            )
+        rest = np.flatnonzero(~hit)
+        if mesh.any() and rest.size:  # only the configurations the primitives left clear
+            poses = compose(frames[rest], frame_of, local)
+            d, _ = _mujoco_pairs(scene, poses, scene.pairs[mesh], value, hit=True)
+            hit[rest] = (d < value).any(axis=-1)
+    return hit.reshape(batch)

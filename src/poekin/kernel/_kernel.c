@@ -935,21 +935,31 @@ static PyObject *ik_all(PyObject *Py_UNUSED(mod), PyObject *args) {
 
 #include "_distance.h"
 
+/* pair_distances skips a pair that a bound puts beyond its cutoff by this (m): a pair nearer
+ * than that is measured, so that no rounding, in the bound or in the distance, decides whether
+ * it comes out measured or not (the reference measures every pair) */
+#define DG_BROAD_SLACK 1e-6
+
 /* Pairs per thread below which another thread does not pay for its start. */
 #define DG_MIN_PER_THREAD 1024
 
-/* N pairs (kind1 T1[i] S1[i], kind2 T2[i] S2[i]), or (pairs set) B configurations of G geoms
- * posed by poses (B, G, 4, 4), P pairs of them each, in [lo, hi). */
+/* N pairs (kind1 T1[i] S1[i], kind2 T2[i] S2[i]) in [lo, hi), or (pairs set) configurations
+ * [lo, hi) of G geoms, each geom g posed by frames[frame_of[g]] @ local[g] (frames
+ * (B, F, 4, 4); local[g] alone where frame_of[g] < 0; frames[g] where local is NULL), P pairs
+ * of them each. */
 typedef struct {
     DgOptions opt;
     npy_intp lo, hi;
     int kind[2];
     const double *T[2], *S[2], *V[2];
     npy_intp nv[2];
-    const int32_t *types, *pairs, *mesh_adr, *mesh_num;
-    const double *sizes, *mesh_vert, *poses;
-    npy_intp G, P;
+    const int32_t *types, *pairs, *mesh_adr, *mesh_num, *frame_of;
+    const double *sizes, *mesh_vert, *frames, *local, *radii;
+    double cutoff; /* pairs: at or beyond it not reported, and not measured where a bound
+                    * (dg_beyond) puts them beyond it by DG_BROAD_SLACK */
+    npy_intp G, P, F;
     double *dist, *pts;
+    npy_bool *hit; /* set: whether each configuration has a pair nearer than cutoff, no more */
     int failed;
 } DgTask;
 
@@ -959,23 +969,10 @@ static void dg_task(void *arg) {
     memset(&W, 0, sizeof W);
     DgShape A, B;
     for (npy_intp i = t->lo; i < t->hi; ++i) {
-        if (t->pairs == NULL) {
-            dg_shape(&A, t->kind[0], t->T[0] + 16 * i, t->V[0] ? DG_ZERO : t->S[0] + 3 * i,
-                     t->V[0], t->nv[0]);
-            dg_shape(&B, t->kind[1], t->T[1] + 16 * i, t->V[1] ? DG_ZERO : t->S[1] + 3 * i,
-                     t->V[1], t->nv[1]);
-        } else {
-            npy_intp b = i / t->P, p = i % t->P;
-            int32_t g1 = t->pairs[2 * p], g2 = t->pairs[2 * p + 1];
-            const double *pose = t->poses + 16 * t->G * b;
-            int mesh1 = t->types[g1] == DG_MESH, mesh2 = t->types[g2] == DG_MESH;
-            dg_shape(&A, t->types[g1], pose + 16 * g1, t->sizes + 3 * g1,
-                     mesh1 ? t->mesh_vert + 3 * (npy_intp)t->mesh_adr[g1] : NULL,
-                     mesh1 ? t->mesh_num[g1] : 0);
-            dg_shape(&B, t->types[g2], pose + 16 * g2, t->sizes + 3 * g2,
-                     mesh2 ? t->mesh_vert + 3 * (npy_intp)t->mesh_adr[g2] : NULL,
-                     mesh2 ? t->mesh_num[g2] : 0);
-        }
+        dg_shape(&A, t->kind[0], t->T[0] + 16 * i, t->V[0] ? DG_ZERO : t->S[0] + 3 * i, t->V[0],
+                 t->nv[0]);
+        dg_shape(&B, t->kind[1], t->T[1] + 16 * i, t->V[1] ? DG_ZERO : t->S[1] + 3 * i, t->V[1],
+                 t->nv[1]);
         if (dg_distance(&A, &B, &t->opt, &W, t->dist + i, t->pts + 6 * i) < 0) {
             t->failed = 1;
             break;
@@ -984,19 +981,106 @@ static void dg_task(void *arg) {
     dg_free_work(&W);
 }
 
-/* run the task on n items, on up to g_threads threads; -1 out of memory */
-static int dg_run(DgTask proto, npy_intp n) {
+/* out = F @ L, 4x4 row-major, each entry's four products summed in order (the reference's
+ * gjk._compose) */
+static void dg_compose(const double *F, const double *L, double *out) {
+    for (int i = 0; i < 4; ++i)
+        for (int j = 0; j < 4; ++j)
+            out[4 * i + j] = F[4 * i] * L[j] + F[4 * i + 1] * L[4 + j] +
+                             F[4 * i + 2] * L[8 + j] + F[4 * i + 3] * L[12 + j];
+}
+
+/* whether the pair (A, B) lies farther apart than cutoff by DG_BROAD_SLACK, by bounds below its
+ * distance: the bounding spheres, and, for a cylinder with a capsule or a cylinder, the capsule
+ * of its radius and half-length, which holds it */
+static int dg_beyond(const DgShape *A, const DgShape *B, double ra, double rb, double cutoff) {
+    double dx = A->T[3] - B->T[3], dy = A->T[7] - B->T[7], dz = A->T[11] - B->T[11];
+    double gap = sqrt(dx * dx + dy * dy + dz * dz);
+    if (gap - ra - rb > cutoff + DG_BROAD_SLACK) return 1;
+    int ka = A->kind, kb = B->kind;
+    if ((ka == DG_CYLINDER || kb == DG_CYLINDER) && (ka == DG_CAPSULE || ka == DG_CYLINDER) &&
+        (kb == DG_CAPSULE || kb == DG_CYLINDER)) {
+        DgShape a = *A, b = *B;
+        a.kind = b.kind = DG_CAPSULE;
+        a.radius = A->size[0], b.radius = B->size[0];
+        double d, pts[6];
+        dg_capsule_capsule(&a, &b, &d, pts);
+        return d > cutoff + DG_BROAD_SLACK;
+    }
+    return 0;
+}
+
+static void dg_pairs_task(void *arg) {
+    DgTask *t = (DgTask *)arg;
+    DgWork W;
+    memset(&W, 0, sizeof W);
+    double *posed = t->local ? malloc(sizeof(double) * 16 * (size_t)(t->G > 0 ? t->G : 1)) : NULL;
+    if (t->local && posed == NULL) {
+        t->failed = 1;
+        return;
+    }
+    DgShape A, B;
+    double dist, pts[6];
+    for (npy_intp c = t->lo; c < t->hi; ++c) {
+        const double *frames = t->frames + 16 * t->F * c;
+        if (t->local)
+            for (npy_intp g = 0; g < t->G; ++g) {
+                if (t->frame_of[g] < 0)
+                    memcpy(posed + 16 * g, t->local + 16 * g, 16 * sizeof(double));
+                else
+                    dg_compose(frames + 16 * (npy_intp)t->frame_of[g], t->local + 16 * g,
+                               posed + 16 * g);
+            }
+        const double *pose = t->local ? posed : frames;
+        if (t->hit) t->hit[c] = 0;
+        for (npy_intp p = 0; p < t->P; ++p) {
+            int32_t g1 = t->pairs[2 * p], g2 = t->pairs[2 * p + 1];
+            int mesh1 = t->types[g1] == DG_MESH, mesh2 = t->types[g2] == DG_MESH;
+            dg_shape(&A, t->types[g1], pose + 16 * g1, t->sizes + 3 * g1,
+                     mesh1 ? t->mesh_vert + 3 * (npy_intp)t->mesh_adr[g1] : NULL,
+                     mesh1 ? t->mesh_num[g1] : 0);
+            dg_shape(&B, t->types[g2], pose + 16 * g2, t->sizes + 3 * g2,
+                     mesh2 ? t->mesh_vert + 3 * (npy_intp)t->mesh_adr[g2] : NULL,
+                     mesh2 ? t->mesh_num[g2] : 0);
+            int measured = !(t->cutoff < INFINITY &&
+                             dg_beyond(&A, &B, t->radii[g1], t->radii[g2], t->cutoff));
+            if (measured && dg_distance(&A, &B, &t->opt, &W, &dist, pts) < 0) {
+                t->failed = 1;
+                break;
+            }
+            int near = measured && dist < t->cutoff;
+            if (t->hit) {
+                if (near) {
+                    t->hit[c] = 1;
+                    break;
+                }
+                continue;
+            }
+            npy_intp i = c * t->P + p;
+            t->dist[i] = near ? dist : INFINITY;
+            for (int k = 0; k < 6; ++k) t->pts[6 * i + k] = near ? pts[k] : NAN;
+        }
+        if (t->failed) break;
+    }
+    free(posed);
+    dg_free_work(&W);
+}
+
+/* run the task on n items (pairs, or configurations of `per` pairs each), on up to g_threads
+ * threads; -1 out of memory */
+static int dg_run(DgTask proto, npy_intp n, npy_intp per) {
     DgTask tasks[MAX_THREADS];
     Share shares[MAX_THREADS];
     npy_intp chunk;
-    int nt = split_batch(n, DG_MIN_PER_THREAD, g_threads, &chunk);
+    per = per > 0 ? per : 1;
+    int nt = split_batch(n, (DG_MIN_PER_THREAD + per - 1) / per, g_threads, &chunk);
     for (int k = 0; k < nt; ++k) {
         tasks[k] = proto;
         tasks[k].lo = k * chunk < n ? k * chunk : n;
         tasks[k].hi = tasks[k].lo + chunk < n ? tasks[k].lo + chunk : n;
-        shares[k] = (Share){dg_task, &tasks[k]};
+        shares[k] = (Share){proto.pairs ? dg_pairs_task : dg_task, &tasks[k]};
     }
-    if (n >= MIN_CONFIGS_NO_GIL) {
+    if (n * per >= MIN_CONFIGS_NO_GIL) {
         Py_BEGIN_ALLOW_THREADS run_shares(shares, nt);
         Py_END_ALLOW_THREADS
     } else {
@@ -1084,7 +1168,7 @@ static PyObject *distance(PyObject *Py_UNUSED(mod), PyObject *args) {
     PyArrayObject *dist, *pts;
     if (dg_result(1, &n, &dist, &pts) == NULL) return NULL;
     t.dist = PyArray_DATA(dist), t.pts = PyArray_DATA(pts);
-    if (dg_run(t, n) < 0) {
+    if (dg_run(t, n, 1) < 0) {
         Py_DECREF(dist);
         Py_DECREF(pts);
         return PyErr_NoMemory();
@@ -1092,36 +1176,49 @@ static PyObject *distance(PyObject *Py_UNUSED(mod), PyObject *args) {
     return Py_BuildValue("(NN)", dist, pts);
 }
 
-/* pair_distances(types, sizes, mesh_adr, mesh_num, mesh_vert, pairs, poses, options) ->
- * (dist (B, P), points (B, P, 2, 3)): G geoms of MuJoCo's types (int32 (G,)) and sizes
- * (G, 3), meshes as vertices mesh_vert[mesh_adr[g]:][:mesh_num[g]] ((V, 3)), the P pairs
- * (int32 (P, 2), geom indices, not two planes) at the geoms' world poses (B, G, 4, 4) */
+/* pair_distances(types, sizes, mesh_adr, mesh_num, mesh_vert, pairs, frames, frame_of, local,
+ * options, radii, cutoff, hit) -> (dist (B, P), points (B, P, 2, 3)), or with hit true
+ * hit (B,) bool: G geoms of MuJoCo's types (int32 (G,)) and sizes (G, 3), meshes as vertices
+ * mesh_vert[mesh_adr[g]:][:mesh_num[g]] ((V, 3)), the P pairs (int32 (P, 2), geom indices, not
+ * two planes), posed by frames (B, F, 4, 4), frame_of (int32 (G,), -1: none) and local
+ * (G, 4, 4) (None: frames are the geoms' poses, F = G; dg_pairs_task); a pair at cutoff or
+ * beyond comes out inf (points NaN), and is not measured where a bound rules it out
+ * (dg_beyond, radii (G,) the bounding spheres'); hit: whether some pair is nearer than cutoff */
 static PyObject *pair_distances(PyObject *Py_UNUSED(mod), PyObject *args) {
     DgTask t;
     memset(&t, 0, sizeof t);
-    PyObject *types, *sizes, *adr, *num, *vert, *pairs, *poses, *options;
-    if (!PyArg_ParseTuple(args, "OOOOOOOO", &types, &sizes, &adr, &num, &vert, &pairs, &poses,
-                          &options) ||
+    PyObject *types, *sizes, *adr, *num, *vert, *pairs, *frames, *frame_of, *local, *options,
+        *radii;
+    int hit;
+    if (!PyArg_ParseTuple(args, "OOOOOOOOOOOdp", &types, &sizes, &adr, &num, &vert, &pairs,
+                          &frames, &frame_of, &local, &options, &radii, &t.cutoff, &hit) ||
         !dg_options(options, &t.opt))
         return NULL;
     int ok = dg_array(types, NPY_INT32, 1, -1, -1) && dg_array(sizes, NPY_FLOAT64, 2, -1, 3) &&
              dg_array(adr, NPY_INT32, 1, -1, -1) && dg_array(num, NPY_INT32, 1, -1, -1) &&
              dg_array(vert, NPY_FLOAT64, 2, -1, 3) && dg_array(pairs, NPY_INT32, 2, -1, 2) &&
-             dg_array(poses, NPY_FLOAT64, 4, 4, 4);
+             dg_array(frames, NPY_FLOAT64, 4, 4, 4) && dg_array(frame_of, NPY_INT32, 1, -1, -1) &&
+             (local == Py_None || dg_array(local, NPY_FLOAT64, 3, 4, 4)) &&
+             dg_array(radii, NPY_FLOAT64, 1, -1, -1) && !isnan(t.cutoff);
     npy_intp G = ok ? PyArray_DIM((PyArrayObject *)types, 0) : 0;
+    npy_intp F = ok ? PyArray_DIM((PyArrayObject *)frames, 1) : 0;
     if (ok)
         ok = PyArray_DIM((PyArrayObject *)sizes, 0) == G &&
+             PyArray_DIM((PyArrayObject *)radii, 0) == G &&
              PyArray_DIM((PyArrayObject *)adr, 0) == G &&
              PyArray_DIM((PyArrayObject *)num, 0) == G &&
-             PyArray_DIM((PyArrayObject *)poses, 1) == G;
+             PyArray_DIM((PyArrayObject *)frame_of, 0) == G &&
+             (local == Py_None ? F == G : PyArray_DIM((PyArrayObject *)local, 0) == G);
     if (ok) {
         t.types = PyArray_DATA((PyArrayObject *)types);
         t.mesh_adr = PyArray_DATA((PyArrayObject *)adr);
         t.mesh_num = PyArray_DATA((PyArrayObject *)num);
         t.pairs = PyArray_DATA((PyArrayObject *)pairs);
+        t.frame_of = PyArray_DATA((PyArrayObject *)frame_of);
         npy_intp V = PyArray_DIM((PyArrayObject *)vert, 0);
         for (npy_intp g = 0; g < G && ok; ++g) {
-            ok = dg_known(t.types[g]);
+            ok = dg_known(t.types[g]) && t.frame_of[g] < F &&
+                 (local != Py_None || t.frame_of[g] == g);
             if (t.types[g] == DG_MESH)
                 ok = ok && t.mesh_adr[g] >= 0 && t.mesh_num[g] > 0 &&
                      (npy_intp)t.mesh_adr[g] + t.mesh_num[g] <= V;
@@ -1137,19 +1234,33 @@ static PyObject *pair_distances(PyObject *Py_UNUSED(mod), PyObject *args) {
         PyErr_SetString(PyExc_ValueError,
                         "pair_distances: int32 types (G,), float64 sizes (G, 3), int32 mesh_adr "
                         "and mesh_num (G,), mesh_vert (V, 3), int32 pairs (P, 2) of geoms (not "
-                        "two planes), poses (B, G, 4, 4), C-contiguous");
+                        "two planes), frames (B, F, 4, 4), int32 frame_of (G,) below F, local "
+                        "(G, 4, 4) or None (frame_of the geoms, F = G), radii (G,), "
+                        "C-contiguous, and a cutoff not NaN");
         return NULL;
     }
     t.sizes = PyArray_DATA((PyArrayObject *)sizes);
     t.mesh_vert = PyArray_DATA((PyArrayObject *)vert);
-    t.poses = PyArray_DATA((PyArrayObject *)poses);
-    t.G = G;
+    t.frames = PyArray_DATA((PyArrayObject *)frames);
+    t.local = local == Py_None ? NULL : PyArray_DATA((PyArrayObject *)local);
+    t.radii = PyArray_DATA((PyArrayObject *)radii);
+    t.G = G, t.F = F;
     t.P = PyArray_DIM((PyArrayObject *)pairs, 0);
-    npy_intp dims[2] = {PyArray_DIM((PyArrayObject *)poses, 0), t.P};
+    npy_intp dims[2] = {PyArray_DIM((PyArrayObject *)frames, 0), t.P};
+    if (hit) {
+        PyArrayObject *out = (PyArrayObject *)PyArray_SimpleNew(1, dims, NPY_BOOL);
+        if (out == NULL) return NULL;
+        t.hit = PyArray_DATA(out);
+        if (dg_run(t, dims[0], t.P) < 0) {
+            Py_DECREF(out);
+            return PyErr_NoMemory();
+        }
+        return (PyObject *)out;
+    }
     PyArrayObject *dist, *pts;
     if (dg_result(2, dims, &dist, &pts) == NULL) return NULL;
     t.dist = PyArray_DATA(dist), t.pts = PyArray_DATA(pts);
-    if (dg_run(t, dims[0] * dims[1]) < 0) {
+    if (dg_run(t, dims[0], t.P) < 0) {
         Py_DECREF(dist);
         Py_DECREF(pts);
         return PyErr_NoMemory();
@@ -1197,7 +1308,8 @@ static PyMethodDef module_methods[] = {
     {"distance", distance, METH_VARARGS,
      "distance(kind1, T1, S1, kind2, T2, S2, options) -> (dist, points): gjk.distance's twin"},
     {"pair_distances", pair_distances, METH_VARARGS,
-     "pair_distances(types, sizes, mesh_adr, mesh_num, mesh_vert, pairs, poses, options) -> "
+     "pair_distances(types, sizes, mesh_adr, mesh_num, mesh_vert, pairs, frames, frame_of, local, "
+     "options, radii, cutoff, hit) -> "
      "(dist, points)"},
     {"expose_python", expose_python, METH_VARARGS,
      "expose_python(get, call): FastMethod's __get__ and __call__ for tools that trace Python"},
