@@ -795,7 +795,9 @@ class Chain:
             avoid: keep every checked pair of the robot's collision geometry (with itself
                 and with ``obstacles``) at least ``margin`` apart: a constraint inside the
                 solve, linearised each iteration with the witness points' Jacobians
-                (:mod:`poekin.ik.collision_free`); ``success`` then also means collision-free.
+                (:mod:`poekin.ik.collision_free`; where the closed form of :meth:`ik_all`
+                gives every answer, six joints and a whole pose, the valid branch nearest
+                ``q0`` that keeps the margin); ``success`` then also means collision-free.
                 Needs a chain loaded from a model file (:func:`poekin.load`). NumPy.
             obstacles: with ``avoid``: :class:`poekin.collision.Box`, ``Sphere``,
                 ``Capsule``, ``Plane`` or ``Mesh`` obstacles, in the chain's world (its base

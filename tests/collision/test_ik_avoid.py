@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 import poekin
-from poekin.collision import Box
+from poekin.collision import Box, Plane
 from poekin.errors import InputError, ModelError
 
 MARGIN = 0.005
@@ -192,3 +192,58 @@ def test_a_chain_without_a_model_file(chain: poekin.Chain) -> None:
         tree = poekin.load_tree("universal_robots_ur5e")
     with pytest.raises(InputError, match="a dict of targets does not take it"):
         tree.ik({"attachment_site": chain.fk(np.zeros(6))}, avoid=True)
+
+
+def test_a_colliding_answer_becomes_the_nearest_clear_branch(chain: poekin.Chain) -> None:
+    """Six joints and a whole pose: the answers are the closed form's branches, so where the
+    plain answer collides, the answer is the branch nearest ``q0`` that MuJoCo finds clear (by
+    brute force over every branch), reached to 1e-10 by MuJoCo's FK. The floor is a plane
+    here, which MuJoCo measures in closed form: its capsule-box collider misses a capsule
+    that pierces a thin box (the table's), which coal and poekin find 0.19 m deep."""
+    floor = Plane(pose=[0.0, 0.0, -0.01, 1.0, 0.0, 0.0, 0.0], name="floor")
+    spec = poekin.io.sources.kinematics_spec("universal_robots_ur5e")
+    spec.worldbody.add_geom(
+        type=mujoco.mjtGeom.mjGEOM_PLANE, pos=[0, 0, -0.01], size=[1, 1, 1], contype=1,
+        conaffinity=1,
+    )  # fmt: skip
+    model = spec.compile()
+    model.geom_margin[:] = MARGIN * (1 - 1e-6)
+    mj = (model, mujoco.MjData(model))
+    rng = np.random.default_rng(8)
+    q_gen = rng.uniform(chain.limits[:, 0], chain.limits[:, 1], (400, 6))
+    q_gen = q_gen[~chain._tree.in_collision(q_gen, [floor], margin=MARGIN)][:60]
+    T = chain.fk(q_gen)
+    q0 = rng.uniform(chain.limits[:, 0], chain.limits[:, 1], (len(T), 6))
+    plain = chain.ik(T, q0)
+    hit = chain._tree.in_collision(plain.q, [floor], margin=MARGIN)
+    assert hit.sum() >= 5
+    found = chain.ik(T, q0, avoid=True, obstacles=[floor], margin=MARGIN)
+    every = chain.ik_all(T)
+    for i in np.flatnonzero(hit):
+        clear = [
+            b for b in range(every.q.shape[1])
+            if every.valid[i, b] and _mj_contacts(mj, every.q[i, b])[0] == 0
+        ]  # fmt: skip
+        assert clear and found.success[i], i
+        turns = [poekin.wrap(every.q[i, b], chain, q0[i]) for b in clear]
+        nearest = turns[int(np.argmin([np.linalg.norm(t - q0[i]) for t in turns]))]
+        np.testing.assert_allclose(poekin.wrap(found.q[i], chain, q0[i]), nearest, atol=1e-9)
+        assert np.linalg.norm(_mj_site(mj, found.q[i]) - T[i, :3, 3]) < 1e-10
+
+
+def test_position_targets_are_solved_with_the_rows(
+    chain: poekin.Chain, mj: tuple[mujoco.MjModel, mujoco.MjData]
+) -> None:
+    """Position-only targets have a continuum of answers, no branches to pick from: the
+    colliding ones are solved again with the pairs as constraints, and MuJoCo finds every
+    success clear and at its target."""
+    q_gen = _clear_configurations(chain, 30, seed=9)
+    T = chain.fk(q_gen)
+    plain = chain.ik(T, position_only=True)
+    assert chain._tree.in_collision(plain.q, [TABLE], margin=MARGIN).any()
+    found = chain.ik(T, position_only=True, avoid=True, obstacles=[TABLE], margin=MARGIN)
+    assert found.success.mean() >= 0.9
+    contacts = _mj_contacts(mj, found.q)
+    for k in np.flatnonzero(found.success):
+        assert contacts[k] == 0, k
+        assert np.linalg.norm(_mj_site(mj, found.q[k]) - T[k, :3, 3]) < 1e-9

@@ -267,56 +267,93 @@ def _mujoco_pairs(
     return distance, points
 
 
-def _posed(
-    tree: Any, qpos: ArrayLike, obstacles: Any, ignore: Iterable[Any]
-) -> tuple[FloatArray, IntArray, FloatArray, _Scene, tuple[int, ...]]:
-    """The tree's frames ``(B, F, 4, 4)`` at ``qpos`` and each geom's frame (``-1``: none)
-    and pose on it, for :func:`poekin.collision.gjk.posed_pairs`; the scene; the batch."""
+@dataclasses.dataclass(frozen=True, eq=False)
+class Checked:
+    """A scene ready to measure (:func:`prepare`): its pairs, each geom's frame of the tree's
+    FK (``frame_of``, ``-1``: none) and pose on it (``local``, the tree's base applied), the
+    shapes as :func:`poekin.collision.gjk.posed_pairs` takes them, and which pairs MuJoCo
+    measures (``mesh``: a mesh or a height field)."""
+
+    scene: _Scene
+    frame_of: IntArray
+    local: FloatArray
+    kinds: list[str]
+    sizes: FloatArray
+    vertices: list[Any]
+    mesh: NDArray[np.bool_]
+
+
+def prepare(tree: Any, obstacles: Any = (), ignore: Iterable[Any] = ()) -> Checked:
+    """The pairs of ``tree``'s collision geoms and ``obstacles`` to check, less ``ignore``,
+    ready for :func:`hits` (arguments as :func:`distances`)."""
     collision = model_of(tree)
     scene = _scene(tree, collision, as_obstacles(obstacles), ignore)
-    frames = np.asarray(tree.fk(qpos), dtype=np.float64)  # checks qpos
-    batch = frames.shape[:-3]
     n = tree.n_frames
     on_base = scene.frame == n
     local = scene.local.copy()
     local[on_base] = tree.base @ scene.local[on_base]
     frame_of = np.where(scene.frame >= n, -1, scene.frame)
-    return frames.reshape(-1, n, 4, 4), frame_of, local, scene, batch
-
-
-def _mesh_pairs(scene: _Scene, kinds: list[str]) -> NDArray[np.bool_]:
-    """``(P,)`` whether each pair has a mesh or a height field (MuJoCo measures it)."""
-    return np.array(
+    kinds, sizes, vertices = _shapes(scene, len(frame_of))
+    mesh = np.array(
         [_MUJOCO_KINDS & {kinds[i], kinds[j]} != set() for i, j in scene.pairs.tolist()],
         dtype=bool,
     ).reshape(-1)
+    return Checked(scene, frame_of, local, kinds, sizes, vertices, mesh)
+
+
+def _frames(tree: Any, qpos: ArrayLike) -> tuple[FloatArray, tuple[int, ...]]:
+    """The tree's frames ``(B, F, 4, 4)`` at ``qpos`` (checked), and its batch shape."""
+    frames = np.asarray(tree.fk(qpos), dtype=np.float64)
+    return frames.reshape(-1, tree.n_frames, 4, 4), frames.shape[:-3]
+
+
+def hits(checked: Checked, frames: FloatArray, margin: float) -> NDArray[np.bool_]:
+    """``(B,)`` whether some pair of ``checked`` is closer than ``margin`` at the tree's
+    ``frames (B, F, 4, 4)``: the primitives compiled, each configuration stopping at its first
+    pair that hits, then MuJoCo on the mesh pairs of the configurations they left clear."""
+    c = checked
+    hit = np.zeros(frames.shape[0], dtype=bool)
+    if c.scene.pairs.shape[0] == 0:
+        return hit
+    if not c.mesh.all():
+        hit = np.asarray(
+            posed_pairs(
+                c.kinds, c.sizes, c.vertices, c.scene.pairs[~c.mesh], frames, c.frame_of,
+                c.local, margin, True,
+            )
+        )  # fmt: skip
+    rest = np.flatnonzero(~hit)
+    if c.mesh.any() and rest.size:
+        poses = compose(frames[rest], c.frame_of, c.local)
+        d, _ = _mujoco_pairs(c.scene, poses, c.scene.pairs[c.mesh], margin, hit=True)
+        hit[rest] = (d < margin).any(axis=-1)
+    return hit
 
 
 def _measure(
     tree: Any, qpos: ArrayLike, obstacles: Any, margin: float, ignore: Iterable[Any]
 ) -> tuple[FloatArray, FloatArray, _Scene]:
-    frames, frame_of, local, scene, batch = _posed(tree, qpos, obstacles, ignore)
-    B, n_pairs = frames.shape[0], scene.pairs.shape[0]
+    c = prepare(tree, obstacles, ignore)
+    frames, batch = _frames(tree, qpos)
+    B, n_pairs = frames.shape[0], c.scene.pairs.shape[0]
     distance = np.full((B, n_pairs), np.inf)
     points = np.full((B, n_pairs, 2, 3), np.nan)
-    if n_pairs:
-        kinds, sizes, vertices = _shapes(scene, len(frame_of))
-        mesh = _mesh_pairs(scene, kinds)
-        if not mesh.all():  # poekin's distances, compiled
-            found = posed_pairs(
-                kinds, sizes, vertices, scene.pairs[~mesh], frames, frame_of, local, margin
-            )
-            assert isinstance(found, Distance)
-            distance[:, ~mesh], points[:, ~mesh] = found.distance, found.points
-        if mesh.any():  # a mesh (MuJoCo's hull walk beats a support over V vertices), a hfield
-            poses = compose(frames, frame_of, local)
-            distance[:, mesh], points[:, mesh] = _mujoco_pairs(
-                scene, poses, scene.pairs[mesh], margin
-            )
+    if n_pairs and not c.mesh.all():  # poekin's distances, compiled
+        found = posed_pairs(
+            c.kinds, c.sizes, c.vertices, c.scene.pairs[~c.mesh], frames, c.frame_of, c.local,
+            margin,
+        )  # fmt: skip
+        assert isinstance(found, Distance)
+        distance[:, ~c.mesh], points[:, ~c.mesh] = found.distance, found.points
+    if n_pairs and c.mesh.any():  # a mesh (MuJoCo's hull walk beats a support over V vertices)
+        poses = compose(frames, c.frame_of, c.local)
+        distance[:, c.mesh], points[:, c.mesh] = _mujoco_pairs(
+            c.scene, poses, c.scene.pairs[c.mesh], margin
+        )
     return (
         distance.reshape(*batch, n_pairs),
         points.reshape(*batch, n_pairs, 2, 3),
-        scene,
+        c.scene,
     )
 
 
@@ -377,20 +414,6 @@ def in_collision(
     ``margin`` (m; 0: whether any penetrates; touching is not a collision). Arguments as
     :func:`distances`."""
     value = _margin(margin, "in_collision")
-    frames, frame_of, local, scene, batch = _posed(tree, qpos, obstacles, ignore)
-    hit = np.zeros(frames.shape[0], dtype=bool)
-    if scene.pairs.shape[0]:
-        kinds, sizes, vertices = _shapes(scene, len(frame_of))
-        mesh = _mesh_pairs(scene, kinds)
-        if not mesh.all():  # compiled: each configuration stops at its first pair that hits
-            hit = np.asarray(
-                posed_pairs(
-                    kinds, sizes, vertices, scene.pairs[~mesh], frames, frame_of, local, value, True
-                )
-            )
-        rest = np.flatnonzero(~hit)
-        if mesh.any() and rest.size:  # only the configurations the primitives left clear
-            poses = compose(frames[rest], frame_of, local)
-            d, _ = _mujoco_pairs(scene, poses, scene.pairs[mesh], value, hit=True)
-            hit[rest] = (d < value).any(axis=-1)
-    return hit.reshape(batch)
+    checked = prepare(tree, obstacles, ignore)
+    frames, batch = _frames(tree, qpos)
+    return hits(checked, frames, value).reshape(batch)

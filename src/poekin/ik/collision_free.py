@@ -26,15 +26,19 @@ collides is never a success.
 
 The targets are first solved without the pairs (the compiled kernel); an answer that reaches
 its target and keeps every pair ``margin`` apart is one of the constrained problem's
-(no row is active at it), and stands. Only targets whose answer collides are solved again
-with the rows; a target the plain solve cannot reach is not (the rows only shrink the set of
-answers), and fails as it did. Without success ``q`` is the best iterate that kept the
+(no row is active at it), and stands. For a target whose answer collides, a chain with a
+closed form (:meth:`poekin.Chain.ik_all`: six joints) and a whole pose has only its branches
+for answers: the valid one that keeps the margin, nearest ``q0`` (else the plain answer),
+stands, found in one batched call and one collision check. Only the targets left are solved
+again with the rows; a target the plain solve cannot reach is not (the rows only shrink the
+set of answers), and fails as it did. Without success ``q`` is the best iterate that kept the
 margin, or the plain solve's answer if none did.
 """
 
 from __future__ import annotations
 
 import dataclasses
+import functools
 from collections.abc import Iterable
 from typing import TYPE_CHECKING, Any
 
@@ -44,6 +48,7 @@ from numpy.typing import NDArray
 from poekin import lie
 from poekin._poe import chain_terms
 from poekin.collision.avoid import ACTIVATION, damper_rows, pair_rows
+from poekin.collision.query import Checked, hits, prepare
 from poekin.errors import ModelError
 from poekin.ik import _rng
 from poekin.ik.numerical import (
@@ -110,10 +115,15 @@ class Scene:
         )
         return found.distance, found.jacobian[..., list(self.dofs)]
 
+    @functools.cached_property
+    def checked(self) -> Checked:
+        """The pairs, ready to check (built once)."""
+        return prepare(self.tree, self.obstacles, self.ignore)
+
     def clear(self, q: FloatArray, base: FloatArray) -> BoolArray:
         """``(N,)`` whether every pair is at least ``margin`` apart (to :data:`FEASIBLE_TOL`)."""
-        d, _ = self.rows(q, base)
-        return np.asarray(np.all(d >= self.margin * (1 - FEASIBLE_TOL), axis=-1))
+        frames = np.asarray(self.tree.fk(self.qpos(q, base)), dtype=np.float64)
+        return np.asarray(~hits(self.checked, frames, self.margin * (1 - FEASIBLE_TOL)))
 
 
 def chain_scene(
@@ -315,6 +325,67 @@ def _solve_one(
     return best, False, total, s.max_attempts
 
 
+def _clear_branch(
+    chain: Chain,
+    T: FloatArray,
+    near: FloatArray,
+    colliding: FloatArray,
+    base: FloatArray,
+    s: Settings,
+    scene: Scene,
+) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """``(N, n)`` for each target ``T (N, 4, 4)``, the closed form's branch (:meth:`Chain.ik_all`)
+    nearest ``near (N, n)`` that is valid and keeps the margin, if it meets the tolerances; NaN
+    where it does not, where none does, or where the chain has no closed form. Then ``(N,)``
+    its position and orientation errors. The branch of ``colliding (N, n)`` (the plain answer,
+    within 1e-6 rad) is known to collide and not checked again. For six joints and a whole
+    pose the branches are
+    every answer there is, so a clear one is the constrained problem's answer, and the nearest
+    is the one a solve from ``near`` would look for."""
+    from poekin.errors import AnalyticIKError
+
+    out = np.full(near.shape, np.nan)
+    pos, ori = np.full(len(near), np.nan), np.full(len(near), np.nan)
+    try:
+        branches = chain.ik_all(T, near=near)
+    except AnalyticIKError:
+        return out, pos, ori
+    limits = chain_terms(chain).limits
+    k = branches.q.shape[-2]
+    q = branches.q.reshape(-1, chain.n_joints)
+    turns = np.remainder(q - np.repeat(colliding, k, axis=0) + np.pi, 2 * np.pi) - np.pi
+    ok = (
+        branches.valid.reshape(-1)
+        & np.all((q >= limits[:, 0]) & (q <= limits[:, 1]), axis=-1)
+        & np.any(np.abs(turns) > 1e-6, axis=-1)
+    )
+    rows = np.flatnonzero(ok)
+    ok[rows] = scene.clear(q[rows], np.repeat(base, k, axis=0)[rows])
+    ok = ok.reshape(-1, k)
+    has = np.flatnonzero(ok.any(axis=-1))
+    chosen = branches.q[has, np.argmax(ok[has], axis=-1)]  # the branches come nearest first
+    pos_err, ori_err = _pose_errors(chain, chosen, T[has])
+    met = (pos_err <= s.pos_tol) & (ori_err <= s.ori_tol)
+    out[has[met]], pos[has[met]], ori[has[met]] = chosen[met], pos_err[met], ori_err[met]
+    return out, pos, ori
+
+
+def _pose_errors(chain: Chain, q: FloatArray, T: FloatArray) -> tuple[FloatArray, FloatArray]:
+    """``(N,)`` position (m) and orientation (rad) errors of ``q (N, n)`` for ``T (N, 4, 4)``,
+    as the numerical solve measures them (on the chain's compiled FK)."""
+    F = np.asarray(chain.fk(q), dtype=np.float64)
+    pose = (
+        tuple(tuple(F[:, a, b] for b in range(3)) for a in range(3)),
+        (F[:, 0, 3], F[:, 1, 3], F[:, 2, 3]),
+    )
+    goal = (
+        tuple(tuple(T[:, a, b] for b in range(3)) for a in range(3)),
+        (T[:, 0, 3], T[:, 1, 3], T[:, 2, 3]),
+    )
+    pos_err, ori_err = errors(pose, goal, np)  # type: ignore[arg-type]
+    return np.asarray(pos_err, dtype=np.float64), np.asarray(ori_err, dtype=np.float64)
+
+
 def solve(
     chain: Chain,
     T: FloatArray,
@@ -345,28 +416,37 @@ def solve(
     iterations = np.array(plain.iterations).reshape(-1)
     attempts = np.array(plain.attempts).reshape(-1)
     clear = scene.clear(q, flat_base) if len(q) else np.zeros(0, dtype=bool)
-    keys = _rng.target_keys(seed, flat_T, flat_q0)
-    for i in np.flatnonzero(success & ~clear):
-        start = None if flat_q0 is None else flat_q0[i]
-        found, conv, its, tries = _solve_one(
-            chain, flat_T[i], start, keys[i], flat_base[i], options, scene
+    redo = np.flatnonzero(success & ~clear)
+    pos_err = np.array(plain.pos_err, dtype=np.float64).reshape(-1)
+    ori_err = np.array(plain.ori_err, dtype=np.float64).reshape(-1)
+    if len(redo) and not options.position_only:
+        near = q if flat_q0 is None else flat_q0
+        settled, pos, ori = _clear_branch(
+            chain, flat_T[redo], near[redo], q[redo], flat_base[redo], options, scene
         )
-        if found is not None:
-            q[i] = found
+        found = ~np.isnan(settled[:, 0])
+        q[redo[found]] = settled[found]
+        pos_err[redo[found]], ori_err[redo[found]] = pos[found], ori[found]
+        redo = redo[~found]
+    if len(redo):
+        keys = _rng.target_keys(seed, flat_T[redo], None if flat_q0 is None else flat_q0[redo])
+    for k, i in enumerate(redo):
+        start = None if flat_q0 is None else flat_q0[i]
+        found_q, conv, its, tries = _solve_one(
+            chain, flat_T[i], start, keys[k], flat_base[i], options, scene
+        )
+        if found_q is not None:
+            q[i] = found_q
         success[i] = conv
         iterations[i] += its
         attempts[i] += tries
-    target = (
-        tuple(tuple(flat_T[:, a, b] for b in range(3)) for a in range(3)),
-        (flat_T[:, 0, 3], flat_T[:, 1, 3], flat_T[:, 2, 3]),
-    )
-    pose, _ = evaluate(chain, list(q.T), np)
-    pos_err, ori_err = errors(pose, target, np)  # type: ignore[arg-type]
+    if len(redo):  # the answers the constrained solve changed, measured again
+        pos_err[redo], ori_err[redo] = _pose_errors(chain, q[redo], flat_T[redo])
     return IKResult(
         q.reshape(*batch, n),
         success.reshape(batch),
-        np.asarray(pos_err, dtype=np.float64).reshape(batch),
-        np.asarray(ori_err, dtype=np.float64).reshape(batch),
+        pos_err.reshape(batch),
+        ori_err.reshape(batch),
         iterations.reshape(batch),
         attempts.reshape(batch),
     )

@@ -990,22 +990,70 @@ static void dg_compose(const double *F, const double *L, double *out) {
                              F[4 * i + 2] * L[8 + j] + F[4 * i + 3] * L[12 + j];
 }
 
+/* whether dg_distance measures the pair of kinds (ka, kb) in closed form */
+static int dg_closed_pair(int ka, int kb) {
+    if (ka == DG_PLANE || kb == DG_PLANE) return 1;
+    if (ka == DG_CAPSULE && kb == DG_CAPSULE) return 1;
+    for (int k = 0; k < 2; ++k) {
+        int s = k ? kb : ka, o = k ? ka : kb;
+        if (s == DG_SPHERE && (o == DG_SPHERE || o == DG_CAPSULE || o == DG_BOX || o == DG_CYLINDER))
+            return 1;
+    }
+    return 0;
+}
+
+/* a bound below the distance between the box X and the shape Y: the box lies in the half-space
+ * behind each of its faces, and Y's distance to a half-space is its support's (the largest of
+ * the six; exact where a face is nearest, as for a tool above a table) */
+static double dg_box_faces(const DgShape *X, const DgShape *Y) {
+    double best = -INFINITY, c[3], n[3], m[3], s[3];
+    dg_origin(X->T, c);
+    for (int i = 0; i < 3; ++i)
+        for (int k = 0; k < 2; ++k) {
+            dg_column(X->T, i, n);
+            if (k) n[0] = -n[0], n[1] = -n[1], n[2] = -n[2];
+            m[0] = -n[0], m[1] = -n[1], m[2] = -n[2];
+            dg_support(Y, m, s);
+            double gap = dg_dot(n, s) - Y->radius - (dg_dot(n, c) + X->size[i]);
+            best = gap > best ? gap : best;
+        }
+    return best;
+}
+
 /* whether the pair (A, B) lies farther apart than cutoff by DG_BROAD_SLACK, by bounds below its
- * distance: the bounding spheres, and, for a cylinder with a capsule or a cylinder, the capsule
- * of its radius and half-length, which holds it */
-static int dg_beyond(const DgShape *A, const DgShape *B, double ra, double rb, double cutoff) {
+ * distance: the bounding spheres (radii ra, rb); then, for a pair GJK would measure, a box's
+ * faces (dg_box_faces), each shape of a closed form with a sphere against the other's bounding
+ * sphere, and a cylinder with a capsule or a cylinder as the capsule of its radius and
+ * half-length, which holds it */
+static int dg_beyond(const DgShape *A, const DgShape *B, double ra, double rb, double cutoff,
+                     const DgOptions *opt, DgWork *W) {
+    double limit = cutoff + DG_BROAD_SLACK;
     double dx = A->T[3] - B->T[3], dy = A->T[7] - B->T[7], dz = A->T[11] - B->T[11];
     double gap = sqrt(dx * dx + dy * dy + dz * dz);
-    if (gap - ra - rb > cutoff + DG_BROAD_SLACK) return 1;
+    if (gap - ra - rb > limit) return 1;
     int ka = A->kind, kb = B->kind;
+    if (dg_closed_pair(ka, kb)) return 0;
+    if ((ka == DG_BOX && dg_box_faces(A, B) > limit) || (kb == DG_BOX && dg_box_faces(B, A) > limit))
+        return 1;
+    double d, pts[6];
+    for (int k = 0; k < 2; ++k) {
+        const DgShape *X = k ? B : A, *Y = k ? A : B;
+        double r = k ? ra : rb;
+        int kx = X->kind;
+        if (!(kx == DG_CAPSULE || kx == DG_BOX || kx == DG_CYLINDER) || !(r < INFINITY)) continue;
+        double size[3] = {r, 0.0, 0.0};
+        DgShape S;
+        dg_shape(&S, DG_SPHERE, Y->T, size, NULL, 0);
+        if (dg_distance(&S, X, opt, W, &d, pts) < 0) return 0; /* out of memory: measure it */
+        if (d > limit) return 1;
+    }
     if ((ka == DG_CYLINDER || kb == DG_CYLINDER) && (ka == DG_CAPSULE || ka == DG_CYLINDER) &&
         (kb == DG_CAPSULE || kb == DG_CYLINDER)) {
         DgShape a = *A, b = *B;
         a.kind = b.kind = DG_CAPSULE;
         a.radius = A->size[0], b.radius = B->size[0];
-        double d, pts[6];
         dg_capsule_capsule(&a, &b, &d, pts);
-        return d > cutoff + DG_BROAD_SLACK;
+        return d > limit;
     }
     return 0;
 }
@@ -1043,7 +1091,7 @@ static void dg_pairs_task(void *arg) {
                      mesh2 ? t->mesh_vert + 3 * (npy_intp)t->mesh_adr[g2] : NULL,
                      mesh2 ? t->mesh_num[g2] : 0);
             int measured = !(t->cutoff < INFINITY &&
-                             dg_beyond(&A, &B, t->radii[g1], t->radii[g2], t->cutoff));
+                             dg_beyond(&A, &B, t->radii[g1], t->radii[g2], t->cutoff, &t->opt, &W));
             if (measured && dg_distance(&A, &B, &t->opt, &W, &dist, pts) < 0) {
                 t->failed = 1;
                 break;
