@@ -177,7 +177,7 @@ def _reach_tol(tol: float, T: np.ndarray) -> float:
     return tol * max(1.0, float(np.abs(T).max()))
 
 
-@settings(max_examples=30, deadline=None)
+@settings(max_examples=15, deadline=None)
 @given(
     seed=st.integers(0, 2**32 - 1),
     copies=st.integers(2, 3),

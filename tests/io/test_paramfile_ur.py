@@ -121,7 +121,8 @@ def _rotation_angle(A: np.ndarray, B: np.ndarray) -> float:
 def test_calibration_file_is_ur_descriptions_chain() -> None:
     chain = load_params(CALIBRATION)
     assert isinstance(chain, poekin.Chain)
-    T_ref = np.array([reference_fk(_calibration(), q) for q in Q])
+    kin = _calibration()
+    T_ref = np.array([reference_fk(kin, q) for q in Q])
     assert_close("fk", chain.fk(Q), T_ref, PRODUCT_TOL)
     assert_close("fk_body", chain.fk_body(Q), T_ref, PRODUCT_TOL)
     assert chain.joint_names == UR5E_JOINT_NAMES and chain.frame == "tool0"
@@ -364,10 +365,11 @@ def test_controller_order_reads_the_angles_as_ur_calibration_wrote_them() -> Non
     description = load_params(CALIBRATION)
     controller = load_params(CALIBRATION, ur_yaml_order="controller")
     assert isinstance(controller, poekin.Chain)
-    T_eigen = np.array([reference_fk(_calibration(), x, order="eigen") for x in q])
+    kin = _calibration()
+    T_eigen = np.array([reference_fk(kin, x, order="eigen") for x in q])
     assert_close("controller", controller.fk(q), T_eigen, PRODUCT_TOL)
-    assert_close("description", description.fk(q), np.array([reference_fk(_calibration(), x)
-                                                             for x in q]), PRODUCT_TOL)  # fmt: skip
+    T_urdf = np.array([reference_fk(kin, x) for x in q])
+    assert_close("description", description.fk(q), T_urdf, PRODUCT_TOL)
     pos, ori = poekin.pose_errors(description.fk(q), controller.fk(q))
     assert 1e-7 < np.max(pos) < 1e-5 and 1e-6 < np.max(ori) < 1e-5  # micrometres apart
 
