@@ -1060,7 +1060,7 @@ class Chain:
         from poekin.collision.avoid import check_margin
         from poekin.collision.obstacles import as_obstacles
         from poekin.ik import collision_free
-        from poekin.ik.numerical import _inputs, check_seed
+        from poekin.ik.numerical import check_seed
 
         avoid, obstacles, margin, ignore = collision
         if avoid is not True:
@@ -1082,9 +1082,8 @@ class Chain:
             self, as_obstacles(obstacles), check_margin(margin, "ik"), ignore
         )
         seed = check_seed(seed)
-        arr, start = _inputs(self, T, q0)
         return collision_free.solve(
-            self, arr, start, scene.tree.qpos0, seed=seed, options=options, scene=scene
+            self, T, q0, scene.tree.qpos0, seed=seed, options=options, scene=scene
         )
 
     def _ik_step_avoid(

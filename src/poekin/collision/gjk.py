@@ -35,6 +35,7 @@ array-generic closed forms of :mod:`~poekin.collision.primitives`.
 
 from __future__ import annotations
 
+import dataclasses
 import itertools
 from collections.abc import Callable, Sequence
 from typing import Any
@@ -734,17 +735,47 @@ def pair_distances(
     if np.isnan(limit):
         raise InputError("pair_distances: cutoff must be a number (m) or inf, got nan")
     shape = T.shape[:-3]
-    found = posed_pairs(kinds, S, verts, P, T.reshape(-1, g, 4, 4), None, None, limit)
+    found = posed_pairs(shapes(kinds, S, verts), P, T.reshape(-1, g, 4, 4), None, None, limit)
     assert isinstance(found, Distance)
     return Distance(
         found.distance.reshape(*shape, len(P)), found.points.reshape(*shape, len(P), 2, 3)
     )
 
 
+@dataclasses.dataclass(frozen=True, eq=False)
+class Shapes:
+    """``G`` shapes as :func:`posed_pairs` and the kernel read them (:func:`shapes`): their
+    kinds, ``sizes (G, 3)``, a mesh's vertices (else None), and the kernel's arrays of them
+    (MuJoCo's type numbers, the meshes' vertices packed, the bounding radii)."""
+
+    kinds: tuple[str, ...]
+    sizes: Array
+    vertices: tuple[Any | None, ...]
+    types: Array
+    mesh_adr: Array
+    mesh_num: Array
+    mesh_vert: Array
+    radii: Array
+
+
+def shapes(kinds: Sequence[str], sizes: Array, vertices: Sequence[Any | None]) -> Shapes:
+    """:class:`Shapes` of checked kinds, ``sizes (G, 3)`` and vertices."""
+    meshes = [np.asarray(v, dtype=np.float64).reshape(-1, 3) for v in vertices if v is not None]
+    num = np.array([0 if v is None else len(v) for v in vertices], dtype=np.int32)
+    return Shapes(
+        kinds=tuple(kinds),
+        sizes=np.ascontiguousarray(sizes, dtype=np.float64),
+        vertices=tuple(vertices),
+        types=np.array([GEOM_TYPES[k] for k in kinds], dtype=np.int32),
+        mesh_adr=np.concatenate([[0], np.cumsum(num)[:-1]]).astype(np.int32),
+        mesh_num=num,
+        mesh_vert=np.ascontiguousarray(np.concatenate(meshes) if meshes else np.zeros((0, 3))),
+        radii=bounding_radii(kinds, sizes, vertices),
+    )
+
+
 def posed_pairs(
-    kinds: Sequence[str],
-    sizes: Array,
-    vertices: Sequence[Any | None],
+    shaped: Shapes,
     pairs: Any,
     frames: Array,
     frame_of: Any,
@@ -755,30 +786,28 @@ def posed_pairs(
     """:func:`pair_distances` on checked arguments, with the geoms posed on frames: geom
     ``g`` at ``frames[:, frame_of[g]] @ local[g]`` (:func:`compose`; ``local[g]`` alone where
     ``frame_of[g] < 0``), or at ``frames[:, g]`` where ``local`` is None. ``frames (B, F, 4,
-    4)``, ``sizes (G, 3)``. With ``hit``, only ``(B,)`` whether some pair is nearer than
+    4)``, ``pairs (P, 2)``. With ``hit``, only ``(B,)`` whether some pair is nearer than
     ``cutoff`` (the kernel stops at the first)."""
-    G = len(kinds)
+    G = len(shaped.kinds)
     index = np.arange(G) if local is None else np.asarray(frame_of)
     if _kernel is not None:
-        meshes = [np.asarray(v, dtype=np.float64).reshape(-1, 3) for v in vertices if v is not None]
-        num = np.array([0 if v is None else len(v) for v in vertices], dtype=np.int32)
-        adr = np.concatenate([[0], np.cumsum(num)[:-1]]).astype(np.int32)
         found = _kernel.pair_distances(
-            np.array([GEOM_TYPES[k] for k in kinds], dtype=np.int32),
-            np.ascontiguousarray(sizes, dtype=np.float64),
-            adr,
-            num,
-            np.ascontiguousarray(np.concatenate(meshes) if meshes else np.zeros((0, 3))),
+            shaped.types,
+            shaped.sizes,
+            shaped.mesh_adr,
+            shaped.mesh_num,
+            shaped.mesh_vert,
             np.ascontiguousarray(pairs, dtype=np.int32),
             np.ascontiguousarray(frames, dtype=np.float64),
             np.ascontiguousarray(index, dtype=np.int32),
             None if local is None else np.ascontiguousarray(local, dtype=np.float64),
             (*_DEFAULTS, 1, 1),
-            bounding_radii(kinds, sizes, vertices),
+            shaped.radii,
             float(cutoff),
             hit,
         )
         return found if hit else Distance(*found)
+    kinds, sizes, vertices = shaped.kinds, shaped.sizes, shaped.vertices
     poses = frames if local is None else compose(frames, index, local)
     B = poses.shape[0]
     dist = np.full((B, len(pairs)), np.inf)

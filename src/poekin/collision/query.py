@@ -27,7 +27,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from poekin import lie
-from poekin.collision.gjk import compose, posed_pairs
+from poekin.collision.gjk import Shapes, compose, posed_pairs, shapes
 from poekin.collision.model import GEOM_TYPES, CollisionModel, model_of
 from poekin.collision.obstacles import Mesh, Obstacle, as_obstacles, kind_of, mjcf_size
 from poekin.collision.primitives import Distance
@@ -275,12 +275,11 @@ class Checked:
     measures (``mesh``: a mesh or a height field)."""
 
     scene: _Scene
-    frame_of: IntArray
+    frame_of: NDArray[np.int32]
     local: FloatArray
-    kinds: list[str]
-    sizes: FloatArray
-    vertices: list[Any]
+    shapes: Shapes
     mesh: NDArray[np.bool_]
+    primitive_pairs: NDArray[np.int32]  # the pairs poekin measures, as the kernel reads them
 
 
 def prepare(tree: Any, obstacles: Any = (), ignore: Iterable[Any] = ()) -> Checked:
@@ -292,13 +291,17 @@ def prepare(tree: Any, obstacles: Any = (), ignore: Iterable[Any] = ()) -> Check
     on_base = scene.frame == n
     local = scene.local.copy()
     local[on_base] = tree.base @ scene.local[on_base]
-    frame_of = np.where(scene.frame >= n, -1, scene.frame)
+    frame_of = np.where(scene.frame >= n, -1, scene.frame).astype(np.int32)
     kinds, sizes, vertices = _shapes(scene, len(frame_of))
     mesh = np.array(
         [_MUJOCO_KINDS & {kinds[i], kinds[j]} != set() for i, j in scene.pairs.tolist()],
         dtype=bool,
     ).reshape(-1)
-    return Checked(scene, frame_of, local, kinds, sizes, vertices, mesh)
+    primitive = np.ascontiguousarray(scene.pairs[~mesh], dtype=np.int32).reshape(-1, 2)
+    shaped = shapes(
+        kinds, np.pad(sizes[:, :3], ((0, 0), (0, max(0, 3 - sizes.shape[1])))), vertices
+    )
+    return Checked(scene, frame_of, np.ascontiguousarray(local), shaped, mesh, primitive)
 
 
 def _frames(tree: Any, qpos: ArrayLike) -> tuple[FloatArray, tuple[int, ...]]:
@@ -317,11 +320,8 @@ def hits(checked: Checked, frames: FloatArray, margin: float) -> NDArray[np.bool
         return hit
     if not c.mesh.all():
         hit = np.asarray(
-            posed_pairs(
-                c.kinds, c.sizes, c.vertices, c.scene.pairs[~c.mesh], frames, c.frame_of,
-                c.local, margin, True,
-            )
-        )  # fmt: skip
+            posed_pairs(c.shapes, c.primitive_pairs, frames, c.frame_of, c.local, margin, True)
+        )
     rest = np.flatnonzero(~hit)
     if c.mesh.any() and rest.size:
         poses = compose(frames[rest], c.frame_of, c.local)
@@ -339,10 +339,7 @@ def _measure(
     distance = np.full((B, n_pairs), np.inf)
     points = np.full((B, n_pairs, 2, 3), np.nan)
     if n_pairs and not c.mesh.all():  # poekin's distances, compiled
-        found = posed_pairs(
-            c.kinds, c.sizes, c.vertices, c.scene.pairs[~c.mesh], frames, c.frame_of, c.local,
-            margin,
-        )  # fmt: skip
+        found = posed_pairs(c.shapes, c.primitive_pairs, frames, c.frame_of, c.local, margin)
         assert isinstance(found, Distance)
         distance[:, ~c.mesh], points[:, ~c.mesh] = found.distance, found.points
     if n_pairs and c.mesh.any():  # a mesh (MuJoCo's hull walk beats a support over V vertices)

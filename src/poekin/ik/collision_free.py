@@ -359,9 +359,18 @@ def _clear_branch(
         & np.all((q >= limits[:, 0]) & (q <= limits[:, 1]), axis=-1)
         & np.any(np.abs(turns) > 1e-6, axis=-1)
     )
-    rows = np.flatnonzero(ok)
-    ok[rows] = scene.clear(q[rows], np.repeat(base, k, axis=0)[rows])
     ok = ok.reshape(-1, k)
+    # the nearest candidate of each target first, then the rest of those it leaves colliding
+    # (most targets stop at the first: fewer configurations to check than all at once)
+    first = np.argmax(ok, axis=-1)
+    rows = np.flatnonzero(ok.any(axis=-1))
+    clear = scene.clear(branches.q[rows, first[rows]], base[rows])
+    ok[rows[clear]] = np.arange(k) == first[rows[clear], None]
+    ok[rows[~clear], first[rows[~clear]]] = False
+    left = np.argwhere(ok[rows[~clear]])
+    if len(left):
+        which = rows[~clear][left[:, 0]]
+        ok[which, left[:, 1]] = scene.clear(branches.q[which, left[:, 1]], base[which])
     has = np.flatnonzero(ok.any(axis=-1))
     chosen = branches.q[has, np.argmax(ok[has], axis=-1)]  # the branches come nearest first
     pos_err, ori_err = _pose_errors(chain, chosen, T[has])
@@ -388,17 +397,17 @@ def _pose_errors(chain: Chain, q: FloatArray, T: FloatArray) -> tuple[FloatArray
 
 def solve(
     chain: Chain,
-    T: FloatArray,
-    q0: FloatArray | None,
+    T: Any,
+    q0: Any,
     base: FloatArray,
     *,
     seed: int,
     options: Settings,
     scene: Scene,
 ) -> IKResult:
-    """Collision-free IK of ``(..., 4, 4)`` targets (validated, broadcast with ``q0 (..., n)``
-    and ``base (..., nq)``, the configuration the solved joints are set in), as the module's
-    docstring says.
+    """Collision-free IK of ``(..., 4, 4)`` targets, broadcast with ``q0 (..., n)`` (or None)
+    and ``base (..., nq)``, the configuration the solved joints are set in, as the module's
+    docstring says. The plain solve validates ``T`` and ``q0`` (its errors and warnings).
 
     Returns:
         An :class:`~poekin.ik.IKResult` over the chain's joints.
@@ -406,6 +415,8 @@ def solve(
     from poekin.ik.numerical import solve as plain_solve
 
     plain = plain_solve(chain, T, q0, seed=seed, options=options)
+    T = np.asarray(T, dtype=np.float64)
+    q0 = None if q0 is None else np.asarray(q0, dtype=np.float64)
     batch = plain.success.shape
     n = chain.n_joints
     q = np.array(plain.q, dtype=np.float64).reshape(-1, n)

@@ -1008,6 +1008,21 @@ static int dg_closed_pair(int ka, int kb) {
 static double dg_box_faces(const DgShape *X, const DgShape *Y) {
     double best = -INFINITY, c[3], n[3], m[3], s[3];
     dg_origin(X->T, c);
+    if (Y->kind == DG_SPHERE || Y->kind == DG_CAPSULE) { /* a segment: its ends in X's frame */
+        double p[3], u[3], d[3], lc[3], lu[3];
+        double h = Y->kind == DG_CAPSULE ? Y->size[1] : 0.0;
+        dg_origin(Y->T, p);
+        dg_column(Y->T, 2, u);
+        dg_sub(p, c, d);
+        dg_to_local(X->T, d, lc);
+        dg_to_local(X->T, u, lu);
+        for (int i = 0; i < 3; ++i) {
+            double reach = h * fabs(lu[i]);
+            double gap = dg_max(lc[i] - reach, -lc[i] - reach) - X->size[i] - Y->radius;
+            best = gap > best ? gap : best;
+        }
+        return best;
+    }
     for (int i = 0; i < 3; ++i)
         for (int k = 0; k < 2; ++k) {
             dg_column(X->T, i, n);
