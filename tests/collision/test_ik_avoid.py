@@ -231,19 +231,40 @@ def test_a_colliding_answer_becomes_the_nearest_clear_branch(chain: poekin.Chain
         assert np.linalg.norm(_mj_site(mj, found.q[i]) - T[i, :3, 3]) < 1e-10
 
 
-def test_position_targets_are_solved_with_the_rows(
-    chain: poekin.Chain, mj: tuple[mujoco.MjModel, mujoco.MjData]
+@pytest.mark.parametrize("from_q0", [True, False], ids=["from q0: the rows", "restarts"])
+def test_position_targets_are_solved_clear(
+    chain: poekin.Chain, mj: tuple[mujoco.MjModel, mujoco.MjData], from_q0: bool
 ) -> None:
-    """Position-only targets have a continuum of answers, no branches to pick from: the
-    colliding ones are solved again with the pairs as constraints, and MuJoCo finds every
-    success clear and at its target."""
+    """Position-only targets have a continuum of answers, no branches to pick from. From
+    ``q0`` the colliding ones are solved again with the pairs as constraints; without it the
+    plain solve's other seeds come first. MuJoCo finds every success clear and at its target,
+    and an answer the plain solve found clear stands."""
     q_gen = _clear_configurations(chain, 30, seed=9)
     T = chain.fk(q_gen)
-    plain = chain.ik(T, position_only=True)
-    assert chain._tree.in_collision(plain.q, [TABLE], margin=MARGIN).any()
-    found = chain.ik(T, position_only=True, avoid=True, obstacles=[TABLE], margin=MARGIN)
+    q0 = np.random.default_rng(9).uniform(-2.0, 2.0, (30, 6)) if from_q0 else None
+    plain = chain.ik(T, q0, position_only=True)
+    hit = chain._tree.in_collision(plain.q, [TABLE], margin=MARGIN)
+    assert hit.any()
+    found = chain.ik(T, q0, position_only=True, avoid=True, obstacles=[TABLE], margin=MARGIN)
     assert found.success.mean() >= 0.9
+    np.testing.assert_array_equal(found.q[~hit], plain.q[~hit])
     contacts = _mj_contacts(mj, found.q)
     for k in np.flatnonzero(found.success):
         assert contacts[k] == 0, k
         assert np.linalg.norm(_mj_site(mj, found.q[k]) - T[k, :3, 3]) < 1e-9
+
+
+def test_a_chain_with_no_closed_form(mj: tuple[mujoco.MjModel, mujoco.MjData]) -> None:
+    """Five joints (the UR5e to its wrist 2 link): no branches to pick from (ik_all refuses),
+    the restarts and the rows serve, and MuJoCo finds every success clear."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", poekin.AssetsStrippedWarning)
+        tree = poekin.load_tree("universal_robots_ur5e")
+    q_gen = _clear_configurations(tree.chain("attachment_site"), 40, seed=10)
+    T = tree.pose(q_gen, "wrist_2_link")
+    plain = tree.ik(T, "wrist_2_link")
+    assert tree.in_collision(plain.q, [TABLE], margin=MARGIN).any()
+    found = tree.ik(T, "wrist_2_link", avoid=True, obstacles=[TABLE], margin=MARGIN)
+    assert found.success.mean() >= 0.9
+    contacts = _mj_contacts(mj, found.q)
+    assert all(contacts[k] == 0 for k in np.flatnonzero(found.success))

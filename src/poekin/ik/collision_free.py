@@ -19,17 +19,19 @@ a primal active set (Nocedal and Wright's algorithm 16.3) from ``dq = 0``, which
 and the rows with slack allow.
 
 An attempt converges when the pose is within ``pos_tol`` and ``ori_tol`` **and** every pair,
-measured by MuJoCo at the iterate, is at least ``margin`` apart; it stalls, restarts and
-counts as :mod:`poekin.ik.numerical`'s do, from the same starts (``q0``, then the seeded
-random ones). ``success`` is True only where such an iterate was found: an answer that
-collides is never a success.
+measured at the iterate (:func:`poekin.collision.query.hits`), is at least ``margin`` apart;
+it stalls, restarts and counts as :mod:`poekin.ik.numerical`'s do, from the same starts
+(``q0``, then the seeded random ones). ``success`` is True only where such an iterate was
+found: an answer that collides is never a success.
 
 The targets are first solved without the pairs (the compiled kernel); an answer that reaches
 its target and keeps every pair ``margin`` apart is one of the constrained problem's
 (no row is active at it), and stands. For a target whose answer collides, a chain with a
 closed form (:meth:`poekin.Chain.ik_all`: six joints) and a whole pose has only its branches
 for answers: the valid one that keeps the margin, nearest ``q0`` (else the plain answer),
-stands, found in one batched call and one collision check. Only the targets left are solved
+stands, found in one batched call and one collision check. Without ``q0`` (the starts are
+random anyway) the targets left are solved plainly again from :data:`RESTARTS` other seeds'
+starts, in batches, and the first clear answer stands. Only the targets left then are solved
 again with the rows; a target the plain solve cannot reach is not (the rows only shrink the
 set of answers), and fails as it did. Without success ``q`` is the best iterate that kept the
 margin, or the plain solve's answer if none did.
@@ -80,6 +82,7 @@ BoolArray = NDArray[np.bool_]
 
 ELASTIC = 1e8  # the weight of a slack (of a pair closer than margin) against the task's cost
 BACKTRACKS = 8  # halvings of a step that would leave a clear iterate colliding
+RESTARTS = 16  # without q0: plain solves from other seeds' starts, before the rows
 FEASIBLE_TOL = 1e-9  # relative: a pair at margin (1 - this) or more keeps the margin
 _QP_TOL = 1e-14
 
@@ -325,6 +328,11 @@ def _solve_one(
     return best, False, total, s.max_attempts
 
 
+def _restart_seed(seed: int, r: int) -> int:
+    """The seed of restart ``r`` (0, 1, ...) of a solve seeded ``seed``: its own stream."""
+    return int(_rng.mix(np.uint64((seed + r + 1) % 2**64)))
+
+
 def _clear_branch(
     chain: Chain,
     T: FloatArray,
@@ -439,6 +447,19 @@ def solve(
         q[redo[found]] = settled[found]
         pos_err[redo[found]], ori_err[redo[found]] = pos[found], ori[found]
         redo = redo[~found]
+    if flat_q0 is None:  # random starts anyway: the plain solve's other seeds first
+        for r in range(RESTARTS):
+            if not len(redo):
+                break
+            again = plain_solve(
+                chain, flat_T[redo], None, seed=_restart_seed(seed, r), options=options
+            )
+            ok = np.array(again.success) & scene.clear(again.q, flat_base[redo])
+            q[redo[ok]] = again.q[ok]
+            pos_err[redo[ok]], ori_err[redo[ok]] = again.pos_err[ok], again.ori_err[ok]
+            iterations[redo] += again.iterations
+            attempts[redo] += again.attempts
+            redo = redo[~ok]
     if len(redo):
         keys = _rng.target_keys(seed, flat_T[redo], None if flat_q0 is None else flat_q0[redo])
     for k, i in enumerate(redo):
