@@ -759,14 +759,16 @@ class Shapes:
 
 
 def shapes(kinds: Sequence[str], sizes: Array, vertices: Sequence[Any | None]) -> Shapes:
-    """:class:`Shapes` of checked kinds, ``sizes (G, 3)`` and vertices."""
+    """:class:`Shapes` of checked kinds, ``sizes (G, 3)`` and vertices. A kind poekin does not
+    measure (a height field, which MuJoCo measures) gets type -1 and no bound: no pair given
+    to the kernel may name it."""
     meshes = [np.asarray(v, dtype=np.float64).reshape(-1, 3) for v in vertices if v is not None]
     num = np.array([0 if v is None else len(v) for v in vertices], dtype=np.int32)
     return Shapes(
         kinds=tuple(kinds),
         sizes=np.ascontiguousarray(sizes, dtype=np.float64),
         vertices=tuple(vertices),
-        types=np.array([GEOM_TYPES[k] for k in kinds], dtype=np.int32),
+        types=np.array([GEOM_TYPES.get(k, -1) for k in kinds], dtype=np.int32),
         mesh_adr=np.concatenate([[0], np.cumsum(num)[:-1]]).astype(np.int32),
         mesh_num=num,
         mesh_vert=np.ascontiguousarray(np.concatenate(meshes) if meshes else np.zeros((0, 3))),
@@ -842,10 +844,11 @@ def compose(frames: Array, frame_of: Any, local: Array) -> Array:
 
 def bounding_radii(kinds: Sequence[str], sizes: Array, vertices: Sequence[Any | None]) -> Array:
     """``(G,)`` the radius about each shape's origin of a sphere that holds it (``inf`` for
-    a plane): MuJoCo's ``geom_rbound``. ``sizes (G, 3)``; ``vertices`` a mesh's, else None."""
+    a plane or a kind poekin does not measure): MuJoCo's ``geom_rbound``. ``sizes (G, 3)``;
+    ``vertices`` a mesh's, else None."""
     radii = np.empty(len(kinds))
     for g, (kind, s, v) in enumerate(zip(kinds, sizes, vertices, strict=True)):
-        if kind == "plane":
+        if kind not in GEOM_TYPES or kind == "plane":
             radii[g] = np.inf
         elif kind == "mesh":
             radii[g] = np.sqrt(np.max(np.sum(np.square(np.asarray(v, dtype=np.float64)), axis=-1)))

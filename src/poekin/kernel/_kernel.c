@@ -1280,8 +1280,7 @@ static PyObject *pair_distances(PyObject *Py_UNUSED(mod), PyObject *args) {
         t.frame_of = PyArray_DATA((PyArrayObject *)frame_of);
         npy_intp V = PyArray_DIM((PyArrayObject *)vert, 0);
         for (npy_intp g = 0; g < G && ok; ++g) {
-            ok = dg_known(t.types[g]) && t.frame_of[g] < F &&
-                 (local != Py_None || t.frame_of[g] == g);
+            ok = t.frame_of[g] < F && (local != Py_None || t.frame_of[g] == g);
             if (t.types[g] == DG_MESH)
                 ok = ok && t.mesh_adr[g] >= 0 && t.mesh_num[g] > 0 &&
                      (npy_intp)t.mesh_adr[g] + t.mesh_num[g] <= V;
@@ -1289,15 +1288,15 @@ static PyObject *pair_distances(PyObject *Py_UNUSED(mod), PyObject *args) {
         npy_intp P = PyArray_DIM((PyArrayObject *)pairs, 0);
         for (npy_intp p = 0; p < P && ok; ++p) {
             int32_t a = t.pairs[2 * p], b = t.pairs[2 * p + 1];
-            ok = a >= 0 && a < G && b >= 0 && b < G &&
-                 !(t.types[a] == DG_PLANE && t.types[b] == DG_PLANE);
+            ok = a >= 0 && a < G && b >= 0 && b < G && dg_known(t.types[a]) &&
+                 dg_known(t.types[b]) && !(t.types[a] == DG_PLANE && t.types[b] == DG_PLANE);
         }
     }
     if (!ok) {
         PyErr_SetString(PyExc_ValueError,
                         "pair_distances: int32 types (G,), float64 sizes (G, 3), int32 mesh_adr "
-                        "and mesh_num (G,), mesh_vert (V, 3), int32 pairs (P, 2) of geoms (not "
-                        "two planes), frames (B, F, 4, 4), int32 frame_of (G,) below F, local "
+                        "and mesh_num (G,), mesh_vert (V, 3), int32 pairs (P, 2) of geoms of known "
+                        "types (not two planes), frames (B, F, 4, 4), int32 frame_of (G,) below F, local "
                         "(G, 4, 4) or None (frame_of the geoms, F = G), radii (G,), "
                         "C-contiguous, and a cutoff not NaN");
         return NULL;
