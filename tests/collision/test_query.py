@@ -551,3 +551,47 @@ def _obstacles_near_the_arm() -> list[object]:
         Capsule(0.05, 0.3, pose=[0.4, 0.3, 0.3, 1.0, 0.0, 0.0, 0.0], name="post"),
         Sphere(0.03, pose=[0.0, 0.0, 0.06, 1.0, 0.0, 0.0, 0.0], frame="attachment_site"),
     ]
+
+
+def test_a_height_field_is_mujocos_to_measure(tmp_path: pathlib.Path) -> None:
+    """A rod swinging over a height field: the pair is MuJoCo's (mj_geomDistance on the same
+    poses, within a distmax: MuJoCo measures a height field no farther), distances and
+    in_collision alike, with a capsule of the world beside it measured by poekin's kernel."""
+    path = tmp_path / "terrain.xml"
+    path.write_text(
+        """<mujoco>
+  <asset><hfield name="ground" nrow="3" ncol="3" size="1 1 0.1 0.1"
+    elevation="0 0.5 0 0.5 1 0.5 0 0.5 0"/></asset>
+  <worldbody>
+    <geom name="ground" type="hfield" hfield="ground"/>
+    <geom name="post" type="capsule" fromto="0.5 0 0 0.5 0 0.4" size="0.02"/>
+    <body name="link" pos="0 0 0.3">
+      <joint name="hinge" axis="0 1 0"/>
+      <geom name="rod" type="capsule" fromto="0 0 0 0.4 0 0" size="0.03"/>
+    </body>
+  </worldbody>
+</mujoco>""",
+        encoding="utf-8",
+    )
+    tree = poekin.load_tree(path)
+    model = mujoco.MjModel.from_xml_path(str(path))
+    data = mujoco.MjData(model)
+    qpos = np.linspace(-1.5, 1.5, 31)[:, None]
+    margin = 0.05  # MuJoCo measures a height field only within a distmax
+    found = tree.distances(qpos, margin=margin)
+    assert found.pairs == (("ground", "rod"), ("post", "rod"))
+    expected = np.empty((len(qpos), 2))
+    fromto = np.zeros(6)
+    for c, row in enumerate(qpos):
+        data.qpos[:] = row
+        mujoco.mj_kinematics(model, data)
+        for p, g in enumerate((0, 1)):
+            expected[c, p] = mujoco.mj_geomDistance(model, data, g, 2, margin, fromto)
+    expected[expected >= margin] = np.inf
+    np.testing.assert_allclose(found.distance, expected, rtol=0, atol=1e-9)
+    assert np.isfinite(found.distance[:, 0]).any() and np.isfinite(found.distance[:, 1]).any()
+    for m in (0.0, margin):
+        np.testing.assert_array_equal(
+            tree.in_collision(qpos, margin=m), (expected < m).any(axis=-1)
+        )
+    assert 0 < tree.in_collision(qpos).sum() < len(qpos)

@@ -370,7 +370,8 @@ def distances(
         obstacles: :class:`~poekin.collision.Box`, ``Sphere``, ``Capsule``, ``Plane`` or
             ``Mesh`` obstacles (one, or a list).
         margin: pairs farther apart than this (m) are not measured: their distance is
-            ``inf``, their points NaN (faster: MuJoCo stops early). Default: all measured.
+            ``inf``, their points NaN (faster: bounds skip them). Default: all measured, but
+            a height field's pairs, which MuJoCo measures only within a finite margin.
         ignore: pairs of names (geoms, bodies or obstacles, in either order) not to check,
             as an SRDF's disabled collisions.
 
