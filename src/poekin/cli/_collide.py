@@ -46,7 +46,8 @@ def register(sub: Any, fmt: type[argparse.HelpFormatter]) -> None:
         "configuration (q is the whole qpos, MuJoCo's layout) with their signed distances in "
         "mm (negative: how deep they penetrate), colliding pairs marked. The geoms and pairs "
         "are MuJoCo's (contype/conaffinity, no body with its parent, <exclude>, <pair>; for a "
-        "URDF, no link with an adjacent one), measured by MuJoCo's mj_geomDistance. Exit 0 "
+        "URDF, no link with an adjacent one), measured by poekin's closed forms, GJK and EPA "
+        "(a pair with a mesh by MuJoCo's mj_geomDistance). Exit 0 "
         "when collision-free, 1 when a pair collides, 2 on bad input.",
         epilog="examples:\n  poekin collide universal_robots_ur5e --q 0 -1.57 1.57 0 0 0\n"
         "  poekin collide universal_robots_ur5e --q 0 -90 150 0 0 0 --deg --top 3\n"
