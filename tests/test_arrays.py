@@ -79,23 +79,9 @@ CHAIN_METHODS = ["fk", "fk_body", "jacobian_space", "jacobian_body", "jacobian_w
 ARRAY_MODELS = [robot for robot in MENAGERIE if robot != "unitree_g1"]
 
 
-# JAX's op-by-op tracing of the four biggest of them takes 6 to 12 s each under coverage: those
-# run among the slow tests (the same generic code, which PyTorch runs on every model here)
-_SLOW_ON_JAX = {"aloha", "franka_emika_panda", "unitree_go2", "rethink_robotics_sawyer"}
-
-
-@pytest.mark.parametrize(
-    ("name", "robot"),
-    [
-        pytest.param(name, robot, marks=[pytest.mark.slow] * (robot in _SLOW_ON_JAX))
-        if name == "jax"
-        else (name, robot)
-        for name in LIBRARIES
-        for robot in ARRAY_MODELS
-    ],
-)
-def test_every_menagerie_model_equals_the_numpy_path(name: str, robot: str) -> None:
-    _equals_the_numpy_path(load(name), robot)
+@pytest.mark.parametrize("robot", ARRAY_MODELS)
+def test_every_menagerie_model_equals_the_numpy_path(lib: Lib, robot: str) -> None:
+    _equals_the_numpy_path(lib, robot)
 
 
 def test_the_g1_equals_the_numpy_path_in_pytorch() -> None:
