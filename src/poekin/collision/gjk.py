@@ -667,8 +667,9 @@ def pair_distances(
 
     A pair at ``cutoff`` or farther apart is not reported (distance ``inf``, points NaN, as
     MuJoCo's ``distmax`` leaves it). The kernel does not measure a pair that a bound puts
-    beyond ``cutoff`` by 1e-6 m (the bounding spheres of :func:`bounding_radii`, and a
-    cylinder's capsule): it comes out the same, and no rounding decides which pairs it skips.
+    beyond ``cutoff`` by 1e-6 m (the bounding spheres of :func:`bounding_radii`, a box's faces,
+    a shape against the other's bounding sphere, a cylinder's capsule): it comes out the same,
+    and no rounding decides which pairs it skips.
 
     Args:
         kinds: the ``G`` shapes' kinds (as :func:`distance` names them).

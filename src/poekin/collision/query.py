@@ -8,8 +8,8 @@ EPA, the NumPy reference's bits), a pair with a mesh or a height field by MuJoCo
 and the two witness points. How exact each kind of pair is: docs/collision.md.
 
 A query with a margin reports only the pairs nearer than it, and measures only those whose
-bounds (bounding spheres, a cylinder's capsule) do not put them beyond it, as MuJoCo's broad
-phase; :func:`in_collision` stops at each configuration's first pair that hits.
+bounds (bounding spheres, a box's faces, a cylinder's capsule) do not put them beyond it, as
+MuJoCo's broad phase; :func:`in_collision` stops at each configuration's first pair that hits.
 
 Obstacles are added to a copy of the model as geoms of bodies of their own; an obstacle
 attached to a frame moves with it and, as a geom of that frame's body would, is not paired

@@ -60,6 +60,7 @@ from poekin.ik.numerical import (
     STEP_MAX,
     IKResult,
     Settings,
+    chain_pose_entries,
     damping_ceiling,
     damping_floor,
     errors,
@@ -347,9 +348,8 @@ def _clear_branch(
     where it does not, where none does, or where the chain has no closed form. Then ``(N,)``
     its position and orientation errors. The branch of ``colliding (N, n)`` (the plain answer,
     within 1e-6 rad) is known to collide and not checked again. For six joints and a whole
-    pose the branches are
-    every answer there is, so a clear one is the constrained problem's answer, and the nearest
-    is the one a solve from ``near`` would look for."""
+    pose the branches are every answer there is, so a clear one is the constrained problem's
+    answer, and the nearest is the one a solve from ``near`` would look for."""
     from poekin.errors import AnalyticIKError
 
     out = np.full(near.shape, np.nan)
@@ -390,16 +390,8 @@ def _clear_branch(
 def _pose_errors(chain: Chain, q: FloatArray, T: FloatArray) -> tuple[FloatArray, FloatArray]:
     """``(N,)`` position (m) and orientation (rad) errors of ``q (N, n)`` for ``T (N, 4, 4)``,
     as the numerical solve measures them (on the chain's compiled FK)."""
-    F = np.asarray(chain.fk(q), dtype=np.float64)
-    pose = (
-        tuple(tuple(F[:, a, b] for b in range(3)) for a in range(3)),
-        (F[:, 0, 3], F[:, 1, 3], F[:, 2, 3]),
-    )
-    goal = (
-        tuple(tuple(T[:, a, b] for b in range(3)) for a in range(3)),
-        (T[:, 0, 3], T[:, 1, 3], T[:, 2, 3]),
-    )
-    pos_err, ori_err = errors(pose, goal, np)  # type: ignore[arg-type]
+    pose = chain_pose_entries(np.asarray(chain.fk(q), dtype=np.float64))
+    pos_err, ori_err = errors(pose, chain_pose_entries(T), np)
     return np.asarray(pos_err, dtype=np.float64), np.asarray(ori_err, dtype=np.float64)
 
 
