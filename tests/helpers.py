@@ -58,6 +58,18 @@ def assert_close(field: str, actual: ArrayLike, expected: ArrayLike, atol: float
         raise AssertionError(f"{field}: max abs error {worst:.3e} > atol {atol:.1e} at {where}")
 
 
+def ur5e_obstacles() -> list[Any]:
+    """A table under the UR5e's reach, a post beside it and a ball held by its tool: every
+    kind of obstacle placement (world, world, a frame) the collision tests measure."""
+    from poekin.collision import Box, Capsule, Sphere
+
+    return [
+        Box([0.3, 0.4, 0.02], pose=[-0.55, 0.0, -0.02, 1.0, 0.0, 0.0, 0.0], name="table"),
+        Capsule(0.05, 0.3, pose=[0.4, 0.3, 0.3, 1.0, 0.0, 0.0, 0.0], name="post"),
+        Sphere(0.03, pose=[0.0, 0.0, 0.06, 1.0, 0.0, 0.0, 0.0], frame="attachment_site"),
+    ]
+
+
 def load_quiet(source: str) -> LoadedModel:
     """Load a model, silencing the kinematics-only note for XML-only Menagerie folders."""
     with warnings.catch_warnings():

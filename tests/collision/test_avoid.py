@@ -6,13 +6,12 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from helpers import load_quiet
+from helpers import load_quiet, ur5e_obstacles
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from numpy.typing import NDArray
 
 import poekin
-from poekin.collision import Box, Capsule, Sphere
 from poekin.collision.avoid import damper_rows, pair_rows
 from poekin.errors import InputError
 from poekin.ik.collision_free import inequality_qp
@@ -29,29 +28,21 @@ def ur5e() -> poekin.Tree:
     return poekin.load_tree(load_quiet("universal_robots_ur5e"))
 
 
-def _obstacles() -> list[object]:
-    return [
-        Box([0.3, 0.4, 0.02], pose=[-0.55, 0.0, -0.02, 1.0, 0.0, 0.0, 0.0], name="table"),
-        Capsule(0.05, 0.3, pose=[0.4, 0.3, 0.3, 1.0, 0.0, 0.0, 0.0], name="post"),
-        Sphere(0.03, pose=[0.0, 0.0, 0.06, 1.0, 0.0, 0.0, 0.0], frame="attachment_site"),
-    ]
-
-
 @pytest.mark.parametrize("shape", [(), (1,), (3, 1, 2)])
 def test_jacobian_is_the_distances_derivative(ur5e: poekin.Tree, shape: tuple[int, ...]) -> None:
     """Each row against central differences of tree.distances, column by column, over every
     pair of the robot, a world box and capsule and a sphere held by the tool."""
     rng = np.random.default_rng(len(shape))
     q = rng.uniform(-2.5, 2.5, (*shape, 6))
-    found = pair_rows(ur5e, q, _obstacles())
+    found = pair_rows(ur5e, q, ur5e_obstacles())
     P = len(found.pairs)
     assert found.distance.shape == (*shape, P) and found.jacobian.shape == (*shape, P, 6)
     touching = np.abs(found.distance) < 1e-4  # no normal to speak of
     for k in range(6):
         dq = np.zeros(6)
         dq[k] = FD_STEP
-        up = ur5e.distances(q + dq, _obstacles()).distance
-        down = ur5e.distances(q - dq, _obstacles()).distance
+        up = ur5e.distances(q + dq, ur5e_obstacles()).distance
+        down = ur5e.distances(q - dq, ur5e_obstacles()).distance
         fd = (up - down) / (2 * FD_STEP)
         err = np.where(touching, 0.0, np.abs(fd - found.jacobian[..., k]))
         assert err.max() < FD_TOL, k
@@ -61,13 +52,13 @@ def test_fixed_pairs_and_far_pairs_have_zero_rows(ur5e: poekin.Tree) -> None:
     """A pair farther than the activation distance is not measured (inf, zero row); the
     world's obstacles never move, so a row only holds the joints that move the robot's geom."""
     q = np.array([0.0, -1.57, 1.57, -1.57, -1.57, 0.0])
-    found = pair_rows(ur5e, q, _obstacles(), activation=0.05)
+    found = pair_rows(ur5e, q, ur5e_obstacles(), activation=0.05)
     far = ~np.isfinite(found.distance)
     assert far.any() and np.all(found.jacobian[far] == 0)
     near = np.isfinite(found.distance)
     assert near.any() and np.all(found.distance[near] < 0.05)
     shoulder = found.pairs.index(("shoulder_link", "table"))
-    everything = pair_rows(ur5e, q, _obstacles())
+    everything = pair_rows(ur5e, q, ur5e_obstacles())
     # the shoulder turns with joint 1 only
     assert np.all(everything.jacobian[shoulder, 1:] == 0)
 

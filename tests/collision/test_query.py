@@ -15,7 +15,7 @@ import sysconfig
 import mujoco
 import numpy as np
 import pytest
-from helpers import load_quiet, pinocchio_q
+from helpers import load_quiet, pinocchio_q, ur5e_obstacles
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -530,7 +530,7 @@ def test_the_kernels_broad_phase_changes_no_answer(
     from poekin.collision import gjk
 
     scene = [
-        *_obstacles_near_the_arm(),
+        *ur5e_obstacles(),
         Plane(pose=[0.0, 0.0, -0.3, 1.0, 0.0, 0.0, 0.0], name="floor"),
     ]
     qpos = poekin.sample_qpos(ur5e_tree, 300, seed=21)
@@ -543,14 +543,6 @@ def test_the_kernels_broad_phase_changes_no_answer(
     np.testing.assert_array_equal(near.points, reference.points)
     assert 0.1 < hit.mean() < 0.9
     assert np.isinf(near.distance).mean() > 0.5  # most pairs lie beyond the margin
-
-
-def _obstacles_near_the_arm() -> list[object]:
-    return [
-        Box([0.3, 0.4, 0.02], pose=[-0.55, 0.0, -0.02, 1.0, 0.0, 0.0, 0.0], name="table"),
-        Capsule(0.05, 0.3, pose=[0.4, 0.3, 0.3, 1.0, 0.0, 0.0, 0.0], name="post"),
-        Sphere(0.03, pose=[0.0, 0.0, 0.06, 1.0, 0.0, 0.0, 0.0], frame="attachment_site"),
-    ]
 
 
 def test_a_height_field_is_mujocos_to_measure(tmp_path: pathlib.Path) -> None:

@@ -1295,10 +1295,10 @@ static PyObject *pair_distances(PyObject *Py_UNUSED(mod), PyObject *args) {
     if (!ok) {
         PyErr_SetString(PyExc_ValueError,
                         "pair_distances: int32 types (G,), float64 sizes (G, 3), int32 mesh_adr "
-                        "and mesh_num (G,), mesh_vert (V, 3), int32 pairs (P, 2) of geoms of known "
-                        "types (not two planes), frames (B, F, 4, 4), int32 frame_of (G,) below F, local "
-                        "(G, 4, 4) or None (frame_of the geoms, F = G), radii (G,), "
-                        "C-contiguous, and a cutoff not NaN");
+                        "and mesh_num (G,), mesh_vert (V, 3), int32 pairs (P, 2) of geoms of "
+                        "known types (not two planes), frames (B, F, 4, 4), int32 frame_of (G,) "
+                        "below F, local (G, 4, 4) or None (frame_of the geoms, F = G), radii "
+                        "(G,), C-contiguous, and a cutoff not NaN");
         return NULL;
     }
     t.sizes = PyArray_DATA((PyArrayObject *)sizes);
