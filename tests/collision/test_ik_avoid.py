@@ -50,6 +50,13 @@ def _mj_contacts(mj: tuple[mujoco.MjModel, mujoco.MjData], q: np.ndarray) -> lis
     return out
 
 
+def _mj_site_rotation(mj: tuple[mujoco.MjModel, mujoco.MjData], q: np.ndarray) -> np.ndarray:
+    model, data = mj
+    data.qpos[:6] = q
+    mujoco.mj_kinematics(model, data)
+    return np.array(data.site_xmat[0]).reshape(3, 3)
+
+
 def _mj_site(mj: tuple[mujoco.MjModel, mujoco.MjData], q: np.ndarray) -> np.ndarray:
     model, data = mj
     data.qpos[:6] = q
@@ -83,6 +90,8 @@ def test_50_targets_above_a_table(
     for k in np.flatnonzero(found.success):
         assert contacts[k] == 0, k
         assert np.linalg.norm(_mj_site(mj, found.q[k]) - T[k, :3, 3]) < 1e-9
+        assert np.abs(_mj_site_rotation(mj, found.q[k]) - T[k, :3, :3]).max() < 1e-9
+    assert np.all((found.q >= chain.limits[:, 0]) & (found.q <= chain.limits[:, 1]))
     assert np.all(found.pos_err[found.success] <= 1e-10)
 
 
@@ -229,6 +238,10 @@ def test_a_colliding_answer_becomes_the_nearest_clear_branch(chain: poekin.Chain
         nearest = turns[int(np.argmin([np.linalg.norm(t - q0[i]) for t in turns]))]
         np.testing.assert_allclose(poekin.wrap(found.q[i], chain, q0[i]), nearest, atol=1e-9)
         assert np.linalg.norm(_mj_site(mj, found.q[i]) - T[i, :3, 3]) < 1e-10
+        R = _mj_site_rotation(mj, found.q[i])
+        assert np.abs(R - T[i, :3, :3]).max() < 1e-10  # the whole pose, by MuJoCo's FK
+    lo, hi = chain.limits[:, 0], chain.limits[:, 1]
+    assert np.all((found.q >= lo) & (found.q <= hi))
 
 
 @pytest.mark.parametrize("from_q0", [True, False], ids=["from q0: the rows", "restarts"])
@@ -252,6 +265,7 @@ def test_position_targets_are_solved_clear(
     for k in np.flatnonzero(found.success):
         assert contacts[k] == 0, k
         assert np.linalg.norm(_mj_site(mj, found.q[k]) - T[k, :3, 3]) < 1e-9
+    assert np.all((found.q >= chain.limits[:, 0]) & (found.q <= chain.limits[:, 1]))
 
 
 def test_a_chain_with_no_closed_form(mj: tuple[mujoco.MjModel, mujoco.MjData]) -> None:
