@@ -8,6 +8,7 @@ the qpos), with obstacles added to the model's spec as geoms by this file. Close
 
 from __future__ import annotations
 
+import itertools
 import math
 import pathlib
 import sysconfig
@@ -543,6 +544,74 @@ def test_the_kernels_broad_phase_changes_no_answer(
     np.testing.assert_array_equal(near.points, reference.points)
     assert 0.1 < hit.mean() < 0.9
     assert np.isinf(near.distance).mean() > 0.5  # most pairs lie beyond the margin
+
+
+def test_first_clear_stops_where_the_reference_finds_the_first_clear(
+    ur5e_tree: poekin.Tree, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """query.first_clear on the kernel (each group's configurations in order, up to the first
+    clear one) and on the NumPy reference (every configuration checked, then the first clear
+    one taken): the same indices, over groups of every size (empty ones too, and
+    configurations after the last group that must not count); MuJoCo's mesh pairs (a mesh
+    obstacle) go through hits."""
+    from poekin.collision import gjk, query
+
+    scene = [*ur5e_obstacles(), Plane(pose=[0.0, 0.0, -0.3, 1.0, 0.0, 0.0, 0.0], name="floor")]
+    qpos = poekin.sample_qpos(ur5e_tree, 400, seed=22)
+    frames = np.asarray(ur5e_tree.fk(qpos))
+    sizes = np.random.default_rng(5).integers(0, 9, 60)
+    groups = np.concatenate([[0], np.cumsum(sizes)])
+    assert groups[-1] < len(qpos)
+    margin = 0.01
+    checked = query.prepare(ur5e_tree, scene)
+    got = query.first_clear(checked, frames, margin, groups)
+    # the frames as the kernel computes them itself, a block of configurations at a time
+    fused = query.frames_of(ur5e_tree, qpos)
+    assert isinstance(fused, tuple) == poekin.compiled_kernel()
+    np.testing.assert_array_equal(query.first_clear(checked, fused, margin, groups), got)
+    np.testing.assert_array_equal(
+        query.hits(checked, fused, margin), query.hits(checked, frames, margin)
+    )
+    hit = ur5e_tree.in_collision(qpos, scene, margin=margin)
+    for i, (lo, hi) in enumerate(itertools.pairwise(groups)):  # by hand
+        clear = np.flatnonzero(~hit[lo:hi])
+        assert got[i] == (lo + clear[0] if len(clear) else -1)
+    assert (got >= 0).sum() > 10 and (got[sizes > 0] < 0).sum() > 3  # both outcomes occur
+    monkeypatch.setattr(gjk, "_kernel", None)
+    np.testing.assert_array_equal(query.first_clear(checked, frames, margin, groups), got)
+    block = Mesh(np.array(np.meshgrid([-1, 1], [-1, 1], [-1, 1])).reshape(3, -1).T * 0.1)
+    meshed = query.prepare(ur5e_tree, [*scene, block])
+    flags = query.hits(meshed, frames, margin)
+    np.testing.assert_array_equal(
+        query.first_clear(meshed, frames, margin, groups), gjk.first_false(flags, groups)
+    )
+
+
+def test_first_false_by_hand() -> None:
+    from poekin.collision.gjk import first_false
+
+    flags = np.array([True, False, False, True, True, False, True])
+    got = first_false(flags, np.array([0, 3, 3, 5, 6]))
+    np.testing.assert_array_equal(got, [1, -1, -1, 5])
+
+
+def test_a_scene_is_prepared_once_per_set_of_obstacles(ur5e_tree: poekin.Tree) -> None:
+    """query.prepare keeps the last scenes of a tree, looked up by the obstacles' values: the
+    same obstacles again (new objects) give the same prepared scene; another pose or other
+    pairs left out give another; the oldest is dropped beyond PREPARED."""
+    from poekin.collision import query
+
+    table = Box((0.5, 0.5, 0.01), pose=[0.0, 0.0, -0.05, 1.0, 0.0, 0.0, 0.0])
+    first = query.prepare(ur5e_tree, [table])
+    again = Box((0.5, 0.5, 0.01), pose=[0.0, 0.0, -0.05, 1.0, 0.0, 0.0, 0.0])
+    assert query.prepare(ur5e_tree, [again]) is first
+    moved = query.prepare(ur5e_tree, [Box((0.5, 0.5, 0.01), pose=[0, 0, -0.2, 1, 0, 0, 0])])
+    assert moved is not first and moved.local[-1, 2, 3] != first.local[-1, 2, 3]
+    ignored = query.prepare(ur5e_tree, [table], [("wrist_3_link", "box0")])
+    assert ignored is not first and len(ignored.scene.pairs) < len(first.scene.pairs)
+    for k in range(query.PREPARED):
+        query.prepare(ur5e_tree, [Sphere(0.01 * (k + 1))])
+    assert query.prepare(ur5e_tree, [table]) is not first
 
 
 def test_a_height_field_is_mujocos_to_measure(tmp_path: pathlib.Path) -> None:

@@ -420,6 +420,36 @@ def test_kernel_equals_the_numpy_reference(arm: Arm) -> None:
     assert np.max(np.abs(got[0] - ref_q)) <= 4 * np.finfo(float).eps * np.pi
 
 
+@needs_kernel
+def test_kernel_orders_the_branches_as_the_numpy_reference() -> None:
+    """ik_all(T, near=q)'s ordering (analytic.order_numpy) and the kernel's twin: the same
+    bits, on branches with ties (repeated rows), invalid ones, angles an odd number of half
+    turns from the reference (round half to even), unlimited and prismatic joints, and
+    limits that no turn reaches."""
+    from poekin.kernel import _fast
+
+    rng = np.random.default_rng(3)
+    N, K, J = 500, 8, 6
+    q = rng.uniform(-9.0, 9.0, (N, K, J))
+    q[:, 5] = q[:, 2]  # ties: the stable order keeps them as they came
+    ref = rng.uniform(-7.0, 7.0, (N, J))
+    q[:50, 0] = ref[:50] + np.pi * rng.choice([-3.0, -1.0, 1.0, 3.0], (50, J))
+    ref[50:70] = 0.0
+    q[50:70, 1] = np.pi * rng.choice([-1.0, 1.0], (20, J))  # exactly half a turn from 0
+    q[70:80, 3, 4] = np.nan  # sorted last among the valid or the invalid, as NumPy sorts
+    valid = rng.random((N, K)) < 0.6
+    limits = np.array([[-2 * np.pi, 2 * np.pi], [-np.inf, np.inf], [-3.0, 3.0], [0.1, 0.2],
+                       [-np.inf, 1.0], [-6.0, 6.5]])  # fmt: skip
+    revolute = np.array([True, True, True, True, True, False])
+    args = (q, valid, ref, limits, revolute)
+    want_q, want_valid = analytic.order_numpy(*args)
+    got_q, got_valid = _fast._kernel.ordered(*args)
+    np.testing.assert_array_equal(got_valid, want_valid)
+    np.testing.assert_array_equal(got_q, want_q)  # NaN where NaN
+    assert got_q[~np.isnan(got_q)].tobytes() == want_q[~np.isnan(want_q)].tobytes()
+    assert not np.array_equal(want_q, q) and want_valid[:, 0].sum() > want_valid[:, -1].sum()
+
+
 def test_without_the_kernel(folder: pathlib.Path, monkeypatch: pytest.MonkeyPatch) -> None:
     """An install without a C compiler runs the NumPy reference, with the same checks."""
     monkeypatch.setattr(analytic, "_kernel", None)
@@ -579,6 +609,8 @@ def test_near_orders_the_branches_and_gives_the_nearest_equivalents(folder: path
     assert np.allclose(ur.fk(near.q[near.valid]), np.repeat(T, near.valid.sum(-1), axis=0))
     with pytest.raises(InputError, match="near must be"):
         ur.ik_all(T, near=np.zeros((3, 6)))
+    with pytest.raises(InputError, match="near contains NaN or inf"):
+        ur.ik_all(T, near=np.full(6, np.nan))
 
 
 def test_ik_nearest_branch_is_the_closed_forms_nearest_q0(folder: pathlib.Path) -> None:

@@ -791,26 +791,13 @@ def posed_pairs(
     ``frame_of[g] < 0``), or at ``frames[:, g]`` where ``local`` is None. ``frames (B, F, 4,
     4)``, ``pairs (P, 2)``. With ``hit``, only ``(B,)`` whether some pair is nearer than
     ``cutoff`` (the kernel stops at the first)."""
-    G = len(shaped.kinds)
-    index = np.arange(G) if local is None else np.asarray(frame_of)
     if _kernel is not None:
         found = _kernel.pair_distances(
-            shaped.types,
-            shaped.sizes,
-            shaped.mesh_adr,
-            shaped.mesh_num,
-            shaped.mesh_vert,
-            np.ascontiguousarray(pairs, dtype=np.int32),
-            np.ascontiguousarray(frames, dtype=np.float64),
-            np.ascontiguousarray(index, dtype=np.int32),
-            None if local is None else np.ascontiguousarray(local, dtype=np.float64),
-            (*_DEFAULTS, 1, 1),
-            shaped.radii,
-            float(cutoff),
-            hit,
+            *_kernel_args(shaped, pairs, frames, frame_of, local), float(cutoff), hit
         )
         return found if hit else Distance(*found)
     kinds, sizes, vertices = shaped.kinds, shaped.sizes, shaped.vertices
+    index = np.arange(len(kinds)) if local is None else np.asarray(frame_of)
     poses = frames if local is None else compose(frames, index, local)
     B = poses.shape[0]
     dist = np.full((B, len(pairs)), np.inf)
@@ -828,6 +815,67 @@ def posed_pairs(
         dist[:, p] = np.where(near, found.distance, np.inf)
         points[:, p] = np.where(near[:, None, None], found.points, np.nan)
     return np.asarray((dist < cutoff).any(axis=-1)) if hit else Distance(dist, points)
+
+
+def first_clear(
+    shaped: Shapes,
+    pairs: Any,
+    frames: Array,
+    frame_of: Any,
+    local: Array | None,
+    cutoff: float,
+    groups: Array,
+) -> NDArray[np.int64]:
+    """``(N,)`` for each group of configurations, ``frames[groups[i]:groups[i + 1]]``
+    (``groups (N + 1,)`` nondecreasing offsets), the index of its first configuration with
+    no pair nearer than ``cutoff``, or -1 where none is (arguments as :func:`posed_pairs`).
+    The kernel looks at each group's configurations in order and stops at that one; the
+    reference checks them all and takes the first."""
+    offsets = np.ascontiguousarray(groups, dtype=np.int64)
+    if _kernel is not None:
+        found: NDArray[np.int64] = _kernel.pair_distances(
+            *_kernel_args(shaped, pairs, frames, frame_of, local), float(cutoff), True, offsets
+        )
+        return found
+    hit = np.asarray(posed_pairs(shaped, pairs, frames, frame_of, local, cutoff, True))
+    return first_false(hit, offsets)
+
+
+def first_false(flags: NDArray[np.bool_], groups: Array) -> NDArray[np.int64]:
+    """``(N,)`` the index of each group's first False among ``flags (B,)``, the groups
+    ``flags[groups[i]:groups[i + 1]]``; -1 where a group has none."""
+    index = np.arange(len(flags))
+    clear = np.where(flags, len(flags), index)
+    starts = np.asarray(groups[:-1], dtype=np.int64)
+    ends = np.asarray(groups[1:], dtype=np.int64)
+    out = np.full(len(starts), -1, dtype=np.int64)
+    filled = starts < ends
+    if filled.any():
+        first = np.minimum.reduceat(np.append(clear, len(flags)), starts[filled])
+        inside = first < ends[filled]
+        out[np.flatnonzero(filled)[inside]] = first[inside]
+    return out
+
+
+def _kernel_args(
+    shaped: Shapes, pairs: Any, frames: Array, frame_of: Any, local: Array | None
+) -> tuple[Any, ...]:
+    """The kernel's ``pair_distances`` arguments up to the cutoff (``frames`` may be the
+    kernel's ``(FK kernel, qpos)``, :func:`poekin.collision.query.frames_of`)."""
+    index = np.arange(len(shaped.kinds)) if local is None else np.asarray(frame_of)
+    return (
+        shaped.types,
+        shaped.sizes,
+        shaped.mesh_adr,
+        shaped.mesh_num,
+        shaped.mesh_vert,
+        np.ascontiguousarray(pairs, dtype=np.int32),
+        frames if isinstance(frames, tuple) else np.ascontiguousarray(frames, dtype=np.float64),
+        np.ascontiguousarray(index, dtype=np.int32),
+        None if local is None else np.ascontiguousarray(local, dtype=np.float64),
+        (*_DEFAULTS, 1, 1),
+        shaped.radii,
+    )
 
 
 def compose(frames: Array, frame_of: Any, local: Array) -> Array:

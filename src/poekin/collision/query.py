@@ -27,7 +27,9 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from poekin import lie
-from poekin.collision.gjk import Shapes, compose, posed_pairs, shapes
+from poekin.collision import gjk
+from poekin.collision.gjk import Shapes, compose, first_false, posed_pairs, shapes
+from poekin.collision.gjk import first_clear as first_clear_pairs
 from poekin.collision.model import GEOM_TYPES, CollisionModel, model_of
 from poekin.collision.obstacles import Mesh, Obstacle, as_obstacles, kind_of, mjcf_size
 from poekin.collision.primitives import Distance
@@ -38,6 +40,7 @@ __all__ = ["Distances", "distances", "in_collision", "min_distance"]
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.intp]
 _NO_FUNCTION = {"plane", "hfield"}
+PREPARED = 8  # scenes kept per tree (prepare)
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
@@ -282,11 +285,37 @@ class Checked:
     primitive_pairs: NDArray[np.int32]  # the pairs poekin measures, as the kernel reads them
 
 
+def _obstacle_key(obstacle: Obstacle) -> tuple[Any, ...]:
+    """What a prepared scene depends on of an obstacle: its shape, pose, frame and name."""
+    shape = (
+        obstacle.vertices.tobytes() if isinstance(obstacle, Mesh) else tuple(mjcf_size(obstacle))
+    )
+    return (kind_of(obstacle), shape, obstacle.pose.tobytes(), obstacle.frame, obstacle.name)
+
+
 def prepare(tree: Any, obstacles: Any = (), ignore: Iterable[Any] = ()) -> Checked:
     """The pairs of ``tree``'s collision geoms and ``obstacles`` to check, less ``ignore``,
-    ready for :func:`hits` (arguments as :func:`distances`)."""
+    ready for :func:`hits` (arguments as :func:`distances`). The last :data:`PREPARED` scenes
+    of each tree are kept (a solve or a query called again with the same obstacles, their
+    poses compared by value, does not build its scene again)."""
     collision = model_of(tree)
-    scene = _scene(tree, collision, as_obstacles(obstacles), ignore)
+    obstacles = as_obstacles(obstacles)
+    ignore = tuple(ignore)
+    key = (tuple(_obstacle_key(o) for o in obstacles), repr(ignore))
+    kept: dict[Any, Checked] = tree._collision.setdefault("prepared", {})
+    found = kept.pop(key, None)
+    if found is None:
+        found = _prepare(tree, collision, obstacles, ignore)
+    kept[key] = found  # the newest last; the oldest dropped beyond PREPARED
+    while len(kept) > PREPARED:
+        del kept[next(iter(kept))]
+    return found
+
+
+def _prepare(
+    tree: Any, collision: CollisionModel, obstacles: tuple[Obstacle, ...], ignore: tuple[Any, ...]
+) -> Checked:
+    scene = _scene(tree, collision, obstacles, ignore)
     n = tree.n_frames
     on_base = scene.frame == n
     local = scene.local.copy()
@@ -310,12 +339,31 @@ def _frames(tree: Any, qpos: ArrayLike) -> tuple[FloatArray, tuple[int, ...]]:
     return frames.reshape(-1, tree.n_frames, 4, 4), frames.shape[:-3]
 
 
-def hits(checked: Checked, frames: FloatArray, margin: float) -> NDArray[np.bool_]:
+def frames_of(tree: Any, qpos: FloatArray) -> Any:
+    """The tree's frames at ``qpos (B, nq)`` (float64, finite) as :func:`hits` and
+    :func:`first_clear` take them: ``(B, F, 4, 4)`` (:meth:`poekin.Tree.fk`), or where the
+    collision kernel and the tree's FK are both compiled, ``(FK kernel, qpos)``, the frames
+    the collision kernel computes as it goes (none kept in memory)."""
+    if tree._kernel is not None and gjk._kernel is not None:
+        return (tree._kernel, np.ascontiguousarray(qpos, dtype=np.float64))
+    return np.asarray(tree.fk(qpos), dtype=np.float64).reshape(-1, tree.n_frames, 4, 4)
+
+
+def _frames_array(frames: Any) -> FloatArray:
+    """``(B, F, 4, 4)`` frames of :func:`frames_of`'s either form."""
+    if isinstance(frames, tuple):
+        kernel, qpos = frames
+        return np.asarray(kernel.run(qpos), dtype=np.float64)
+    return np.asarray(frames, dtype=np.float64)
+
+
+def hits(checked: Checked, frames: Any, margin: float) -> NDArray[np.bool_]:
     """``(B,)`` whether some pair of ``checked`` is closer than ``margin`` at the tree's
-    ``frames (B, F, 4, 4)``: the primitives compiled, each configuration stopping at its first
-    pair that hits, then MuJoCo on the mesh pairs of the configurations they left clear."""
+    ``frames`` (:func:`frames_of`): the primitives compiled, each configuration stopping at
+    its first pair that hits, then MuJoCo on the mesh pairs of the configurations they left
+    clear."""
     c = checked
-    hit = np.zeros(frames.shape[0], dtype=bool)
+    hit = np.zeros(len(frames[1]) if isinstance(frames, tuple) else len(frames), dtype=bool)
     if c.scene.pairs.shape[0] == 0:
         return hit
     if not c.mesh.all():
@@ -324,10 +372,24 @@ def hits(checked: Checked, frames: FloatArray, margin: float) -> NDArray[np.bool
         )
     rest = np.flatnonzero(~hit)
     if c.mesh.any() and rest.size:
-        poses = compose(frames[rest], c.frame_of, c.local)
+        poses = compose(_frames_array(frames)[rest], c.frame_of, c.local)
         d, _ = _mujoco_pairs(c.scene, poses, c.scene.pairs[c.mesh], margin, hit=True)
         hit[rest] = (d < margin).any(axis=-1)
     return hit
+
+
+def first_clear(checked: Checked, frames: Any, margin: float, groups: Any) -> IntArray:
+    """``(N,)`` for each group of configurations, ``frames[groups[i]:groups[i + 1]]`` (the
+    tree's frames, :func:`frames_of`; ``groups (N + 1,)`` nondecreasing offsets), the index of
+    its first configuration where no pair of ``checked`` is closer than ``margin`` (-1: none):
+    as :func:`hits` on them all, but the compiled primitives stop at that configuration."""
+    c = checked
+    offsets = np.asarray(groups, dtype=np.int64)
+    if c.scene.pairs.shape[0] and not c.mesh.any():
+        return first_clear_pairs(
+            c.shapes, c.primitive_pairs, frames, c.frame_of, c.local, margin, offsets
+        )
+    return first_false(hits(c, frames, margin), offsets)
 
 
 def _measure(
@@ -413,5 +475,9 @@ def in_collision(
     :func:`distances`."""
     value = _margin(margin, "in_collision")
     checked = prepare(tree, obstacles, ignore)
-    frames, batch = _frames(tree, qpos)
-    return hits(checked, frames, value).reshape(batch)
+    q: FloatArray = tree._as_qpos(qpos)
+    if not np.all(np.isfinite(q)):  # the FK says what is wrong
+        frames, batch = _frames(tree, q)
+        return hits(checked, frames, value).reshape(batch)
+    found = hits(checked, frames_of(tree, q.reshape(-1, tree.nq)), value)
+    return found.reshape(q.shape[:-1])

@@ -70,7 +70,7 @@ def wrap_into_limits(q: Any, limits: Any, revolute: Any, xp: Any = np) -> Any:
     return xp.where(limited & ~inside, moved, q)
 
 
-def nearest_turns(q: Any, reference: Any, limits: FloatArray, revolute: Sequence[bool]) -> Any:
+def nearest_turns(q: Any, reference: Any, limits: FloatArray, revolute: Any) -> Any:
     """``(..., n)`` ``q`` with each revolute angle moved by whole turns to the equivalent
     nearest ``reference`` (broadcast against ``q``) among those within ``limits``; an angle
     that no turn brings within them stays as it is. Prismatic values never move. NumPy."""

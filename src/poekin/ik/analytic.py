@@ -55,7 +55,7 @@ from poekin import _pose
 from poekin._poe import real_array
 from poekin.errors import AnalyticIKError, InputError
 from poekin.ik import subproblems as sp
-from poekin.ik._angles import within_limits, wrap_into_limits
+from poekin.ik._angles import nearest_turns, within_limits, wrap_into_limits
 from poekin.ik.subproblems import CosSin, add, dot, lift, rotate, sub
 
 try:
@@ -875,8 +875,8 @@ def ik_all(
         InputError: ``T`` is not ``(..., 4, 4)`` finite rigid transforms, or ``near`` not
             joint values that broadcast against them.
     """
-    if near is None and refine is True and _kernel is not None and type(T) is np.ndarray:
-        quick = _quick(chain, T)  # the exact geometry's kernel, with the least around it
+    if refine is True and _kernel is not None and type(T) is np.ndarray:
+        quick = _quick(chain, T, near)  # the exact geometry's kernel, with the least around it
         if quick is not None:
             return quick
     if not isinstance(refine, bool):
@@ -898,9 +898,10 @@ def ik_all(
     return IKSolutions(q, valid, geo, chain, arr)
 
 
-def _quick(chain: Chain, T: FloatArray) -> IKSolutions | None:
+def _quick(chain: Chain, T: FloatArray, near: ArrayLike | None) -> IKSolutions | None:
     """:func:`ik_all` of a NumPy array ``T`` on a chain of a supported geometry (not a near
-    one), as the usual path solves it, with less around the kernel; None where that does not
+    one), as the usual path solves it (and orders it, with ``near``), with less around the
+    kernel; None where that does not
     serve (the geometry not yet found or only near, ``T`` not a plain float64 ``(..., 4, 4)``
     array, a target that is not a rigid transform): the usual path then says what is wrong."""
     global _last
@@ -914,6 +915,8 @@ def _quick(chain: Chain, T: FloatArray) -> IKSolutions | None:
     if done is None:
         return None
     q, valid, _ = done
+    if near is not None:
+        q, valid = _ordered(chain, q, valid, near)
     found = _new(IKSolutions)
     d = found.__dict__  # as the dataclass's __init__ sets them, without its five calls
     d["q"], d["valid"], d["geometry"], d["_chain"], d["_targets"] = q, valid, geo, chain, T
@@ -1069,9 +1072,9 @@ def _ordered(
     chain: Chain, q: FloatArray, valid: BoolArray, near: ArrayLike
 ) -> tuple[FloatArray, BoolArray]:
     """``q`` ``(..., k, 6)`` as the equivalents nearest ``near``, the branches sorted by their
-    distance to it (the valid ones first), with ``valid`` in the same order."""
-    from poekin.ik._angles import wrap
-
+    distance to it, the valid ones first, with ``valid`` in the same order
+    (:func:`order_numpy`, or the compiled kernel's twin where it is installed: the same
+    bits)."""
     try:
         ref = np.broadcast_to(real_array(near, "near"), (*q.shape[:-2], 6))
     except ValueError:
@@ -1079,11 +1082,39 @@ def _ordered(
             f"near must be (..., 6) joint values that broadcast against the targets' batch "
             f"shape {q.shape[:-2]}, got shape {np.shape(near)}"
         ) from None
-    moved = wrap(q, chain, ref[..., None, :])
-    distance = np.linalg.norm(moved - ref[..., None, :], axis=-1)
-    order = np.argsort(distance + np.where(valid, 0.0, 1e6), axis=-1, kind="stable")
-    q_sorted = np.take_along_axis(moved, order[..., None], axis=-2)
-    return q_sorted, np.take_along_axis(valid, order, axis=-1)
+    if not np.all(np.isfinite(ref)):
+        raise InputError("near contains NaN or inf; every value must be finite")
+    k = q.shape[-2]
+    args = (
+        np.ascontiguousarray(q.reshape(-1, k, 6), dtype=np.float64),
+        np.ascontiguousarray(valid.reshape(-1, k), dtype=np.bool_),
+        np.ascontiguousarray(ref.reshape(-1, 6), dtype=np.float64),
+        np.ascontiguousarray(chain.limits, dtype=np.float64),
+        np.array([t == "revolute" for t in chain.joint_types], dtype=np.bool_),
+    )
+    q_sorted, valid_sorted = order_numpy(*args) if _kernel is None else _kernel.ordered(*args)
+    return q_sorted.reshape(q.shape), valid_sorted.reshape(valid.shape)
+
+
+def order_numpy(
+    q: FloatArray, valid: BoolArray, ref: FloatArray, limits: FloatArray, revolute: BoolArray
+) -> tuple[FloatArray, BoolArray]:
+    """The reference of :func:`_ordered`: ``q (N, k, J)`` with each revolute angle moved to its
+    equivalent nearest ``ref (N, J)`` within ``limits (J, 2)``
+    (:func:`poekin.ik._angles.nearest_turns`), and each target's ``k`` branches sorted
+    stably, the ``valid (N, k)`` ones first, then by their squared distance to ``ref``, summed
+    joint by joint in order (what the kernel's twin sums). Returns the sorted ``q`` and
+    ``valid``."""
+    moved = nearest_turns(q, ref[:, None, :], limits, revolute)
+    diff = moved - ref[:, None, :]
+    d2 = diff[..., 0] * diff[..., 0]
+    for j in range(1, q.shape[-1]):
+        d2 = d2 + diff[..., j] * diff[..., j]
+    order = np.lexsort((d2, ~valid), axis=-1)
+    return (
+        np.take_along_axis(moved, order[..., None], axis=-2),
+        np.take_along_axis(valid, order, axis=-1),
+    )
 
 
 def solve_kernel(chain: Chain, T: FloatArray) -> tuple[FloatArray, BoolArray] | None:

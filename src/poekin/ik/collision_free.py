@@ -50,7 +50,7 @@ from numpy.typing import NDArray
 from poekin import lie
 from poekin._poe import chain_terms
 from poekin.collision.avoid import ACTIVATION, damper_rows, pair_rows
-from poekin.collision.query import Checked, hits, prepare
+from poekin.collision.query import Checked, first_clear, frames_of, hits, prepare
 from poekin.errors import ModelError
 from poekin.ik import _rng
 from poekin.ik.numerical import (
@@ -102,10 +102,22 @@ class Scene:
     ignore: tuple[Any, ...]
 
     def qpos(self, q: FloatArray, base: FloatArray) -> FloatArray:
-        """``(N, nq)`` ``base`` with the solved joints at ``q (N, n)``."""
-        out = np.array(np.broadcast_to(base, (len(q), base.shape[-1])), dtype=np.float64)
-        out[:, list(self.indices)] = q
+        """``(N, nq)`` ``base`` (``(nq,)``, or one row a configuration) with the solved
+        joints at ``q (N, n)``."""
+        if self._whole:  # the solved joints are the whole of qpos, in order
+            return np.ascontiguousarray(q, dtype=np.float64)
+        out = np.empty((len(q), base.shape[-1]))
+        out[:] = base
+        out[:, self._columns] = q
         return out
+
+    @functools.cached_property
+    def _columns(self) -> NDArray[np.intp]:
+        return np.array(self.indices, dtype=np.intp)
+
+    @functools.cached_property
+    def _whole(self) -> bool:
+        return self.indices == tuple(range(self.tree.nq))
 
     def rows(self, q: FloatArray, base: FloatArray) -> tuple[FloatArray, FloatArray]:
         """``(N, P)`` distances (``inf`` beyond activation) and ``(N, P, n)`` their Jacobians
@@ -126,8 +138,16 @@ class Scene:
 
     def clear(self, q: FloatArray, base: FloatArray) -> BoolArray:
         """``(N,)`` whether every pair is at least ``margin`` apart (to :data:`FEASIBLE_TOL`)."""
-        frames = np.asarray(self.tree.fk(self.qpos(q, base)), dtype=np.float64)
+        frames = frames_of(self.tree, self.qpos(q, base))
         return np.asarray(~hits(self.checked, frames, self.margin * (1 - FEASIBLE_TOL)))
+
+    def first_clear(self, q: FloatArray, base: FloatArray, groups: Any) -> NDArray[np.int64]:
+        """``(N,)`` for each group of configurations ``q[groups[i]:groups[i + 1]]`` (and
+        ``base``), the index of its first that :meth:`clear` passes, -1 where none does
+        (:func:`poekin.collision.query.first_clear`: the configurations after it are not
+        checked)."""
+        frames = frames_of(self.tree, self.qpos(q, base))
+        return first_clear(self.checked, frames, self.margin * (1 - FEASIBLE_TOL), groups)
 
 
 def chain_scene(
@@ -329,6 +349,11 @@ def _solve_one(
     return best, False, total, s.max_attempts
 
 
+def _rows(base: FloatArray, index: Any) -> FloatArray:
+    """The rows ``index`` of ``base (N, nq)``, or ``base (nq,)`` itself: shared by all."""
+    return base if base.ndim == 1 else base[index]
+
+
 def _restart_seed(seed: int, r: int) -> int:
     """The seed of restart ``r`` (0, 1, ...) of a solve seeded ``seed``: its own stream."""
     return int(_rng.mix(np.uint64((seed + r + 1) % 2**64)))
@@ -351,6 +376,7 @@ def _clear_branch(
     pose the branches are every answer there is, so a clear one is the constrained problem's
     answer, and the nearest is the one a solve from ``near`` would look for."""
     from poekin.errors import AnalyticIKError
+    from poekin.ik.numerical import solve as plain_solve
 
     out = np.full(near.shape, np.nan)
     pos, ori = np.full(len(near), np.nan), np.full(len(near), np.nan)
@@ -359,31 +385,27 @@ def _clear_branch(
     except AnalyticIKError:
         return out, pos, ori
     limits = chain_terms(chain).limits
-    k = branches.q.shape[-2]
-    q = branches.q.reshape(-1, chain.n_joints)
-    turns = np.remainder(q - np.repeat(colliding, k, axis=0) + np.pi, 2 * np.pi) - np.pi
-    ok = (
-        branches.valid.reshape(-1)
-        & np.all((q >= limits[:, 0]) & (q <= limits[:, 1]), axis=-1)
-        & np.any(np.abs(turns) > 1e-6, axis=-1)
+    # each target's valid branches within the limits, nearest first, but the plain answer's
+    rows, cols = np.nonzero(branches.valid)
+    candidates = branches.q[rows, cols]
+    turns = np.remainder(candidates - colliding[rows] + np.pi, 2 * np.pi) - np.pi
+    keep = np.all((candidates >= limits[:, 0]) & (candidates <= limits[:, 1]), axis=-1)
+    keep &= np.any(np.abs(turns) > 1e-6, axis=-1)
+    rows, candidates = rows[keep], candidates[keep]
+    groups = np.searchsorted(rows, np.arange(len(near) + 1))
+    # up to the first of each target's that keeps the margin
+    first = scene.first_clear(candidates, _rows(base, rows), groups)
+    has = np.flatnonzero(first >= 0)
+    chosen = candidates[first[has]]
+    # measured as the numerical solve measures them, by that solve from the branch itself: it
+    # meets the tolerances where the solve stops there (a branch it moves is left out)
+    measured = plain_solve(chain, T[has], chosen, seed=0, options=s)
+    met = measured.success & np.all(measured.q == chosen, axis=-1)
+    out[has[met]], pos[has[met]], ori[has[met]] = (
+        chosen[met],
+        measured.pos_err[met],
+        measured.ori_err[met],
     )
-    ok = ok.reshape(-1, k)
-    # the nearest candidate of each target first, then the rest of those it leaves colliding
-    # (most targets stop at the first: fewer configurations to check than all at once)
-    first = np.argmax(ok, axis=-1)
-    rows = np.flatnonzero(ok.any(axis=-1))
-    clear = scene.clear(branches.q[rows, first[rows]], base[rows])
-    ok[rows[clear]] = np.arange(k) == first[rows[clear], None]
-    ok[rows[~clear], first[rows[~clear]]] = False
-    left = np.argwhere(ok[rows[~clear]])
-    if len(left):
-        which = rows[~clear][left[:, 0]]
-        ok[which, left[:, 1]] = scene.clear(branches.q[which, left[:, 1]], base[which])
-    has = np.flatnonzero(ok.any(axis=-1))
-    chosen = branches.q[has, np.argmax(ok[has], axis=-1)]  # the branches come nearest first
-    pos_err, ori_err = _pose_errors(chain, chosen, T[has])
-    met = (pos_err <= s.pos_tol) & (ori_err <= s.ori_tol)
-    out[has[met]], pos[has[met]], ori[has[met]] = chosen[met], pos_err[met], ori_err[met]
     return out, pos, ori
 
 
@@ -421,7 +443,8 @@ def solve(
     n = chain.n_joints
     q = np.array(plain.q, dtype=np.float64).reshape(-1, n)
     flat_T = np.broadcast_to(T, (*batch, 4, 4)).reshape(-1, 4, 4)
-    flat_base = np.broadcast_to(base, (*batch, base.shape[-1])).reshape(-1, base.shape[-1])
+    nq = base.shape[-1]  # base (nq,): one configuration for every target (a chain's solve)
+    flat_base = base if base.ndim == 1 else np.broadcast_to(base, (*batch, nq)).reshape(-1, nq)
     flat_q0 = None if q0 is None else np.broadcast_to(q0, (*batch, n)).reshape(-1, n)
     success = np.array(plain.success).reshape(-1)
     iterations = np.array(plain.iterations).reshape(-1)
@@ -433,7 +456,7 @@ def solve(
     if len(redo) and not options.position_only:
         near = q if flat_q0 is None else flat_q0
         settled, pos, ori = _clear_branch(
-            chain, flat_T[redo], near[redo], q[redo], flat_base[redo], options, scene
+            chain, flat_T[redo], near[redo], q[redo], _rows(flat_base, redo), options, scene
         )
         found = ~np.isnan(settled[:, 0])
         q[redo[found]] = settled[found]
@@ -446,7 +469,7 @@ def solve(
             again = plain_solve(
                 chain, flat_T[redo], None, seed=_restart_seed(seed, r), options=options
             )
-            ok = np.array(again.success) & scene.clear(again.q, flat_base[redo])
+            ok = np.array(again.success) & scene.clear(again.q, _rows(flat_base, redo))
             q[redo[ok]] = again.q[ok]
             pos_err[redo[ok]], ori_err[redo[ok]] = again.pos_err[ok], again.ori_err[ok]
             iterations[redo] += again.iterations
@@ -457,7 +480,7 @@ def solve(
     for k, i in enumerate(redo):
         start = None if flat_q0 is None else flat_q0[i]
         found_q, conv, its, tries = _solve_one(
-            chain, flat_T[i], start, keys[k], flat_base[i], options, scene
+            chain, flat_T[i], start, keys[k], _rows(flat_base, i), options, scene
         )
         if found_q is not None:
             q[i] = found_q

@@ -960,6 +960,10 @@ typedef struct {
     npy_intp G, P, F;
     double *dist, *pts;
     npy_bool *hit; /* set: whether each configuration has a pair nearer than cutoff, no more */
+    const int64_t *groups; /* set: the configurations of group i are [groups[i], groups[i + 1]) */
+    const Program *fk;     /* set: frames is NULL, each configuration's frames are fk's of qpos */
+    const double *qpos;    /* with fk: (B, nq) */
+    int64_t *first;        /* with groups: each group's first configuration clear of cutoff */
     int failed;
 } DgTask;
 
@@ -982,9 +986,10 @@ static void dg_task(void *arg) {
 }
 
 /* out = F @ L, 4x4 row-major, each entry's four products summed in order (the reference's
- * gjk._compose) */
+ * gjk.compose), but for the last row (0 0 0 1 for rigid transforms), which no distance reads:
+ * left unset */
 static void dg_compose(const double *F, const double *L, double *out) {
-    for (int i = 0; i < 4; ++i)
+    for (int i = 0; i < 3; ++i)
         for (int j = 0; j < 4; ++j)
             out[4 * i + j] = F[4 * i] * L[j] + F[4 * i + 1] * L[4 + j] +
                              F[4 * i + 2] * L[8 + j] + F[4 * i + 3] * L[12 + j];
@@ -1008,17 +1013,22 @@ static int dg_closed_pair(int ka, int kb) {
 static double dg_box_faces(const DgShape *X, const DgShape *Y) {
     double best = -INFINITY, c[3], n[3], m[3], s[3];
     dg_origin(X->T, c);
-    if (Y->kind == DG_SPHERE || Y->kind == DG_CAPSULE) { /* a segment: its ends in X's frame */
+    if (Y->kind == DG_SPHERE || Y->kind == DG_CAPSULE || Y->kind == DG_CYLINDER) {
+        /* a segment, or a disc swept along one: its centre and axis in X's frame; along the
+         * box's axis i it reaches h |u_i| from its centre, and a capsule's radius r more, a
+         * cylinder's r sqrt(1 - u_i^2) (its disc's reach) */
         double p[3], u[3], d[3], lc[3], lu[3];
-        double h = Y->kind == DG_CAPSULE ? Y->size[1] : 0.0;
+        double h = Y->kind == DG_SPHERE ? 0.0 : Y->size[1];
         dg_origin(Y->T, p);
         dg_column(Y->T, 2, u);
         dg_sub(p, c, d);
         dg_to_local(X->T, d, lc);
         dg_to_local(X->T, u, lu);
         for (int i = 0; i < 3; ++i) {
-            double reach = h * fabs(lu[i]);
-            double gap = dg_max(lc[i] - reach, -lc[i] - reach) - X->size[i] - Y->radius;
+            double reach = h * fabs(lu[i]) +
+                           (Y->kind == DG_CYLINDER ? Y->size[0] * sqrt(dg_max(1.0 - lu[i] * lu[i], 0.0))
+                                                   : Y->radius);
+            double gap = dg_max(lc[i] - reach, -lc[i] - reach) - X->size[i];
             best = gap > best ? gap : best;
         }
         return best;
@@ -1044,8 +1054,9 @@ static int dg_beyond(const DgShape *A, const DgShape *B, double ra, double rb, d
                      const DgOptions *opt, DgWork *W) {
     double limit = cutoff + DG_BROAD_SLACK;
     double dx = A->T[3] - B->T[3], dy = A->T[7] - B->T[7], dz = A->T[11] - B->T[11];
-    double gap = sqrt(dx * dx + dy * dy + dz * dz);
-    if (gap - ra - rb > limit) return 1;
+    double reach = ra + rb + limit; /* the centres farther apart than this: beyond (squared, no
+                                     * sqrt: a bound, so rounding moves only its slack) */
+    if (reach < 0.0 || dx * dx + dy * dy + dz * dz > reach * reach) return 1;
     int ka = A->kind, kb = B->kind;
     if (dg_closed_pair(ka, kb)) return 0;
     if ((ka == DG_BOX && dg_box_faces(A, B) > limit) || (kb == DG_BOX && dg_box_faces(B, A) > limit))
@@ -1073,58 +1084,100 @@ static int dg_beyond(const DgShape *A, const DgShape *B, double ra, double rb, d
     return 0;
 }
 
+/* configuration c of the task: its geoms posed (posed: room for G poses), then its pairs
+ * measured (the task's dist and pts) or, in hit mode, looked at up to the first nearer than
+ * cutoff, its frames (F, 4, 4) at frames; 1 a pair is nearer than cutoff, 0 none, -1 out of
+ * memory */
+static int dg_config(const DgTask *t, npy_intp c, const double *frames, double *posed,
+                     DgWork *W) {
+    if (t->local)
+        for (npy_intp g = 0; g < t->G; ++g) {
+            if (t->frame_of[g] < 0)
+                memcpy(posed + 16 * g, t->local + 16 * g, 16 * sizeof(double));
+            else
+                dg_compose(frames + 16 * (npy_intp)t->frame_of[g], t->local + 16 * g,
+                           posed + 16 * g);
+        }
+    const double *pose = t->local ? posed : frames;
+    DgShape A, B;
+    double dist, pts[6];
+    int any = 0;
+    for (npy_intp p = 0; p < t->P; ++p) {
+        int32_t g1 = t->pairs[2 * p], g2 = t->pairs[2 * p + 1];
+        int mesh1 = t->types[g1] == DG_MESH, mesh2 = t->types[g2] == DG_MESH;
+        dg_shape(&A, t->types[g1], pose + 16 * g1, t->sizes + 3 * g1,
+                 mesh1 ? t->mesh_vert + 3 * (npy_intp)t->mesh_adr[g1] : NULL,
+                 mesh1 ? t->mesh_num[g1] : 0);
+        dg_shape(&B, t->types[g2], pose + 16 * g2, t->sizes + 3 * g2,
+                 mesh2 ? t->mesh_vert + 3 * (npy_intp)t->mesh_adr[g2] : NULL,
+                 mesh2 ? t->mesh_num[g2] : 0);
+        int measured = !(t->cutoff < INFINITY &&
+                         dg_beyond(&A, &B, t->radii[g1], t->radii[g2], t->cutoff, &t->opt, W));
+        if (measured && dg_distance(&A, &B, &t->opt, W, &dist, pts) < 0) return -1;
+        int near = measured && dist < t->cutoff;
+        any = any || near;
+        if (t->hit || t->groups) {
+            if (near) return 1;
+            continue;
+        }
+        npy_intp i = c * t->P + p;
+        t->dist[i] = near ? dist : INFINITY;
+        for (int k = 0; k < 6; ++k) t->pts[6 * i + k] = near ? pts[k] : NAN;
+    }
+    return any;
+}
+
+/* The frames (F, 4, 4) of configuration c of the task: frames' own, or with fk those the FK
+ * program computes in buf, a block of up to g_lanes configurations [c, end) at a time (block:
+ * the configurations buf holds, [block[0], block[1])); NULL where memory ran out. */
+static const double *dg_frames(const DgTask *t, npy_intp c, npy_intp end, double *buf,
+                               npy_intp block[2]) {
+    if (!t->fk) return t->frames + 16 * t->F * c;
+    if (c < block[0] || c >= block[1]) {
+        npy_intp m = end - c < g_lanes ? end - c : g_lanes;
+        Task task = {t->fk, t->qpos + c * t->fk->nq, buf, 0, m, FORM_4X4, 0};
+        g_run_task(&task);
+        if (task.bad) return NULL; /* out of memory (qpos was checked finite) */
+        block[0] = c, block[1] = c + m;
+    }
+    return buf + 16 * t->F * (c - block[0]);
+}
+
+/* the task's configurations [lo, hi), or with groups its groups [lo, hi): each group's
+ * configurations in order up to the first with no pair nearer than cutoff (first: its index,
+ * -1 where there is none) */
 static void dg_pairs_task(void *arg) {
     DgTask *t = (DgTask *)arg;
     DgWork W;
     memset(&W, 0, sizeof W);
-    double *posed = t->local ? malloc(sizeof(double) * 16 * (size_t)(t->G > 0 ? t->G : 1)) : NULL;
+    double *posed = t->local ? calloc(16 * (size_t)(t->G > 0 ? t->G : 1), sizeof(double)) : NULL;
     if (t->local && posed == NULL) {
         t->failed = 1;
         return;
     }
-    DgShape A, B;
-    double dist, pts[6];
-    for (npy_intp c = t->lo; c < t->hi; ++c) {
-        const double *frames = t->frames + 16 * t->F * c;
-        if (t->local)
-            for (npy_intp g = 0; g < t->G; ++g) {
-                if (t->frame_of[g] < 0)
-                    memcpy(posed + 16 * g, t->local + 16 * g, 16 * sizeof(double));
-                else
-                    dg_compose(frames + 16 * (npy_intp)t->frame_of[g], t->local + 16 * g,
-                               posed + 16 * g);
-            }
-        const double *pose = t->local ? posed : frames;
-        if (t->hit) t->hit[c] = 0;
-        for (npy_intp p = 0; p < t->P; ++p) {
-            int32_t g1 = t->pairs[2 * p], g2 = t->pairs[2 * p + 1];
-            int mesh1 = t->types[g1] == DG_MESH, mesh2 = t->types[g2] == DG_MESH;
-            dg_shape(&A, t->types[g1], pose + 16 * g1, t->sizes + 3 * g1,
-                     mesh1 ? t->mesh_vert + 3 * (npy_intp)t->mesh_adr[g1] : NULL,
-                     mesh1 ? t->mesh_num[g1] : 0);
-            dg_shape(&B, t->types[g2], pose + 16 * g2, t->sizes + 3 * g2,
-                     mesh2 ? t->mesh_vert + 3 * (npy_intp)t->mesh_adr[g2] : NULL,
-                     mesh2 ? t->mesh_num[g2] : 0);
-            int measured = !(t->cutoff < INFINITY &&
-                             dg_beyond(&A, &B, t->radii[g1], t->radii[g2], t->cutoff, &t->opt, &W));
-            if (measured && dg_distance(&A, &B, &t->opt, &W, &dist, pts) < 0) {
-                t->failed = 1;
-                break;
-            }
-            int near = measured && dist < t->cutoff;
-            if (t->hit) {
-                if (near) {
-                    t->hit[c] = 1;
+    double *buf = t->fk ? malloc(sizeof(double) * 16 * (size_t)(g_lanes * t->F)) : NULL;
+    if (t->fk && buf == NULL) t->failed = 1;
+    npy_intp block[2] = {0, 0};
+    for (npy_intp i = t->lo; i < t->hi && !t->failed; ++i) {
+        if (t->groups) {
+            t->first[i] = -1;
+            for (npy_intp c = t->groups[i]; c < t->groups[i + 1]; ++c) {
+                const double *frames = dg_frames(t, c, t->groups[i + 1], buf, block);
+                int r = frames ? dg_config(t, c, frames, posed, &W) : -1;
+                if (r < 0) t->failed = 1;
+                if (r <= 0) {
+                    t->first[i] = r == 0 ? c : -1;
                     break;
                 }
-                continue;
             }
-            npy_intp i = c * t->P + p;
-            t->dist[i] = near ? dist : INFINITY;
-            for (int k = 0; k < 6; ++k) t->pts[6 * i + k] = near ? pts[k] : NAN;
+        } else {
+            const double *frames = dg_frames(t, i, t->hi, buf, block);
+            int r = frames ? dg_config(t, i, frames, posed, &W) : -1;
+            if (r < 0) t->failed = 1;
+            else if (t->hit) t->hit[i] = (npy_bool)r;
         }
-        if (t->failed) break;
     }
+    free(buf);
     free(posed);
     dg_free_work(&W);
 }
@@ -1243,28 +1296,46 @@ static PyObject *distance(PyObject *Py_UNUSED(mod), PyObject *args) {
  * options, radii, cutoff, hit) -> (dist (B, P), points (B, P, 2, 3)), or with hit true
  * hit (B,) bool: G geoms of MuJoCo's types (int32 (G,)) and sizes (G, 3), meshes as vertices
  * mesh_vert[mesh_adr[g]:][:mesh_num[g]] ((V, 3)), the P pairs (int32 (P, 2), geom indices, not
- * two planes), posed by frames (B, F, 4, 4), frame_of (int32 (G,), -1: none) and local
+ * two planes), posed by frames (B, F, 4, 4) (or (kernel, qpos): an FK Kernel's frames of
+ * qpos (B, nq), computed as needed), frame_of (int32 (G,), -1: none) and local
  * (G, 4, 4) (None: frames are the geoms' poses, F = G; dg_pairs_task); a pair at cutoff or
  * beyond comes out inf (points NaN), and is not measured where a bound rules it out
- * (dg_beyond, radii (G,) the bounding spheres'); hit: whether some pair is nearer than cutoff */
+ * (dg_beyond, radii (G,) the bounding spheres'); hit: whether some pair is nearer than cutoff;
+ * groups (int64 (N + 1,) offsets, with hit): first (N,) int64, each group's first configuration
+ * with no pair nearer than cutoff (-1: none), those after it not looked at */
 static PyObject *pair_distances(PyObject *Py_UNUSED(mod), PyObject *args) {
     DgTask t;
     memset(&t, 0, sizeof t);
     PyObject *types, *sizes, *adr, *num, *vert, *pairs, *frames, *frame_of, *local, *options,
-        *radii;
+        *radii, *groups = Py_None;
     int hit;
-    if (!PyArg_ParseTuple(args, "OOOOOOOOOOOdp", &types, &sizes, &adr, &num, &vert, &pairs,
-                          &frames, &frame_of, &local, &options, &radii, &t.cutoff, &hit) ||
+    if (!PyArg_ParseTuple(args, "OOOOOOOOOOOdp|O", &types, &sizes, &adr, &num, &vert, &pairs,
+                          &frames, &frame_of, &local, &options, &radii, &t.cutoff, &hit,
+                          &groups) ||
         !dg_options(options, &t.opt))
         return NULL;
+    npy_intp B = -1, F = 0; /* configurations, frames of each */
+    if (PyTuple_Check(frames) && PyTuple_GET_SIZE(frames) == 2 &&
+        Py_IS_TYPE(PyTuple_GET_ITEM(frames, 0), &KernelType)) { /* (FK kernel, qpos (B, nq)) */
+        const Program *prog = &((KernelObject *)PyTuple_GET_ITEM(frames, 0))->prog;
+        PyObject *qpos = PyTuple_GET_ITEM(frames, 1);
+        if (prog->jac_cols == 0 && dg_array(qpos, NPY_FLOAT64, 2, -1, prog->nq)) {
+            t.fk = prog, t.qpos = PyArray_DATA((PyArrayObject *)qpos);
+            B = PyArray_DIM((PyArrayObject *)qpos, 0), F = prog->n_out;
+            for (npy_intp i = 0; i < B * prog->nq && B >= 0; ++i)
+                if (!isfinite(t.qpos[i])) B = -1;
+        }
+    } else if (dg_array(frames, NPY_FLOAT64, 4, 4, 4)) {
+        B = PyArray_DIM((PyArrayObject *)frames, 0), F = PyArray_DIM((PyArrayObject *)frames, 1);
+        t.frames = PyArray_DATA((PyArrayObject *)frames);
+    }
     int ok = dg_array(types, NPY_INT32, 1, -1, -1) && dg_array(sizes, NPY_FLOAT64, 2, -1, 3) &&
              dg_array(adr, NPY_INT32, 1, -1, -1) && dg_array(num, NPY_INT32, 1, -1, -1) &&
              dg_array(vert, NPY_FLOAT64, 2, -1, 3) && dg_array(pairs, NPY_INT32, 2, -1, 2) &&
-             dg_array(frames, NPY_FLOAT64, 4, 4, 4) && dg_array(frame_of, NPY_INT32, 1, -1, -1) &&
+             B >= 0 && dg_array(frame_of, NPY_INT32, 1, -1, -1) &&
              (local == Py_None || dg_array(local, NPY_FLOAT64, 3, 4, 4)) &&
              dg_array(radii, NPY_FLOAT64, 1, -1, -1) && !isnan(t.cutoff);
     npy_intp G = ok ? PyArray_DIM((PyArrayObject *)types, 0) : 0;
-    npy_intp F = ok ? PyArray_DIM((PyArrayObject *)frames, 1) : 0;
     if (ok)
         ok = PyArray_DIM((PyArrayObject *)sizes, 0) == G &&
              PyArray_DIM((PyArrayObject *)radii, 0) == G &&
@@ -1296,19 +1367,42 @@ static PyObject *pair_distances(PyObject *Py_UNUSED(mod), PyObject *args) {
         PyErr_SetString(PyExc_ValueError,
                         "pair_distances: int32 types (G,), float64 sizes (G, 3), int32 mesh_adr "
                         "and mesh_num (G,), mesh_vert (V, 3), int32 pairs (P, 2) of geoms of "
-                        "known types (not two planes), frames (B, F, 4, 4), int32 frame_of (G,) "
-                        "below F, local (G, 4, 4) or None (frame_of the geoms, F = G), radii "
-                        "(G,), C-contiguous, and a cutoff not NaN");
+                        "known types (not two planes), frames (B, F, 4, 4) or (an FK Kernel, "
+                        "finite qpos (B, nq)), int32 frame_of (G,) below F, local (G, 4, 4) or "
+                        "None (frame_of the geoms, F = G), radii (G,), C-contiguous, and a "
+                        "cutoff not NaN");
         return NULL;
     }
     t.sizes = PyArray_DATA((PyArrayObject *)sizes);
     t.mesh_vert = PyArray_DATA((PyArrayObject *)vert);
-    t.frames = PyArray_DATA((PyArrayObject *)frames);
     t.local = local == Py_None ? NULL : PyArray_DATA((PyArrayObject *)local);
     t.radii = PyArray_DATA((PyArrayObject *)radii);
     t.G = G, t.F = F;
     t.P = PyArray_DIM((PyArrayObject *)pairs, 0);
-    npy_intp dims[2] = {PyArray_DIM((PyArrayObject *)frames, 0), t.P};
+    npy_intp dims[2] = {B, t.P};
+    if (groups != Py_None) { /* each group's first configuration clear of cutoff */
+        npy_intp n = dg_array(groups, NPY_INT64, 1, -1, -1)
+                         ? PyArray_DIM((PyArrayObject *)groups, 0) - 1
+                         : -1;
+        const int64_t *g = n >= 0 ? PyArray_DATA((PyArrayObject *)groups) : NULL;
+        int fits = hit && n >= 0 && g[0] >= 0 && g[n] <= dims[0];
+        for (npy_intp i = 0; i < n && fits; ++i) fits = g[i] <= g[i + 1];
+        if (!fits) {
+            PyErr_SetString(PyExc_ValueError,
+                            "pair_distances: groups must be int64 (N + 1,) offsets, from 0 or "
+                            "more, nondecreasing, to at most B, with hit true");
+            return NULL;
+        }
+        PyArrayObject *out = (PyArrayObject *)PyArray_SimpleNew(1, &n, NPY_INT64);
+        if (out == NULL) return NULL;
+        t.groups = g, t.first = PyArray_DATA(out);
+        npy_intp per = n > 0 ? t.P * ((g[n] - g[0]) / n + 1) : t.P;
+        if (dg_run(t, n, per) < 0) {
+            Py_DECREF(out);
+            return PyErr_NoMemory();
+        }
+        return (PyObject *)out;
+    }
     if (hit) {
         PyArrayObject *out = (PyArrayObject *)PyArray_SimpleNew(1, dims, NPY_BOOL);
         if (out == NULL) return NULL;
@@ -1360,6 +1454,107 @@ static PyObject *get_threads(PyObject *Py_UNUSED(mod), PyObject *Py_UNUSED(unuse
     return PyLong_FromLong(g_threads);
 }
 
+/* ------------------------------------------------------------------------------------------ */
+/* ordered: the compiled twin of poekin.ik.analytic.order_numpy */
+
+/* t rounded to the nearest integer, a half to the even one (numpy.round; nearbyint's, without
+ * its cost of saving the floating-point environment): below 2^52, adding and taking away 2^52
+ * leaves the rounded value; from 2^52 on (and NaN) t is its own */
+static inline double ik_round_even(double t) {
+    double r = copysign((fabs(t) + 0x1p52) - 0x1p52, t);
+    return fabs(t) < 0x1p52 ? r : t;
+}
+
+/* a branch's place in the order as an integer: the invalid after the valid (the top bit),
+ * then by the squared distance d2 >= 0 (whose bits, as an integer, order as it does), NaN
+ * last (as NumPy sorts) */
+static inline uint64_t ik_sort_key(int valid, double d2) {
+    uint64_t bits;
+    memcpy(&bits, &d2, sizeof bits);
+    bits = isnan(d2) ? 0x7ff8000000000000ULL : bits;
+    return ((uint64_t)!valid << 63) | bits;
+}
+
+/* ordered(q, valid, ref, limits, revolute) -> (q, valid): q (N, K, J) float64 and valid (N, K)
+ * bool, each branch's revolute angles moved by whole turns to the equivalents nearest
+ * ref (N, J) within limits (J, 2) (poekin.ik._angles.nearest_turns), and the K branches of each
+ * target sorted, stably, the valid first, then by the squared distance to ref summed joint by
+ * joint in order; revolute (J,) bool */
+static PyObject *ordered(PyObject *Py_UNUSED(mod), PyObject *args) {
+    PyObject *q_obj, *valid_obj, *ref_obj, *limits_obj, *rev_obj;
+    if (!PyArg_ParseTuple(args, "OOOOO:ordered", &q_obj, &valid_obj, &ref_obj, &limits_obj,
+                          &rev_obj))
+        return NULL;
+    if (!dg_array(q_obj, NPY_FLOAT64, 3, -1, -1) || !dg_array(valid_obj, NPY_BOOL, 2, -1, -1) ||
+        !dg_array(ref_obj, NPY_FLOAT64, 2, -1, -1) ||
+        !dg_array(limits_obj, NPY_FLOAT64, 2, -1, 2) || !dg_array(rev_obj, NPY_BOOL, 1, -1, -1)) {
+        PyErr_SetString(PyExc_ValueError,
+                        "ordered(q, valid, ref, limits, revolute): C-contiguous q (N, K, J) "
+                        "float64, valid (N, K) bool, ref (N, J), limits (J, 2), revolute (J,) bool");
+        return NULL;
+    }
+    PyArrayObject *Q = (PyArrayObject *)q_obj, *V = (PyArrayObject *)valid_obj;
+    PyArrayObject *R = (PyArrayObject *)ref_obj, *L = (PyArrayObject *)limits_obj;
+    PyArrayObject *Rv = (PyArrayObject *)rev_obj;
+    npy_intp N = PyArray_DIM(Q, 0), K = PyArray_DIM(Q, 1), J = PyArray_DIM(Q, 2);
+    if (PyArray_DIM(V, 0) != N || PyArray_DIM(V, 1) != K || PyArray_DIM(R, 0) != N ||
+        PyArray_DIM(R, 1) != J || PyArray_DIM(L, 0) != J || PyArray_DIM(Rv, 0) != J) {
+        PyErr_SetString(PyExc_ValueError, "ordered: the shapes of q, valid, ref, limits and "
+                                          "revolute do not agree");
+        return NULL;
+    }
+    PyArrayObject *q_out = (PyArrayObject *)PyArray_SimpleNew(3, PyArray_DIMS(Q), NPY_FLOAT64);
+    PyArrayObject *v_out = (PyArrayObject *)PyArray_SimpleNew(2, PyArray_DIMS(V), NPY_BOOL);
+    double *moved = malloc(sizeof(double) * (size_t)(K * J > 0 ? K * J : 1));
+    uint64_t *key = malloc(sizeof(uint64_t) * (size_t)(K > 0 ? K : 1));
+    npy_intp *order = malloc(sizeof(npy_intp) * (size_t)(K > 0 ? K : 1));
+    if (q_out == NULL || v_out == NULL || moved == NULL || key == NULL || order == NULL) {
+        Py_XDECREF(q_out);
+        Py_XDECREF(v_out);
+        free(moved), free(key), free(order);
+        return PyErr_NoMemory();
+    }
+    const double *q = PyArray_DATA(Q), *ref = PyArray_DATA(R), *lim = PyArray_DATA(L);
+    const npy_bool *valid = PyArray_DATA(V), *rev = PyArray_DATA(Rv);
+    double *qo = PyArray_DATA(q_out);
+    npy_bool *vo = PyArray_DATA(v_out);
+    for (npy_intp i = 0; i < N; ++i) {
+        const double *r = ref + J * i;
+        for (npy_intp b = 0; b < K; ++b) {
+            const double *x = q + (i * K + b) * J;
+            double *m = moved + b * J, sum = 0.0;
+            for (npy_intp j = 0; j < J; ++j) {
+                double t = (r[j] - x[j]) / IK_TWO_PI;
+                m[j] = x[j];
+                /* within the limits and half a turn of ref: no turn moves it (k = 0 below) */
+                int stays = (x[j] >= lim[2 * j]) & (x[j] <= lim[2 * j + 1]) & (fabs(t) < 0.5);
+                if (rev[j] && !stays) { /* nearest_turns: the nearest turns, within the limits */
+                    double fewest = ceil((lim[2 * j] - x[j]) / IK_TWO_PI);
+                    double most = floor((lim[2 * j + 1] - x[j]) / IK_TWO_PI);
+                    double k = ik_round_even(t);
+                    k = (isnan(k) | isnan(fewest)) ? NAN : (k > fewest ? k : fewest);
+                    k = (isnan(k) | isnan(most)) ? NAN : (k < most ? k : most);
+                    if (fewest <= most && k != 0.0) m[j] = x[j] + k * IK_TWO_PI;
+                }
+                double diff = m[j] - r[j];
+                sum = j == 0 ? diff * diff : sum + diff * diff;
+            }
+            key[b] = ik_sort_key(valid[i * K + b], sum);
+        }
+        for (npy_intp b = 0; b < K; ++b) { /* its place: the branches before it (stable) */
+            npy_intp rank = 0;
+            for (npy_intp c = 0; c < K; ++c) rank += (key[c] < key[b]) | ((key[c] == key[b]) & (c < b));
+            order[rank] = b;
+        }
+        for (npy_intp b = 0; b < K; ++b) {
+            memcpy(qo + (i * K + b) * J, moved + order[b] * J, sizeof(double) * (size_t)J);
+            vo[i * K + b] = valid[i * K + order[b]];
+        }
+    }
+    free(moved), free(key), free(order);
+    return Py_BuildValue("(NN)", q_out, v_out);
+}
+
 static PyMethodDef module_methods[] = {
     {"set_threads", set_threads, METH_O, "set_threads(n): threads for big batches"},
     {"get_threads", get_threads, METH_NOARGS, "get_threads() -> int"},
@@ -1367,12 +1562,14 @@ static PyMethodDef module_methods[] = {
     {"get_width", get_width, METH_NOARGS, "get_width() -> configurations per block"},
     {"ik_all", ik_all, METH_VARARGS,
      "ik_all(kind, params, T, limits) -> (q, valid, bad): every closed-form IK branch"},
+    {"ordered", ordered, METH_VARARGS,
+     "ordered(q, valid, ref, limits, revolute) -> (q, valid): branches nearest ref, sorted"},
     {"distance", distance, METH_VARARGS,
      "distance(kind1, T1, S1, kind2, T2, S2, options) -> (dist, points): gjk.distance's twin"},
     {"pair_distances", pair_distances, METH_VARARGS,
      "pair_distances(types, sizes, mesh_adr, mesh_num, mesh_vert, pairs, frames, frame_of, local, "
-     "options, radii, cutoff, hit) -> "
-     "(dist, points)"},
+     "options, radii, cutoff, hit[, groups]) -> "
+     "(dist, points), hit or first"},
     {"expose_python", expose_python, METH_VARARGS,
      "expose_python(get, call): FastMethod's __get__ and __call__ for tools that trace Python"},
     {NULL, NULL, 0, NULL},
