@@ -28,7 +28,8 @@ The targets are first solved without the pairs (the compiled kernel); an answer 
 its target and keeps every pair ``margin`` apart is one of the constrained problem's
 (no row is active at it), and stands. For a target whose answer collides, a chain with a
 closed form (:meth:`poekin.Chain.ik_all`: six joints) and a whole pose has only its branches
-for answers: the valid one that keeps the margin, nearest ``q0`` (else the plain answer),
+for answers: the valid one that keeps the margin, nearest ``q0`` (without ``q0``, the first
+in the closed form's own order),
 stands, found in one batched call and one collision check. Without ``q0`` (the starts are
 random anyway) the targets left are solved plainly again from :data:`RESTARTS` other seeds'
 starts, in batches, and the first clear answer stands. Only the targets left then are solved
@@ -362,37 +363,38 @@ def _restart_seed(seed: int, r: int) -> int:
 def _clear_branch(
     chain: Chain,
     T: FloatArray,
-    near: FloatArray,
+    near: FloatArray | None,
     colliding: FloatArray,
     base: FloatArray,
     s: Settings,
     scene: Scene,
 ) -> tuple[FloatArray, FloatArray, FloatArray]:
     """``(N, n)`` for each target ``T (N, 4, 4)``, the closed form's branch (:meth:`Chain.ik_all`)
-    nearest ``near (N, n)`` that is valid and keeps the margin, if it meets the tolerances; NaN
-    where it does not, where none does, or where the chain has no closed form. Then ``(N,)``
-    its position and orientation errors. The branch of ``colliding (N, n)`` (the plain answer,
-    within 1e-6 rad) is known to collide and not checked again. For six joints and a whole
-    pose the branches are every answer there is, so a clear one is the constrained problem's
-    answer, and the nearest is the one a solve from ``near`` would look for."""
+    nearest ``near (N, n)`` (None: the first in the closed form's order) that is valid and
+    keeps the margin, if it meets the tolerances; NaN where it does not, where none does, or
+    where the chain has no closed form. Then ``(N,)`` its position and orientation errors. The
+    branch of ``colliding (N, n)`` (the plain answer, within 1e-6 rad) is known to collide and
+    not checked again. For six joints and a whole pose the branches are every answer there is,
+    so a clear one is the constrained problem's answer, and the nearest is the one a solve
+    from ``near`` would look for."""
     from poekin.errors import AnalyticIKError
     from poekin.ik.numerical import solve as plain_solve
 
-    out = np.full(near.shape, np.nan)
-    pos, ori = np.full(len(near), np.nan), np.full(len(near), np.nan)
+    out = np.full(colliding.shape, np.nan)
+    pos, ori = np.full(len(colliding), np.nan), np.full(len(colliding), np.nan)
     try:
         branches = chain.ik_all(T, near=near)
     except AnalyticIKError:
         return out, pos, ori
     limits = chain_terms(chain).limits
-    # each target's valid branches within the limits, nearest first, but the plain answer's
+    # each target's valid branches within the limits, in order, but the plain answer's
     rows, cols = np.nonzero(branches.valid)
     candidates = branches.q[rows, cols]
     turns = np.remainder(candidates - colliding[rows] + np.pi, 2 * np.pi) - np.pi
     keep = np.all((candidates >= limits[:, 0]) & (candidates <= limits[:, 1]), axis=-1)
     keep &= np.any(np.abs(turns) > 1e-6, axis=-1)
     rows, candidates = rows[keep], candidates[keep]
-    groups = np.searchsorted(rows, np.arange(len(near) + 1))
+    groups = np.searchsorted(rows, np.arange(len(colliding) + 1))
     # up to the first of each target's that keeps the margin
     first = scene.first_clear(candidates, _rows(base, rows), groups)
     has = np.flatnonzero(first >= 0)
@@ -454,9 +456,9 @@ def solve(
     pos_err = np.array(plain.pos_err, dtype=np.float64).reshape(-1)
     ori_err = np.array(plain.ori_err, dtype=np.float64).reshape(-1)
     if len(redo) and not options.position_only:
-        near = q if flat_q0 is None else flat_q0
+        near = None if flat_q0 is None else flat_q0[redo]
         settled, pos, ori = _clear_branch(
-            chain, flat_T[redo], near[redo], q[redo], _rows(flat_base, redo), options, scene
+            chain, flat_T[redo], near, q[redo], _rows(flat_base, redo), options, scene
         )
         found = ~np.isnan(settled[:, 0])
         q[redo[found]] = settled[found]
