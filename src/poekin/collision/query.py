@@ -346,7 +346,7 @@ def frames_of(tree: Any, qpos: FloatArray) -> Any:
     the collision kernel computes as it goes (none kept in memory)."""
     if tree._kernel is not None and gjk._kernel is not None:
         return (tree._kernel, np.ascontiguousarray(qpos, dtype=np.float64))
-    return np.asarray(tree.fk(qpos), dtype=np.float64).reshape(-1, tree.n_frames, 4, 4)
+    return _frames(tree, qpos)[0]
 
 
 def _frames_array(frames: Any) -> FloatArray:
@@ -475,9 +475,6 @@ def in_collision(
     :func:`distances`."""
     value = _margin(margin, "in_collision")
     checked = prepare(tree, obstacles, ignore)
-    q: FloatArray = tree._as_qpos(qpos)
-    if not np.all(np.isfinite(q)):  # the FK says what is wrong
-        frames, batch = _frames(tree, q)
-        return hits(checked, frames, value).reshape(batch)
+    q: FloatArray = tree._as_qpos(qpos)  # checked: real, finite, (..., nq)
     found = hits(checked, frames_of(tree, q.reshape(-1, tree.nq)), value)
     return found.reshape(q.shape[:-1])

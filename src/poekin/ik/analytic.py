@@ -901,9 +901,9 @@ def ik_all(
 def _quick(chain: Chain, T: FloatArray, near: ArrayLike | None) -> IKSolutions | None:
     """:func:`ik_all` of a NumPy array ``T`` on a chain of a supported geometry (not a near
     one), as the usual path solves it (and orders it, with ``near``), with less around the
-    kernel; None where that does not
-    serve (the geometry not yet found or only near, ``T`` not a plain float64 ``(..., 4, 4)``
-    array, a target that is not a rigid transform): the usual path then says what is wrong."""
+    kernel; None where that does not serve (the geometry not yet found or only near, ``T`` not
+    a plain float64 ``(..., 4, 4)`` array, a target that is not a rigid transform): the usual
+    path then says what is wrong."""
     global _last
     ref, geo = _last  # one read: another thread may set it meanwhile
     if ref() is not chain:  # not a control loop's chain, as last time

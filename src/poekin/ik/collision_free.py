@@ -29,13 +29,12 @@ its target and keeps every pair ``margin`` apart is one of the constrained probl
 (no row is active at it), and stands. For a target whose answer collides, a chain with a
 closed form (:meth:`poekin.Chain.ik_all`: six joints) and a whole pose has only its branches
 for answers: the valid one that keeps the margin, nearest ``q0`` (without ``q0``, the first
-in the closed form's own order),
-stands, found in one batched call and one collision check. Without ``q0`` (the starts are
-random anyway) the targets left are solved plainly again from :data:`RESTARTS` other seeds'
-starts, in batches, and the first clear answer stands. Only the targets left then are solved
-again with the rows; a target the plain solve cannot reach is not (the rows only shrink the
-set of answers), and fails as it did. Without success ``q`` is the best iterate that kept the
-margin, or the plain solve's answer if none did.
+in the closed form's own order), stands, found in one batched call and one collision check.
+Without ``q0`` (the starts are random anyway) the targets left are solved plainly again from
+:data:`RESTARTS` other seeds' starts, in batches, and the first clear answer stands. Only the
+targets left then are solved again with the rows; a target the plain solve cannot reach is not
+(the rows only shrink the set of answers), and fails as it did. Without success ``q`` is the
+best iterate that kept the margin, or the plain solve's answer if none did.
 """
 
 from __future__ import annotations
@@ -72,6 +71,7 @@ from poekin.ik.numerical import (
     starts,
     wrapped,
 )
+from poekin.ik.numerical import solve as plain_solve
 
 if TYPE_CHECKING:
     from poekin.chain import Chain
@@ -139,16 +139,22 @@ class Scene:
 
     def clear(self, q: FloatArray, base: FloatArray) -> BoolArray:
         """``(N,)`` whether every pair is at least ``margin`` apart (to :data:`FEASIBLE_TOL`)."""
-        frames = frames_of(self.tree, self.qpos(q, base))
-        return np.asarray(~hits(self.checked, frames, self.margin * (1 - FEASIBLE_TOL)))
+        return np.asarray(~hits(self.checked, self._frames(q, base), self._cutoff))
 
     def first_clear(self, q: FloatArray, base: FloatArray, groups: Any) -> NDArray[np.int64]:
         """``(N,)`` for each group of configurations ``q[groups[i]:groups[i + 1]]`` (and
         ``base``), the index of its first that :meth:`clear` passes, -1 where none does
         (:func:`poekin.collision.query.first_clear`: the configurations after it are not
         checked)."""
-        frames = frames_of(self.tree, self.qpos(q, base))
-        return first_clear(self.checked, frames, self.margin * (1 - FEASIBLE_TOL), groups)
+        return first_clear(self.checked, self._frames(q, base), self._cutoff, groups)
+
+    def _frames(self, q: FloatArray, base: FloatArray) -> Any:
+        return frames_of(self.tree, self.qpos(q, base))
+
+    @property
+    def _cutoff(self) -> float:
+        """A pair nearer than this misses the margin (:data:`FEASIBLE_TOL`)."""
+        return self.margin * (1 - FEASIBLE_TOL)
 
 
 def chain_scene(
@@ -378,7 +384,6 @@ def _clear_branch(
     so a clear one is the constrained problem's answer, and the nearest is the one a solve
     from ``near`` would look for."""
     from poekin.errors import AnalyticIKError
-    from poekin.ik.numerical import solve as plain_solve
 
     out = np.full(colliding.shape, np.nan)
     pos, ori = np.full(len(colliding), np.nan), np.full(len(colliding), np.nan)
@@ -436,8 +441,6 @@ def solve(
     Returns:
         An :class:`~poekin.ik.IKResult` over the chain's joints.
     """
-    from poekin.ik.numerical import solve as plain_solve
-
     plain = plain_solve(chain, T, q0, seed=seed, options=options)
     T = np.asarray(T, dtype=np.float64)
     q0 = None if q0 is None else np.asarray(q0, dtype=np.float64)

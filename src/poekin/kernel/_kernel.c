@@ -987,7 +987,7 @@ static void dg_task(void *arg) {
 
 /* out = F @ L, 4x4 row-major, each entry's four products summed in order (the reference's
  * gjk.compose), but for the last row (0 0 0 1 for rigid transforms), which no distance reads:
- * left unset */
+ * not computed */
 static void dg_compose(const double *F, const double *L, double *out) {
     for (int i = 0; i < 3; ++i)
         for (int j = 0; j < 4; ++j)
@@ -1086,8 +1086,8 @@ static int dg_beyond(const DgShape *A, const DgShape *B, double ra, double rb, d
 
 /* configuration c of the task: its geoms posed (posed: room for G poses), then its pairs
  * measured (the task's dist and pts) or, in hit mode, looked at up to the first nearer than
- * cutoff, its frames (F, 4, 4) at frames; 1 a pair is nearer than cutoff, 0 none, -1 out of
- * memory */
+ * cutoff, its frames (F, 4, 4) at frames; in hit mode 1 where a pair is nearer than cutoff,
+ * else 0; -1 out of memory */
 static int dg_config(const DgTask *t, npy_intp c, const double *frames, double *posed,
                      DgWork *W) {
     if (t->local)
@@ -1101,7 +1101,6 @@ static int dg_config(const DgTask *t, npy_intp c, const double *frames, double *
     const double *pose = t->local ? posed : frames;
     DgShape A, B;
     double dist, pts[6];
-    int any = 0;
     for (npy_intp p = 0; p < t->P; ++p) {
         int32_t g1 = t->pairs[2 * p], g2 = t->pairs[2 * p + 1];
         int mesh1 = t->types[g1] == DG_MESH, mesh2 = t->types[g2] == DG_MESH;
@@ -1115,7 +1114,6 @@ static int dg_config(const DgTask *t, npy_intp c, const double *frames, double *
                          dg_beyond(&A, &B, t->radii[g1], t->radii[g2], t->cutoff, &t->opt, W));
         if (measured && dg_distance(&A, &B, &t->opt, W, &dist, pts) < 0) return -1;
         int near = measured && dist < t->cutoff;
-        any = any || near;
         if (t->hit || t->groups) {
             if (near) return 1;
             continue;
@@ -1124,7 +1122,7 @@ static int dg_config(const DgTask *t, npy_intp c, const double *frames, double *
         t->dist[i] = near ? dist : INFINITY;
         for (int k = 0; k < 6; ++k) t->pts[6 * i + k] = near ? pts[k] : NAN;
     }
-    return any;
+    return 0;
 }
 
 /* The frames (F, 4, 4) of configuration c of the task: frames' own, or with fk those the FK
