@@ -10,6 +10,7 @@ public names, run before any module) is not.
 from __future__ import annotations
 
 import ast
+import functools
 import pathlib
 import subprocess
 import sys
@@ -69,14 +70,24 @@ def _imports(tree: ast.AST, package: str, modules: Collection[str]) -> list[tupl
     return found
 
 
-def import_graph(*, module_level_only: bool = False) -> dict[str, set[str]]:
-    """Each poekin module's runtime imports of poekin modules (see the module docstring)."""
+@functools.cache
+def _read() -> tuple[dict[str, pathlib.Path], dict[str, list[tuple[str, bool]]]]:
+    """The modules, and each one's imports (:func:`_imports`): read once, for every test."""
     modules = _modules()
-    graph: dict[str, set[str]] = {}
+    found = {}
     for name, path in modules.items():
         package = name if path.name == "__init__.py" else name.rpartition(".")[0]
+        found[name] = _imports(ast.parse(path.read_text()), package, modules)
+    return modules, found
+
+
+def import_graph(*, module_level_only: bool = False) -> dict[str, set[str]]:
+    """Each poekin module's runtime imports of poekin modules (see the module docstring)."""
+    modules, imports = _read()
+    graph: dict[str, set[str]] = {}
+    for name in modules:
         edges: set[str] = set()
-        for target, top in _imports(ast.parse(path.read_text()), package, modules):
+        for target, top in imports[name]:
             if target not in modules or (module_level_only and not top):
                 continue
             parts = target.split(".")
