@@ -972,6 +972,22 @@ _SAME = 1e-5
 _FOLD_STEPS = (0.05, 0.3, 1.0)
 
 
+# A branch whose middle wrist joint is this near a straight wrist (|sin q5|: axes 4 and 6
+# nearly parallel) may have a second solution near it, or one where the ideal geometry has none
+_STRAIGHT_WRIST = 0.05
+# ... and its twin is looked for this far (rad) either side of it, along the direction in which
+# the two part (the largest of :data:`_FOLD_STEPS`: the twins found in bench_ik.py's calibrated
+# UR5e were a radian apart; the smaller steps found none the largest did not)
+_TWIN_STEP = 1.0
+
+
+# The refinement's tolerances (m, rad): a hundredth of the solver's default, so that a solution
+# near a fold (the Jacobian's smallest singular value 1e-4) comes back within some 1e-8 rad
+# of the exact one, not 1e-6; a branch is valid where it meets the default (1e-10)
+_TIGHT = 1e-12
+_VALID = 1e-10
+
+
 def _refined(
     chain: Chain, T: FloatArray, q: FloatArray, exists: BoolArray
 ) -> tuple[FloatArray, BoolArray]:
@@ -987,20 +1003,24 @@ def _refined(
     reached (the other side of the fold), then steps of :data:`_FOLD_STEPS` either side of its
     start along the right singular vector of the Jacobian's smallest singular value there (the
     direction in which the two solutions part); it is kept if it reaches a solution of its
-    own."""
+    own. Near a straight wrist the chain can have two solutions near one of the ideal
+    geometry's: :func:`_twins` puts the second in a branch that has none. Every solve goes to
+    :data:`_TIGHT`, so that a solution near a fold is the exact one to some 1e-8 rad."""
     limits = chain.limits
     assert limits is not None  # Chain.__post_init__ sets them
     lo, hi = limits[:, 0], limits[:, 1]
     start = np.clip(q, lo, hi)  # inside: the solver says nothing of it
     n, k = q.shape[:2]
     targets = np.repeat(T, k, axis=0).reshape(n, k, 4, 4)  # contiguous: the kernel's own
-    found = chain.ik(targets, q0=start, max_attempts=1)
-    out = found.q.copy()  # within the limits, and near the start: the closed form's convention
-    valid = _distinct(out, found.success)
+    out, met = _solve(chain, targets, start)  # within the limits, near the start: the
+    # closed form's convention
+    valid = _distinct(out, met)
     # lost where a solution may be: a twin (two roots that merged in the ideal geometry reach
     # one solution), or a branch the ideal geometry reaches; one it does not reach, and that
     # did not converge, has none
-    lost = (found.success & ~valid) | (exists & ~found.success)
+    lost = (met & ~valid) | (exists & ~met)
+    # near a straight wrist, a solution the ideal geometry does not reach may be there
+    lost |= ~met & (np.abs(np.sin(start[..., 4])) < _STRAIGHT_WRIST)
     t, b = np.nonzero(lost)
     if not len(t):
         return out, valid
@@ -1018,7 +1038,47 @@ def _refined(
             t, b, s0, fold = t[left], b[left], s0[left], fold[left]
             if not len(t):
                 break
+    _twins(chain, targets, out, valid)
     return out, valid
+
+
+def _twins(chain: Chain, targets: FloatArray, out: FloatArray, valid: BoolArray) -> None:
+    """Near a straight wrist the chain can have two solutions where the ideal geometry has
+    one (up to 16 in all, a general arm's most): from each valid solution there whose target
+    has a branch without one, a step of :data:`_TWIN_STEP` either side along the direction in
+    which the two part; a solution apart from every valid one of its target takes that free
+    branch (``out`` and ``valid`` in place)."""
+    near = valid & (np.abs(np.sin(out[..., 4])) < _STRAIGHT_WRIST)
+    t, b = np.nonzero(near & ~np.all(valid, axis=-1, keepdims=True))
+    if not len(t):
+        return
+    s0 = out[t, b]
+    fold = np.linalg.svd(chain.jacobian_space(s0))[2][:, -1, :]
+    for side in (_TWIN_STEP, -_TWIN_STEP):
+        q, met = _solve(chain, targets[t, b], s0 + side * fold)
+        gap = np.max(np.abs(out[t] - q[:, None, :]), axis=-1)  # (rows, k)
+        for row in np.flatnonzero(met & ~np.any(valid[t] & (gap < _SAME), axis=-1)):
+            i = t[row]  # one at a time: two rows of a target may find one solution
+            free = np.flatnonzero(~valid[i])
+            if len(free) and not np.any(valid[i] & (np.max(np.abs(out[i] - q[row]), -1) < _SAME)):
+                out[i, free[0]], valid[i, free[0]] = q[row], True
+
+
+def _solve(chain: Chain, T: FloatArray, q0: FloatArray) -> tuple[FloatArray, BoolArray]:
+    """The refinement's solve of ``T`` ``(..., 4, 4)`` from ``q0`` ``(..., 6)`` (brought into
+    the limits: the solver says nothing of it), one attempt to :data:`_TIGHT`: ``q`` and
+    where it meets the default tolerances (:data:`_VALID`)."""
+    limits = chain.limits
+    assert limits is not None
+    found = chain.ik(
+        T,
+        q0=np.clip(q0, limits[:, 0], limits[:, 1]),
+        max_attempts=1,
+        pos_tol=_TIGHT,
+        ori_tol=_TIGHT,
+    )
+    met: BoolArray = (found.pos_err <= _VALID) & (found.ori_err <= _VALID)
+    return found.q, met
 
 
 def _retry(
@@ -1034,16 +1094,14 @@ def _retry(
     ``T`` ``(m, 4, 4)``): where one converges to a solution apart from every valid one of its
     target, ``out`` and ``valid`` take it (one branch index at a time: two lost branches may
     find the same solution)."""
-    limits = chain.limits
-    assert limits is not None
-    again = chain.ik(T, q0=np.clip(q0, limits[:, 0], limits[:, 1]), max_attempts=1)
+    q, met = _solve(chain, T, q0)
     for branch in np.unique(b):
-        rows = np.flatnonzero(again.success & (b == branch) & ~valid[t, b])
+        rows = np.flatnonzero(met & (b == branch) & ~valid[t, b])
         if not len(rows):
             continue
-        gap = np.max(np.abs(out[t[rows]] - again.q[rows, None, :]), axis=-1)  # (rows, k)
+        gap = np.max(np.abs(out[t[rows]] - q[rows, None, :]), axis=-1)  # (rows, k)
         new = rows[~np.any(valid[t[rows]] & (gap < _SAME), axis=-1)]
-        out[t[new], branch], valid[t[new], branch] = again.q[new], True
+        out[t[new], branch], valid[t[new], branch] = q[new], True
 
 
 # k -> the k (k - 1) / 2 pairs of branches (b, a), a < b
