@@ -104,6 +104,23 @@ def test_targets_in_the_table_never_succeed(chain: poekin.Chain) -> None:
     assert not found.success
 
 
+def test_a_target_whose_every_branch_collides_fails_at_once(chain: poekin.Chain) -> None:
+    """The tool in the table: every closed-form branch collides and each is a regular point,
+    so there is no clear answer, and the constrained solve does not run (the iterations are the
+    plain solve's). At a straight wrist (q5 = 0) the answers are a continuum that the branches
+    do not cover: the constrained solve looks (more iterations), and fails too."""
+    q = np.array([[0.0, -1.57, 1.57, -1.57, -1.57, 0.0], [0.0, -1.57, 1.57, -1.57, 0.0, 0.0]])
+    T = chain.fk(q)
+    T[:, 2, 3] = -0.05  # the tool 5 cm into the table
+    every = chain.ik_all(T, obstacles=[TABLE], margin=MARGIN)
+    assert (every.collides | ~every.valid).all()
+    plain = chain.ik(T)
+    found = chain.ik(T, avoid=True, obstacles=[TABLE], margin=MARGIN, max_attempts=3)
+    assert plain.success.all() and not found.success.any()
+    assert found.iterations[0] == plain.iterations[0] and found.attempts[0] == plain.attempts[0]
+    assert found.iterations[1] > plain.iterations[1]
+
+
 def test_tree_ik_one_frame(mj: tuple[mujoco.MjModel, mujoco.MjData]) -> None:
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", poekin.AssetsStrippedWarning)

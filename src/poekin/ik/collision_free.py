@@ -29,8 +29,10 @@ its target and keeps every pair ``margin`` apart is one of the constrained probl
 (no row is active at it), and stands. For a target whose answer collides, a chain with a
 closed form (:meth:`poekin.Chain.ik_all`: six joints) and a whole pose has only its branches
 for answers: the valid one that keeps the margin, nearest ``q0`` (without ``q0``, the first
-in the closed form's own order), stands, found in one batched call and one collision check.
-Without ``q0`` (the starts are random anyway) the targets left are solved plainly again from
+in the closed form's own order), stands, found in one batched call and one collision check;
+where none keeps it and every branch is a regular point of the arm (its answers isolated, not
+the continuum of a straight wrist), the target has no clear answer and fails at once. Without
+``q0`` (the starts are random anyway) the targets left are solved plainly again from
 :data:`RESTARTS` other seeds' starts, in batches, and the first clear answer stands. Only the
 targets left then are solved again with the rows; a target the plain solve cannot reach is not
 (the rows only shrink the set of answers), and fails as it did. Without success ``q`` is the
@@ -374,23 +376,25 @@ def _clear_branch(
     base: FloatArray,
     s: Settings,
     scene: Scene,
-) -> tuple[FloatArray, FloatArray, FloatArray]:
+) -> tuple[FloatArray, FloatArray, FloatArray, BoolArray]:
     """``(N, n)`` for each target ``T (N, 4, 4)``, the closed form's branch (:meth:`Chain.ik_all`)
     nearest ``near (N, n)`` (None: the first in the closed form's order) that is valid and
     keeps the margin, if it meets the tolerances; NaN where it does not, where none does, or
-    where the chain has no closed form. Then ``(N,)`` its position and orientation errors. The
-    branch of ``colliding (N, n)`` (the plain answer, within 1e-6 rad) is known to collide and
-    not checked again. For six joints and a whole pose the branches are every answer there is,
-    so a clear one is the constrained problem's answer, and the nearest is the one a solve
-    from ``near`` would look for."""
+    where the chain has no closed form. Then ``(N,)`` its position and orientation errors, and
+    ``(N,)`` where no answer keeps the margin (:func:`_no_clear_answer`). The branch of
+    ``colliding (N, n)`` (the plain answer, within 1e-6 rad) is known to collide and not
+    checked again. For six joints and a whole pose the branches are every answer there is, so a
+    clear one is the constrained problem's answer, and the nearest is the one a solve from
+    ``near`` would look for."""
     from poekin.errors import AnalyticIKError
 
     out = np.full(colliding.shape, np.nan)
     pos, ori = np.full(len(colliding), np.nan), np.full(len(colliding), np.nan)
+    none = np.zeros(len(colliding), dtype=bool)
     try:
         branches = chain.ik_all(T, near=near)
     except AnalyticIKError:
-        return out, pos, ori
+        return out, pos, ori, none
     limits = chain_terms(chain).limits
     # each target's valid branches within the limits, in order, but the plain answer's
     rows, cols = np.nonzero(branches.valid)
@@ -413,7 +417,33 @@ def _clear_branch(
         measured.pos_err[met],
         measured.ori_err[met],
     )
-    return out, pos, ori
+    if not branches.geometry.nearest:
+        none = _no_clear_answer(chain, branches.q, branches.valid, first < 0)
+    return out, pos, ori, none
+
+
+# A branch is a regular point of the arm where its space Jacobian's smallest singular value is
+# above this (rad or m per rad): there the arm's answers are isolated, and the closed form's
+# branches are all of them
+REGULAR = 1e-6
+
+
+def _no_clear_answer(
+    chain: Chain, q: FloatArray, valid: BoolArray, none_clear: BoolArray
+) -> BoolArray:
+    """``(N,)`` where a target of the exact closed form, whose valid branches ``q (N, k, n)``
+    are none of them clear (``none_clear``), has no answer that keeps the margin: each branch
+    is a regular point (:data:`REGULAR`), so the branches and their whole turns (the same
+    poses of every link) are every answer. At a singular one (a straight wrist, the wrist's
+    centre on the first axis) the answers are a continuum, and another member of it may be
+    clear: the constrained solve looks."""
+    rows, cols = np.nonzero(valid & none_clear[:, None])
+    if not len(rows):
+        return np.zeros(len(q), dtype=bool)
+    smallest = np.linalg.svd(chain.jacobian_space(q[rows, cols]), compute_uv=False)[:, -1]
+    singular = np.zeros(len(q), dtype=bool)
+    singular[rows[smallest <= REGULAR]] = True
+    return none_clear & ~singular
 
 
 def _pose_errors(chain: Chain, q: FloatArray, T: FloatArray) -> tuple[FloatArray, FloatArray]:
@@ -460,13 +490,14 @@ def solve(
     ori_err = np.array(plain.ori_err, dtype=np.float64).reshape(-1)
     if len(redo) and not options.position_only:
         near = None if flat_q0 is None else flat_q0[redo]
-        settled, pos, ori = _clear_branch(
+        settled, pos, ori, none = _clear_branch(
             chain, flat_T[redo], near, q[redo], _rows(flat_base, redo), options, scene
         )
         found = ~np.isnan(settled[:, 0])
         q[redo[found]] = settled[found]
         pos_err[redo[found]], ori_err[redo[found]] = pos[found], ori[found]
-        redo = redo[~found]
+        success[redo[none]] = False  # no answer keeps the margin: it fails at once
+        redo = redo[~found & ~none]
     if flat_q0 is None:  # random starts anyway: the plain solve's other seeds first
         for r in range(RESTARTS):
             if not len(redo):
