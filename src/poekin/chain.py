@@ -94,6 +94,7 @@ def register_tree_of_chain(build: Callable[[Chain], Any]) -> None:
 
 
 @functools.cache
+@functools.cache
 def _numerical() -> types.ModuleType:
     """:mod:`poekin.ik.numerical`, imported at first use (it imports this module's users)."""
     from poekin.ik import numerical
@@ -829,8 +830,12 @@ class Chain:
             >>> bool(found.success), found.q.shape
             (True, (6,))
         """
-        listed = [not (isinstance(a, tuple | list) and len(a) == 0) for a in (obstacles, ignore)]
-        if avoid is not False or any(listed) or margin != 0.005:
+        if (
+            avoid is not False
+            or margin != 0.005
+            or not (isinstance(obstacles, (tuple, list)) and len(obstacles) == 0)
+            or not (isinstance(ignore, (tuple, list)) and len(ignore) == 0)
+        ):  # (tuples of types, not unions: a single call's own cost, issue 26)
             return self._ik_avoid(
                 T,
                 q0,
@@ -846,7 +851,7 @@ class Chain:
                 (avoid, obstacles, margin, ignore),
                 (max_total_iterations, params, nearest_branch, posture),
             )
-        if not (isinstance(posture, int | float) and posture == 0):
+        if not (isinstance(posture, (int, float)) and posture == 0):
             return self._ik_posture(
                 T,
                 q0,
