@@ -94,7 +94,6 @@ def register_tree_of_chain(build: Callable[[Chain], Any]) -> None:
 
 
 @functools.cache
-@functools.cache
 def _numerical() -> types.ModuleType:
     """:mod:`poekin.ik.numerical`, imported at first use (it imports this module's users)."""
     from poekin.ik import numerical

@@ -585,7 +585,8 @@ HARD = [
 
 def test_a_straight_wrist_and_a_stretched_elbow_keep_the_configuration_they_came_from() -> None:
     """Each of :data:`HARD`, with the nominal UR5e's limits (as bench_ik.py has them), is among
-    its target's valid branches to 1e-7 rad; every valid branch is exact by MuJoCo's FK."""
+    its target's valid branches to 1e-7 rad; every valid branch is exact by MuJoCo's FK and
+    within the limits."""
     import dataclasses
 
     chain, model = _calibrated()
@@ -599,6 +600,7 @@ def test_a_straight_wrist_and_a_stretched_elbow_keep_the_configuration_they_came
     reached = _mj_fk(model, chain.frame, found.q[ok])
     pos, ori = poekin.pose_errors(np.broadcast_to(T[:, None], (*ok.shape, 4, 4))[ok], reached)
     assert pos.max() <= 1e-10 and ori.max() <= 1e-10
+    assert within_limits(found.q[ok], chain.limits).all()
 
 
 def test_refined_branches_are_the_solutions_a_search_finds() -> None:

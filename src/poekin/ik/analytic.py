@@ -1030,7 +1030,7 @@ def _refined(
     left = ~valid[t, b]
     if left.any():  # steps either side along the direction in which the two solutions part
         t, b, s0 = t[left], b[left], s0[left]
-        fold = np.linalg.svd(chain.jacobian_space(s0))[2][:, -1, :]  # (m, 6), unit
+        fold = _parting(chain, s0)
         for step in _FOLD_STEPS:
             for side in (step, -step):
                 _retry(chain, targets[t, b], s0 + side * fold, t, b, out, valid)
@@ -1053,7 +1053,7 @@ def _twins(chain: Chain, targets: FloatArray, out: FloatArray, valid: BoolArray)
     if not len(t):
         return
     s0 = out[t, b]
-    fold = np.linalg.svd(chain.jacobian_space(s0))[2][:, -1, :]
+    fold = _parting(chain, s0)
     for side in (_TWIN_STEP, -_TWIN_STEP):
         q, met = _solve(chain, targets[t, b], s0 + side * fold)
         gap = np.max(np.abs(out[t] - q[:, None, :]), axis=-1)  # (rows, k)
@@ -1062,6 +1062,14 @@ def _twins(chain: Chain, targets: FloatArray, out: FloatArray, valid: BoolArray)
             free = np.flatnonzero(~valid[i])
             if len(free) and not np.any(valid[i] & (np.max(np.abs(out[i] - q[row]), -1) < _SAME)):
                 out[i, free[0]], valid[i, free[0]] = q[row], True
+
+
+def _parting(chain: Chain, q: FloatArray) -> FloatArray:
+    """``(m, 6)`` unit vectors at ``q (m, 6)``: the right singular vector of the space
+    Jacobian's smallest singular value, the direction in which two solutions near a fold
+    part."""
+    parting: FloatArray = np.linalg.svd(chain.jacobian_space(q))[2][:, -1, :]
+    return parting
 
 
 def _solve(chain: Chain, T: FloatArray, q0: FloatArray) -> tuple[FloatArray, BoolArray]:
