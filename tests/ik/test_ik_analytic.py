@@ -603,6 +603,24 @@ def test_a_straight_wrist_and_a_stretched_elbow_keep_the_configuration_they_came
     assert within_limits(found.q[ok], chain.limits).all()
 
 
+def test_a_calibrated_ur_at_absurd_targets_finds_nothing_inside_the_limits() -> None:
+    """Targets from 1e-300 m to 1e300 m away, signed zeros among them (the ideal geometry
+    gives no finite start beyond 1e154): no valid branch, every q finite and within the
+    limits, the same bits alone and in a batch."""
+    import dataclasses
+
+    chain, _ = _calibrated()
+    chain = dataclasses.replace(chain, limits=poekin.load("universal_robots_ur5e").limits)
+    far = [[1e300, 0.0, 0.0], [1e155, 1e155, 0.0], [-1e200, 1e-300, -0.0], [1e20, 0.0, 0.0]]
+    T = np.tile(np.eye(4), (len(far), 1, 1))
+    T[:, :3, 3] = far
+    found = chain.ik_all(T)
+    assert not found.valid.any()
+    assert np.isfinite(found.q).all() and within_limits(found.q, chain.limits).all()
+    for k in range(len(far)):
+        assert chain.ik_all(T[k]).q.tobytes() == found.q[k].tobytes()
+
+
 def test_refined_branches_are_the_solutions_a_search_finds() -> None:
     """On 40 targets, 2,000 random starts each of the numerical solver find at most 1% of
     solutions that the refined closed form does not list (where a straight wrist moves the

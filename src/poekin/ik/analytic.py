@@ -1009,7 +1009,10 @@ def _refined(
     limits = chain.limits
     assert limits is not None  # Chain.__post_init__ sets them
     lo, hi = limits[:, 0], limits[:, 1]
-    start = np.clip(q, lo, hi)  # inside: the solver says nothing of it
+    # inside the limits (the solver says nothing of it), and finite: a branch the ideal
+    # geometry could not compute (NaN, for a target beyond float64's range of squares) starts
+    # at 0 brought into them
+    start = np.clip(np.where(np.isfinite(q), q, 0.0), lo, hi)
     n, k = q.shape[:2]
     targets = np.repeat(T, k, axis=0).reshape(n, k, 4, 4)  # contiguous: the kernel's own
     out, met = _solve(chain, targets, start)  # within the limits, near the start: the
