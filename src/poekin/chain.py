@@ -830,11 +830,77 @@ class Chain:
             (True, (6,))
         """
         if (
+            avoid is False
+            and params is None
+            and max_total_iterations is None
+            and nearest_branch is False
+            and type(T) is np.ndarray
+            and (q0 is None or type(q0) is np.ndarray)
+            and type(posture) is float
+            and posture == 0.0
+            and type(obstacles) is tuple
+            and not obstacles
+            and type(ignore) is tuple
+            and not ignore
+            and margin == 0.005
+        ):  # the kernel's path, with the least around it (issue 26: a single call's own cost)
+            quick: IKResult | None = _numerical().solve_quick(
+                self,
+                T,
+                q0,
+                seed,
+                pos_tol,
+                ori_tol,
+                position_only,
+                orientation_weight,
+                max_iterations,
+                max_attempts,
+            )
+            if quick is not None:
+                return quick  # None: the usual path validates, and says what is wrong
+        return self._ik_general(
+            T,
+            q0,
+            seed,
+            pos_tol,
+            ori_tol,
+            position_only,
+            orientation_weight,
+            max_iterations,
+            max_attempts,
+            max_total_iterations,
+            params,
+            nearest_branch,
+            posture,
+            (avoid, obstacles, margin, ignore),
+        )
+
+    def _ik_general(
+        self,
+        T: ArrayLike,
+        q0: ArrayLike | None,
+        seed: int,
+        pos_tol: float,
+        ori_tol: float,
+        position_only: bool,
+        orientation_weight: float,
+        max_iterations: int,
+        max_attempts: int,
+        max_total_iterations: int | None,
+        params: ChainParams | None,
+        nearest_branch: bool,
+        posture: float | ArrayLike,
+        avoiding: tuple[Any, Any, float, Sequence[tuple[str, str]]],
+    ) -> IKResult:
+        """:meth:`ik` where the quick path does not serve (a method of its own: its closures
+        would cost every call of :meth:`ik` their cells, issue 26)."""
+        avoid, obstacles, margin, ignore = avoiding
+        if (
             avoid is not False
             or margin != 0.005
             or not (isinstance(obstacles, (tuple, list)) and len(obstacles) == 0)
             or not (isinstance(ignore, (tuple, list)) and len(ignore) == 0)
-        ):  # (tuples of types, not unions: a single call's own cost, issue 26)
+        ):
             return self._ik_avoid(
                 T,
                 q0,
@@ -864,27 +930,6 @@ class Chain:
                 max_attempts,
                 (max_total_iterations, params, nearest_branch),
             )
-        if (
-            params is None
-            and max_total_iterations is None
-            and nearest_branch is False
-            and type(T) is np.ndarray
-            and (q0 is None or type(q0) is np.ndarray)
-        ):  # the kernel's path, with the least around it; None: the usual path
-            quick: IKResult | None = _numerical().solve_quick(
-                self,
-                T,
-                q0,
-                seed,
-                pos_tol,
-                ori_tol,
-                position_only,
-                orientation_weight,
-                max_iterations,
-                max_attempts,
-            )
-            if quick is not None:
-                return quick
         from poekin.ik.numerical import Settings, settings, solve
 
         def numpy_options() -> Settings:  # the NumPy solve's (the kernel's) settings
