@@ -303,6 +303,30 @@ def test_the_kernel_gives_the_reference_bits(name: str) -> None:
 
 
 @pytest.mark.skipif(not poekin.compiled_kernel(), reason="needs the compiled kernel")
+@pytest.mark.parametrize("n_targets", [1, 2, 3])
+def test_a_few_targets_attempts_side_by_side_give_the_reference_bits(
+    ur5e: Chain, n_targets: int
+) -> None:
+    """Fewer targets than lanes run a target's attempts side by side, in rounds; with q0 the
+    first round is attempt 0 alone (_ik_core.h). Starts far from the answer and targets out of
+    reach make later rounds run, and every attempt fail; each attempt count ends a round at
+    another place."""
+    rng = np.random.default_rng(21)
+    q = uniform_q(ur5e, 3 * n_targets, seed=21)
+    T = ur5e.fk(q)
+    T[::3, :3, 3] *= 2.0 / np.linalg.norm(T[::3, :3, 3], axis=-1, keepdims=True)  # unreachable
+    lo, hi = ur5e.limits[:, 0], ur5e.limits[:, 1]
+    far = np.clip(q + rng.normal(0.0, 1.5, q.shape), lo, hi)
+    for attempts in (1, 2, 3, 5, 8):
+        for rows in (slice(k, k + n_targets) for k in range(0, len(T), n_targets)):
+            for q0 in (None, far[rows]):
+                what = f"{n_targets} targets, {attempts} attempts, q0: {q0 is not None}"
+                ours = fields(ur5e.ik(T[rows], q0, seed=5, max_attempts=attempts))
+                theirs = reference(ur5e, T[rows], q0, seed=5, max_attempts=attempts)
+                assert_same_bits(ours, theirs, what)
+
+
+@pytest.mark.skipif(not poekin.compiled_kernel(), reason="needs the compiled kernel")
 @pytest.mark.filterwarnings("ignore::poekin.JointLimitsWarning")  # starts far outside, on purpose
 def test_the_kernel_gives_the_reference_bits_for_unlimited_and_prismatic_joints() -> None:
     """Cyclic joints wrapped from far away (numpy.mod's arithmetic in C), a prismatic joint

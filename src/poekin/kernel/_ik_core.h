@@ -8,7 +8,10 @@
  * (solved, or its attempts spent) the group takes the next target of the batch, so the vector
  * stays full. G is 1 for batches of at least LANES targets: each lane runs its target's
  * attempts one after another. For fewer targets the lanes of a group run G attempts side by
- * side, in rounds (attempts rG .. rG + G - 1), and commit them in attempt order: the answer is
+ * side, in rounds (attempts rG .. rG + G - 1; with a start q0, attempt 0 alone in round 0, which
+ * mostly succeeds, and attempts 1 + (r - 1)G .. rG in round r after it, so that the other lanes
+ * cost it nothing: their random starts would block joints at their limits, and a blocked lane
+ * makes the whole vector solve again), and commit them in attempt order: the answer is
  * the first successful attempt, its iterations those of every attempt up to it, as if they had
  * run one after another (solve_reference); without success, the least-cost iterate of all of
  * them, the earlier attempt's on a tie. A target's answer therefore depends only on its own
@@ -58,13 +61,15 @@ typedef struct {
     int64_t round[LANES], total[LANES];
 } IKState;
 
-/* An IKState for n joints with its arrays after it, in one aligned block; NULL if out of
- * memory. */
-static IKState *ik_state(int n) {
+/* An IKState for n joints with its arrays after it, in one aligned block: in `stack` (of
+ * STACK_SCRATCH bytes) where it fits (no malloc per call: a one-target call's own cost, issue
+ * 26), else on the heap, *heap then the block to free; NULL if out of memory. */
+static IKState *ik_state(int n, unsigned char *stack, unsigned char **heap) {
     const size_t angles = (size_t)(n + 1) / 2 * 2, per = (size_t)n;
     const size_t head = (sizeof(IKState) + sizeof(vd) - 1) / sizeof(vd) * sizeof(vd);
     size_t bytes = head + sizeof(vd) * per * (10 + 1 + 6 + 12) + sizeof(Angle) * angles;
-    unsigned char *block = aligned_malloc(bytes);
+    *heap = bytes > STACK_SCRATCH ? aligned_malloc(bytes) : NULL;
+    unsigned char *block = bytes > STACK_SCRATCH ? *heap : stack;
     if (block == NULL) return NULL;
     IKState *S = (IKState *)block;
     vd *next = (vd *)(block + head);
@@ -350,8 +355,11 @@ TARGET static int ik_load(IKState *S, IKTask *task, int g) {
         }
         S->best_cost[l] = INFINITY;
         S->best_attempt[l] = -1;
-        ik_attempt(S, task, l, l - g * G, q0);
+        /* with q0, the other lanes of round 0 have no attempt (the count's: none runs) */
+        ik_attempt(S, task, l, q0 != NULL && l > g * G ? task->opt->max_attempts : l - g * G, q0);
     }
+    for (int l = g * G + 1; q0 != NULL && l < g * G + G; ++l) /* a harmless iterate: lane g G's */
+        for (int j = 0; j < n; ++j) S->q[j][l] = S->q[j][g * G];
     return 1;
 }
 
@@ -374,7 +382,8 @@ TARGET static int ik_commit(IKState *S, IKTask *task, const Pose *cur, int g) {
         }
     }
     S->total[g] = total;
-    const int64_t next = (S->round[g] + 1) * G;
+    /* the next round's first attempt: rG, or 1 + (r - 1)G after a round 0 of q0 alone */
+    const int64_t next = (S->round[g] + 1) * G + (task->q0 != NULL ? 1 - G : 0);
     if (next >= max_attempts) { /* the least-cost iterate of every lane, earlier attempt first */
         int best = first;
         for (int l = first + 1; l < first + G; ++l)
@@ -395,7 +404,9 @@ TARGET static void ik_run_task(IKTask *task) {
     const IKModel *m = task->model;
     const IKOptions *o = task->opt;
     const int n = m->n, rows = o->position_only ? 3 : 6;
-    IKState *S = ik_state(n);
+    _Alignas(64) unsigned char stack[STACK_SCRATCH];
+    unsigned char *heap;
+    IKState *S = ik_state(n, stack, &heap);
     if (S == NULL) {
         task->bad = -1;
         return;
@@ -416,8 +427,11 @@ TARGET static void ik_run_task(IKTask *task) {
         run_ops(m->prog, NULL, S->q, S->ang, S->jac, NULL, FORM_4X4, LANES, huge, &cur);
         vd r[6], ep2, eo2;
         const vd cost = ik_residual(S, &cur, o, n, r, &ep2, &eo2);
-        /* a lane that does not run keeps an iterate it has seen: never strictly better */
-        const vl better = cost < S->best_cost;
+        /* a lane that does not run keeps an iterate it has seen (never strictly better), or has
+         * none (round 0's other lanes with q0) */
+        vl running;
+        for (int l = 0; l < LANES; ++l) running[l] = S->running[l] ? -1 : 0;
+        const vl better = (cost < S->best_cost) & running;
         S->best_cost = vselect(better, cost, S->best_cost);
         for (int j = 0; j < n; ++j) S->best_q[j] = vselect(better, S->q[j], S->best_q[j]);
         for (int k = 0; k < 9; ++k) S->best_R[k] = vselect(better, cur.R[k], S->best_R[k]);
@@ -450,7 +464,7 @@ TARGET static void ik_run_task(IKTask *task) {
             if (S->target[g * G] >= 0 && ik_commit(S, task, &cur, g))
                 active += ik_load(S, task, g) - 1;
     }
-    aligned_free((unsigned char *)S);
+    aligned_free(heap);
 }
 
 #include "_ik_step.h" /* the differential step (poekin/ik/step.py) */

@@ -223,7 +223,9 @@ TARGET static int ik_step_task(const IKModel *m, const IKOptions *o, const doubl
                                double release, int rounds, npy_intp first, npy_intp last,
                                double *x) {
     const int n = m->n;
-    IKState *S = ik_state(n);
+    _Alignas(64) unsigned char stack[STACK_SCRATCH];
+    unsigned char *heap;
+    IKState *S = ik_state(n, stack, &heap);
     if (S == NULL) return -1;
     for (npy_intp t0 = first; t0 < last; t0 += LANES) {
         vd lo[IK_STEP_MAX_JOINTS], hi[IK_STEP_MAX_JOINTS], vx[IK_STEP_MAX_JOINTS];
@@ -245,7 +247,7 @@ TARGET static int ik_step_task(const IKModel *m, const IKOptions *o, const doubl
         for (int l = 0; l < LANES && t0 + l < last; ++l)
             for (int j = 0; j < n; ++j) x[n * (t0 + l) + j] = vx[j][l];
     }
-    aligned_free((unsigned char *)S);
+    aligned_free(heap);
     return 0;
 }
 
