@@ -851,11 +851,28 @@ static void ik_run_small(IkAllTask task, npy_intp n) {
  * where target i is not a rigid transform (the caller's validation then says why). shaped
  * (poekin.ik.analytic._quick): q (..., 8, 6) and valid (..., 8) in T's batch shape, and None
  * instead of an error for a T that is not such an array or not rigid transforms. */
-static PyObject *ik_all(PyObject *Py_UNUSED(mod), PyObject *args) {
-    int kind, shaped = 0;
-    PyObject *params_obj, *T_obj, *limits_obj;
-    if (!PyArg_ParseTuple(args, "iOOO|p:ik_all", &kind, &params_obj, &T_obj, &limits_obj, &shaped))
+/* obj as a C-contiguous float64 array of nd dimensions (a new reference), or NULL with an
+ * error: obj itself where it is one already (a one-target call's own cost, issue 26). */
+static PyArrayObject *ik_carray(PyObject *obj, int nd) {
+    PyArrayObject *a = ik_plain(obj);
+    if (a != NULL && PyArray_NDIM(a) == nd) {
+        Py_INCREF(a);
+        return a;
+    }
+    return (PyArrayObject *)PyArray_FROMANY(obj, NPY_FLOAT64, nd, nd, NPY_ARRAY_CARRAY_RO);
+}
+
+static PyObject *ik_all(PyObject *Py_UNUSED(mod), PyObject *const *args, Py_ssize_t nargs) {
+    if (nargs < 4 || nargs > 5) {
+        PyErr_SetString(PyExc_TypeError, "ik_all(kind, params, T, limits[, shaped])");
         return NULL;
+    }
+    const long kind_long = PyLong_AsLong(args[0]);
+    if (kind_long == -1 && PyErr_Occurred()) return NULL;
+    const int kind = kind_long < INT_MIN || kind_long > INT_MAX ? -1 : (int)kind_long;
+    const int shaped = nargs == 5 ? PyObject_IsTrue(args[4]) : 0;
+    if (shaped < 0) return NULL;
+    PyObject *params_obj = args[1], *T_obj = args[2], *limits_obj = args[3];
     if (shaped) { /* T as the checks below want it, else None: before any conversion */
         PyArrayObject *A = (PyArrayObject *)T_obj;
         if (!PyArray_Check(T_obj) || PyArray_NDIM(A) < 2 || PyArray_NDIM(A) > NPY_MAXDIMS - 1 ||
@@ -864,11 +881,9 @@ static PyObject *ik_all(PyObject *Py_UNUSED(mod), PyObject *args) {
             PyArray_DIM(A, PyArray_NDIM(A) - 1) != 4 || PyArray_DIM(A, PyArray_NDIM(A) - 2) != 4)
             Py_RETURN_NONE;
     }
-    PyArrayObject *params = (PyArrayObject *)PyArray_FROMANY(params_obj, NPY_FLOAT64, 1, 1,
-                                                              NPY_ARRAY_CARRAY_RO);
+    PyArrayObject *params = ik_carray(params_obj, 1);
     if (params == NULL) return NULL;
-    PyArrayObject *limits = (PyArrayObject *)PyArray_FROMANY(limits_obj, NPY_FLOAT64, 2, 2,
-                                                              NPY_ARRAY_CARRAY_RO);
+    PyArrayObject *limits = ik_carray(limits_obj, 2);
     if (limits == NULL) {
         Py_DECREF(params);
         return NULL;
@@ -927,7 +942,18 @@ static PyObject *ik_all(PyObject *Py_UNUSED(mod), PyObject *args) {
     }
     Py_DECREF(params);
     Py_DECREF(limits);
-    return Py_BuildValue("(NNi)", q, valid, -1);
+    PyObject *result = PyTuple_New(3), *none = PyLong_FromLong(-1);
+    if (result == NULL || none == NULL) {
+        Py_XDECREF(result);
+        Py_XDECREF(none);
+        Py_DECREF(q);
+        Py_DECREF(valid);
+        return NULL;
+    }
+    PyTuple_SET_ITEM(result, 0, (PyObject *)q);
+    PyTuple_SET_ITEM(result, 1, (PyObject *)valid);
+    PyTuple_SET_ITEM(result, 2, none);
+    return result;
 }
 
 /* ------------------------------------------------------------------------------------------ */
@@ -1558,7 +1584,7 @@ static PyMethodDef module_methods[] = {
     {"get_threads", get_threads, METH_NOARGS, "get_threads() -> int"},
     {"set_width", set_width, METH_O, "set_width(n): 2, 4, 8 lanes, or 0 for the widest"},
     {"get_width", get_width, METH_NOARGS, "get_width() -> configurations per block"},
-    {"ik_all", ik_all, METH_VARARGS,
+    {"ik_all", (PyCFunction)(void (*)(void))ik_all, METH_FASTCALL,
      "ik_all(kind, params, T, limits) -> (q, valid, bad): every closed-form IK branch"},
     {"ordered", ordered, METH_VARARGS,
      "ordered(q, valid, ref, limits, revolute) -> (q, valid): branches nearest ref, sorted"},
