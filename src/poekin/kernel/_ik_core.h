@@ -438,8 +438,7 @@ TARGET static void ik_run_task(IKTask *task) {
         for (int i = 0; i < 3; ++i) S->best_p[i] = vselect(better, cur.t[i], S->best_p[i]);
         for (int l = 0; l < LANES; ++l)
             if (better[l]) S->best_attempt[l] = S->attempt[l];
-        ik_step(S, m, o, r, cost, rows);
-        int ended = 0;
+        int ended = 0, going = 0;
         for (int l = 0; l < LANES; ++l) {
             if (!S->running[l]) continue;
             if (cost[l] < S->stall_ref[l] * o->stall_factor) {
@@ -456,8 +455,14 @@ TARGET static void ik_run_task(IKTask *task) {
                 S->running[l] = 0; /* the attempt has ended; q stays the iterate it ended at */
                 ended = 1;
             } else {
-                for (int j = 0; j < n; ++j) S->q[j][l] = S->qn[j][l];
+                going = 1;
             }
+        }
+        if (going) { /* the step of the lanes that go on (none: no step, the same bits) */
+            ik_step(S, m, o, r, cost, rows);
+            for (int l = 0; l < LANES; ++l)
+                if (S->running[l])
+                    for (int j = 0; j < n; ++j) S->q[j][l] = S->qn[j][l];
         }
         if (!ended) continue;
         for (int g = 0; g < groups; ++g)
