@@ -966,16 +966,8 @@ def solve_quick(
         memo[0] = (*args, options)
     if type(seed) is not int or not 0 <= seed < 2**64:
         return None
-    done = kernel.solve(T, q0, seed, options, False)
-    if done is None:
-        return None
-    found = _new(IKResult)
-    d = found.__dict__  # as the dataclass's __init__ sets them, without its six calls
-    d["q"], d["success"], d["pos_err"], d["ori_err"], d["iterations"], d["attempts"] = done
+    found: IKResult | None = kernel.solve(T, q0, seed, options, False, IKResult)  # or None
     return found
-
-
-_new = object.__new__
 
 
 @functools.lru_cache(maxsize=64, typed=True)

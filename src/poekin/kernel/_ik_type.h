@@ -194,14 +194,43 @@ static int ik_run(IKTask *proto, int threads) {
     return next < proto->N ? -1 : 0;
 }
 
-/* solve(T, q0, seed, options, checked): (q, success, pos_err, ori_err, iterations, attempts)
- * for (..., 4, 4) targets T and (..., n) starts q0 of the same batch shape (or None), or None
- * if the arguments need validating first (not plain float64 arrays of those shapes, or, unless
+/* The names of an IK result's fields, in solve's order (interned at the first solve). */
+static PyObject *ik_result_names[6];
+
+/* An instance of the class `type` (poekin.ik.numerical.IKResult) with the six arrays as its
+ * attributes, as object.__new__ and the frozen dataclass's own __init__ would set them; NULL
+ * with an exception set. Steals the six references. */
+static PyObject *ik_result(PyObject *type, PyObject *out[6]) {
+    static const char *names[6] = {"q", "success", "pos_err", "ori_err", "iterations", "attempts"};
+    PyObject *obj = NULL, *empty = NULL;
+    for (int k = 0; k < 6; ++k)
+        if (ik_result_names[k] == NULL &&
+            (ik_result_names[k] = PyUnicode_InternFromString(names[k])) == NULL)
+            goto done;
+    if (!PyType_Check(type)) {
+        PyErr_SetString(PyExc_TypeError, "solve's result type must be a class");
+        goto done;
+    }
+    empty = PyTuple_New(0);
+    if (empty == NULL) goto done;
+    obj = PyBaseObject_Type.tp_new((PyTypeObject *)type, empty, NULL);
+    for (int k = 0; k < 6 && obj != NULL; ++k)
+        if (PyObject_GenericSetAttr(obj, ik_result_names[k], out[k]) < 0) Py_CLEAR(obj);
+done:
+    Py_XDECREF(empty);
+    for (int k = 0; k < 6; ++k) Py_DECREF(out[k]);
+    return obj;
+}
+
+/* solve(T, q0, seed, options, checked[, result]): (q, success, pos_err, ori_err, iterations,
+ * attempts) for (..., 4, 4) targets T and (..., n) starts q0 of the same batch shape (or None),
+ * or, given the class `result`, an instance of it with those six attributes; None if the
+ * arguments need validating first (not plain float64 arrays of those shapes, or, unless
  * checked, targets that are not finite rigid transforms or starts that are not finite and
  * within the limits). */
 static PyObject *IKSolver_solve(IKSolverObject *self, PyObject *const *args, Py_ssize_t nargs) {
-    if (nargs != 5) {
-        PyErr_SetString(PyExc_TypeError, "solve(T, q0, seed, options, checked)");
+    if (nargs != 5 && nargs != 6) {
+        PyErr_SetString(PyExc_TypeError, "solve(T, q0, seed, options, checked[, result])");
         return NULL;
     }
     const IKModel *m = &self->model;
@@ -274,6 +303,7 @@ static PyObject *IKSolver_solve(IKSolverObject *self, PyObject *const *args, Py_
         for (int i = 0; i < 6; ++i) Py_DECREF(out[i]);
         return PyErr_NoMemory();
     }
+    if (nargs == 6) return ik_result(args[5], out);
     PyObject *result = PyTuple_New(6);
     if (result == NULL) {
         for (int i = 0; i < 6; ++i) Py_DECREF(out[i]);
