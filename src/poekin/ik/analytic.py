@@ -988,6 +988,14 @@ _TIGHT = 1e-12
 _VALID = 1e-10
 
 
+@functools.cache
+def _refine_settings() -> Any:
+    """The refinement's numerical settings: one attempt to :data:`_TIGHT`."""
+    from poekin.ik import numerical
+
+    return numerical.settings(max_attempts=1, pos_tol=_TIGHT, ori_tol=_TIGHT)
+
+
 def _refined(
     chain: Chain, T: FloatArray, q: FloatArray, exists: BoolArray
 ) -> tuple[FloatArray, BoolArray]:
@@ -1015,7 +1023,7 @@ def _refined(
     start = np.clip(np.where(np.isfinite(q), q, 0.0), lo, hi)
     n, k = q.shape[:2]
     targets = np.repeat(T, k, axis=0).reshape(n, k, 4, 4)  # contiguous: the kernel's own
-    out, met = _solve(chain, targets, start)  # within the limits, near the start: the
+    out, met = _solve(chain, targets, start, clipped=True)  # within the limits, near the start: the
     # closed form's convention
     valid = _distinct(out, met)
     # lost where a solution may be: a twin (two roots that merged in the ideal geometry reach
@@ -1070,24 +1078,26 @@ def _twins(chain: Chain, targets: FloatArray, out: FloatArray, valid: BoolArray)
 def _parting(chain: Chain, q: FloatArray) -> FloatArray:
     """``(m, 6)`` unit vectors at ``q (m, 6)``: the right singular vector of the space
     Jacobian's smallest singular value, the direction in which two solutions near a fold
-    part."""
-    parting: FloatArray = np.linalg.svd(chain.jacobian_space(q))[2][:, -1, :]
+    part (the eigenvector of ``J^T J``'s smallest eigenvalue: half an SVD's time; either
+    sign, and the direction to 1e-14 where the two smallest singular values are 0.01 apart)."""
+    J = chain.jacobian_space(q)
+    parting: FloatArray = np.linalg.eigh(np.swapaxes(J, -1, -2) @ J)[1][..., 0]
     return parting
 
 
-def _solve(chain: Chain, T: FloatArray, q0: FloatArray) -> tuple[FloatArray, BoolArray]:
-    """The refinement's solve of ``T`` ``(..., 4, 4)`` from ``q0`` ``(..., 6)`` (brought into
-    the limits: the solver says nothing of it), one attempt to :data:`_TIGHT`: ``q`` and
-    where it meets the default tolerances (:data:`_VALID`)."""
+def _solve(
+    chain: Chain, T: FloatArray, q0: FloatArray, *, clipped: bool = False
+) -> tuple[FloatArray, BoolArray]:
+    """The refinement's solve of ``T`` ``(..., 4, 4)`` (C-contiguous rigid transforms, which
+    :func:`ik_all` has checked) from finite ``q0`` ``(..., 6)`` (brought into the limits
+    unless ``clipped`` says it is: the solver says nothing of it), one attempt to
+    :data:`_TIGHT`: ``q`` and where it meets the default tolerances (:data:`_VALID`)."""
+    from poekin.ik import numerical
+
     limits = chain.limits
     assert limits is not None
-    found = chain.ik(
-        T,
-        q0=np.clip(q0, limits[:, 0], limits[:, 1]),
-        max_attempts=1,
-        pos_tol=_TIGHT,
-        ori_tol=_TIGHT,
-    )
+    start = q0 if clipped else np.clip(q0, limits[:, 0], limits[:, 1])
+    found = numerical.solve_valid(chain, T, start, _refine_settings())
     met: BoolArray = (found.pos_err <= _VALID) & (found.ori_err <= _VALID)
     return found.q, met
 

@@ -970,6 +970,21 @@ def solve_quick(
     return found
 
 
+def solve_valid(chain: Chain, T: FloatArray, q0: FloatArray, options: Settings) -> IKResult:
+    """:func:`solve` of targets and starts the caller knows valid: ``T`` ``(..., 4, 4)``
+    finite rigid transforms and ``q0`` finite and within the limits, both C-contiguous
+    float64 (:func:`poekin.ik.analytic.ik_all`'s refinement), which the kernel then does not
+    check again (seed 0)."""
+    kernel = _ik_kernel(chain)
+    if kernel is not None:
+        found: IKResult | None = kernel.solve(
+            T, q0, 0, _kernel_options(chain, options), True, IKResult
+        )
+        if found is not None:
+            return found
+    return solve(chain, T, q0, options=options)
+
+
 @functools.lru_cache(maxsize=64, typed=True)
 def _quick_options(
     scale: float,

@@ -50,7 +50,8 @@ typedef struct {
     vd Rt[9], pt[3];                    /* the targets */
     /* per lane */
     npy_intp target[LANES]; /* -1: idle */
-    uint64_t key[LANES];
+    uint64_t key[LANES]; /* the target's random starts' key, once a start needs it */
+    int keyed[LANES];    /* key is set (per group: its first lane's) */
     int64_t attempt[LANES], it[LANES], stall[LANES];
     int64_t best_attempt[LANES]; /* the attempt of the lane's least-cost iterate */
     int running[LANES];          /* an attempt runs; else it has ended, or the round has none */
@@ -318,6 +319,14 @@ TARGET static void ik_attempt(IKState *S, const IKTask *task, int l, int64_t a, 
     S->converged[l] = 0;
     S->running[l] = a < task->opt->max_attempts;
     if (!S->running[l]) return;
+    const int first = l / S->G * S->G;
+    if ((a > 0 || q0 == NULL) && !S->keyed[first]) { /* the key of the target's bits, once */
+        const npy_intp t = S->target[l];
+        const double *q0t = task->q0 != NULL ? task->q0 + m->n * t : NULL;
+        const uint64_t key = ik_key(task->seed, task->T + 16 * t, q0t, m->n);
+        for (int k = first; k < first + S->G; ++k) S->key[k] = key;
+        S->keyed[first] = 1;
+    }
     for (int j = 0; j < m->n; ++j)
         S->q[j][l] = a == 0 && q0 != NULL
                          ? ik_clamp(ik_wrap(q0[j], m->lo[j], m->hi[j], m->flags[j]), m->lo[j], m->hi[j])
@@ -342,11 +351,10 @@ TARGET static int ik_load(IKState *S, IKTask *task, int g) {
     }
     const double *T = task->T + 16 * t;
     const double *q0 = task->q0 != NULL ? task->q0 + n * t : NULL;
-    const uint64_t key = ik_key(task->seed, T, q0, n);
     S->round[g] = S->total[g] = 0;
+    S->keyed[g * G] = 0; /* the key is computed where a random start needs it (ik_attempt) */
     for (int l = g * G; l < g * G + G; ++l) {
         S->target[l] = t;
-        S->key[l] = key;
         double pt[3];
         ik_aimed(T, pt);
         for (int i = 0; i < 3; ++i) {
