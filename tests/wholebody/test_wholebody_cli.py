@@ -24,6 +24,7 @@ def _g1_file(folder: pathlib.Path, **extra: object) -> tuple[pathlib.Path, dict[
     xyz, quat = pelvis[:3, 3], poekin.lie.rotation_to_quat(pelvis[:3, :3])
     document["pelvis"] = [*xyz.tolist(), *quat.tolist()]  # the seven-number form
     document.update(extra)
+    document = {f: v for f, v in document.items() if v is not None}  # None: left out
     path = folder / "targets.json"
     path.write_text(json.dumps(document))
     return path, poses
@@ -78,7 +79,17 @@ def test_an_unreachable_soft_frame_exits_1_with_the_feet_held(
             [],
             "no site or body named 'left_fot' to place: did you mean 'left_foot'?",
         ),
+        (  # the misspelt target is named, not the held frame it was meant to be
+            {"left_fot": [0, 0, 0], "left_foot": None},
+            ["--hold", "left_foot"],
+            "no site or body named 'left_fot' to place: did you mean 'left_foot'?",
+        ),
         ({"pelvis": [1, 2]}, [], "the target of 'pelvis' must be 7 numbers"),
+        (  # rows of different lengths
+            {"pelvis": [[1, 0, 0, 0], [0, 1, 0, 0], [0, 0, 1]]},
+            [],
+            "the target of 'pelvis' must be 7 numbers",
+        ),
         ({"pelvis": [0, 0, 0, 2, 0, 0, 0]}, [], "the quaternion of 'pelvis' has norm 2"),
         (
             {},

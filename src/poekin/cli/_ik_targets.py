@@ -63,7 +63,12 @@ def check_targets_args(args: argparse.Namespace) -> None:
 
 
 def _target(name: str, value: Any, where: str) -> FloatArray:
-    arr = np.asarray(value, dtype=np.float64) if _numbers(value) else None
+    arr = None
+    if _numbers(value):
+        try:
+            arr = np.asarray(value, dtype=np.float64)
+        except ValueError:  # rows of different lengths
+            arr = None
     if arr is None or arr.shape not in ((3,), (7,), (4, 4)) or not np.all(np.isfinite(arr)):
         raise InputError(
             f"{where}: the target of {name!r} must be 7 numbers [x, y, z, qw, qx, qy, qz], "

@@ -178,6 +178,9 @@ def parse(
     for name in targets:
         if not isinstance(name, str):
             raise InputError(f"target names must be frame names (str), got {name!r:.40}")
+    # the targets' frames first: a misspelt one is named with the tree's frames to choose
+    # from, before hold and the others are checked against the targets' names
+    indices = {name: _frame_index(tree, name) for name in targets}
     held = _names(hold, "hold")
     by_position = _names(position_only, "position_only")
     by_orientation = _names(orientation_only, "orientation_only")
@@ -205,7 +208,7 @@ def parse(
         )
     tasks = []
     for name, value in targets.items():
-        index = _frame_index(tree, name)
+        index = indices[name]
         mode: Mode = (
             "position"
             if name in by_position or index < 0
