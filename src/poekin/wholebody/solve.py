@@ -197,17 +197,14 @@ def rotation_error(M: FloatArray) -> FloatArray:
     ax, ay, az = M[:, 2, 1] + M[:, 1, 2], M[:, 0, 2] + M[:, 2, 0], M[:, 1, 0] + M[:, 0, 1]
     four = np.stack([1 + tr, 1 + m00 - m11 - m22, 1 - m00 + m11 - m22, 1 - m00 - m11 + m22], axis=1)
     k = np.argmax(four, axis=1)
-    r = 0.5 * np.sqrt(np.maximum(np.take_along_axis(four, k[:, None], axis=1)[:, 0], 0.0))
+    rows = np.arange(len(M))
+    r = 0.5 * np.sqrt(np.maximum(four[rows, k], 0.0))
     s = 0.25 / r
-    quat = np.select(
-        [k[:, None] == 0, k[:, None] == 1, k[:, None] == 2],
-        [
-            np.stack([r, sx * s, sy * s, sz * s], axis=1),
-            np.stack([sx * s, r, az * s, ay * s], axis=1),
-            np.stack([sy * s, az * s, r, ax * s], axis=1),
-        ],
-        np.stack([sz * s, ay * s, ax * s, r], axis=1),
-    )
+    xs, ys, zs, axs, ays, azs = sx * s, sy * s, sz * s, ax * s, ay * s, az * s
+    cases = np.stack(  # row k: the quaternion when the k-th of w, x, y, z is the largest
+        [r, xs, ys, zs, xs, r, azs, ays, ys, azs, r, axs, zs, ays, axs, r], axis=1
+    ).reshape(-1, 4, 4)
+    quat = cases[rows, k]
     vec: FloatArray = 2.0 * np.where(quat[:, :1] < 0, -quat[:, 1:], quat[:, 1:])
     return vec
 
