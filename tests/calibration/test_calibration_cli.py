@@ -361,6 +361,10 @@ BAD_INPUTS_CALIBRATE = [
     (["calibrate", ROBOT, "--plan", "0"], "--plan must be a whole number"),
     (["calibrate", ROBOT, "--plan", "10", "--measurements", "{tracker}"], "drop --measurements"),
     (["calibrate", ROBOT, "--plan", "10", "--candidates", "5"], "--candidates must be at least"),
+    (  # issue 26: a million candidates took 10 GB and minutes, silently
+        ["calibrate", ROBOT, "--plan", "10", "--candidates", "1000000"],
+        "1,000,000 candidates: plan from at most 50,000",
+    ),
     (["calibrate", ROBOT, "--plan", "10", "--output", "{tmp}/p.xyz"], "'.xyz'"),
     # issue 26: the constraints (and the parameter set) of a plan
     (

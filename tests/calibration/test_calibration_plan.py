@@ -4,6 +4,7 @@ robot on them."""
 
 from __future__ import annotations
 
+import time
 import warnings
 
 import numpy as np
@@ -156,12 +157,20 @@ def test_a_plan_is_bounded_and_reports_its_progress(monkeypatch: pytest.MonkeyPa
         def isatty(self) -> bool:
             return True
 
-    monkeypatch.setattr("sys.stderr", Terminal())
+    terminal = Terminal()
+    monkeypatch.setattr("sys.stderr", terminal)
+    with _calibrate._bar(50, "plan", "pose") as step:
+        assert step is not None
+        step(50)  # a short plan: done before the bar's delay, the terminal left as it was
+    assert terminal.getvalue() == ""
+    monkeypatch.setattr(_calibrate, "_BAR_DELAY", 0.05)
     with _calibrate._bar(500, "plan", "pose") as step:
         assert step is not None
+        time.sleep(0.1)  # a step that takes longer than the delay shows the bar
         step(250)
-    with _calibrate._bar(50, "plan", "pose") as step:
-        assert step is None  # a short plan takes well under 2 s: no bar
+    assert "plan:  50%" in terminal.getvalue()
+    with pytest.raises(InputError, match=r"60,000 candidates: plan from at most 50,000"):
+        plan_poses(chain, 12, candidates=60_000)  # issue 26: 1,000,000 took 10 GB, silently
 
 
 # --- constraints (issue 26: 17 of 40 planned UR5e poses put the flange below its base) ---------

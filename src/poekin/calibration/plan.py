@@ -59,6 +59,9 @@ _MAX_CANDIDATES = 8000  # the default's bound: each pose picked costs a pass ove
 #: The most poses a plan holds: a tracker session measures tens to hundreds; a plan this long
 #: takes some 30 s (greedy: one pass over the candidates per pose; UR5e, 2 cores)
 MAX_POSES = 1000
+#: The most candidates a plan picks from: each pose picked costs a pass over them, and each
+#: holds its information matrix (some 10 KB for a 6-joint arm: 0.5 GB at this bound)
+MAX_CANDIDATES = 50_000
 _RIDGE = 1e-9  # the information starts at this times a typical pose's (so that A inverts)
 # Constrained candidates: more are drawn while fewer than this many (or than all the candidates
 # asked for) meet the constraints, up to _MAX_DRAWN in all (some 0.2 s of FK on a 6R arm)
@@ -378,6 +381,8 @@ def make_plan(
         default = min(max(_MIN_CANDIDATES, _CANDIDATES_PER_POSE * n), max(_MAX_CANDIDATES, n))
         count = default if candidates is None else candidates
         count = whole_number(count, "candidates", n)
+        if count > MAX_CANDIDATES:
+            raise InputError(_too_many_candidates(count))
         pool, drawn = draw_candidates(
             chain, constraints, count, seed=seed, want=min(count, _ENOUGH_CANDIDATES)
         )
@@ -385,6 +390,14 @@ def make_plan(
             raise InputError(_too_few(constraints, len(pool), drawn, n))
         q = _greedy(cm, pool, n, progress)
         return PosePlan(q, constraints, drawn, len(pool))
+
+
+def _too_many_candidates(count: int) -> str:
+    return (
+        f"{count:,} candidates: plan from at most {MAX_CANDIDATES:,} (each pose picked costs a "
+        "pass over them, and each holds some 10 KB); the default, "
+        f"{_CANDIDATES_PER_POSE} per pose up to {_MAX_CANDIDATES:,}, is enough"
+    )
 
 
 def _too_few(constraints: PoseConstraints, kept: int, drawn: int, n: int) -> str:

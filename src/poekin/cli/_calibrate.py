@@ -275,17 +275,20 @@ def _plan(args: argparse.Namespace, chain: Any, out: TextIO) -> int:
     return 0
 
 
+_BAR_DELAY = 1.0  # s: a step that takes longer shows its bar (issue 26: any over 2 s)
+
+
 @contextlib.contextmanager
 def _bar(total: int, desc: str, unit: str) -> Iterator[Callable[[int], None] | None]:
     """A progress callback (the count done so far) for a tqdm bar on stderr when it is a
-    terminal and ``total`` is large enough to take seconds, else None (tqdm is imported only
-    then)."""
-    if total < 200 or not (hasattr(sys.stderr, "isatty") and sys.stderr.isatty()):
+    terminal, else None (tqdm is imported only then). The bar shows once the step has taken
+    :data:`_BAR_DELAY` seconds: a short one leaves the terminal as it was."""
+    if not (hasattr(sys.stderr, "isatty") and sys.stderr.isatty()):
         yield None
         return
     from tqdm import tqdm
 
-    with tqdm(total=total, desc=desc, unit=unit, delay=0.5, leave=False) as bar:
+    with tqdm(total=total, desc=desc, unit=unit, delay=_BAR_DELAY, leave=False) as bar:
         yield lambda done: bar.update(done - bar.n)
 
 
