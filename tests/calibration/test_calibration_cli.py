@@ -483,15 +483,19 @@ def test_every_loss_is_a_choice() -> None:
         ("degrees", r"the joint readings \(up to 3\d\d\.?\d*\) look like degrees: pass --deg"),
         ("millimetres", r"the measured positions spread \S+ times as far as the model's: are they"),
         ("swapped", r"check that the joint columns hold the joints their header names"),
-        ("sigma", r"more than any robot differs from its model \(100 x --sigma-pos\)"),
+        ("sigma", r"\S+ times the --sigma-pos given \(1e-07 m\): that is below the measurements'"),
+        ("sigma-ori", r"\S+ times the --sigma-ori given \(1e-07 rad\): that is below the"),
+        ("quaternion", r"check that the quaternion columns are qw,qx,qy,qz \(w first; x,y,z,w"),
     ],
 )
 def test_a_fit_no_robot_explains_is_not_written(
     tmp_path: pathlib.Path, capsys: pytest.CaptureFixture[str], edit: str, cause: str
 ) -> None:
-    """Degrees read as radians, positions in millimetres, two joint columns swapped, or a
-    residual 100 times the noise the user gave: one error line naming the likely cause, exit
-    2, and no parameter file (issue 26; each ran with exit 0 and wrote one)."""
+    """Degrees read as radians, positions in millimetres, two joint columns swapped,
+    quaternions written x,y,z,w under a qw,qx,qy,qz header, or a residual 100 times the noise
+    the user gave (of positions or orientations): one error line naming the likely cause and
+    nothing else, exit 2, and no parameter file (issue 26; each ran with exit 0 and wrote
+    one)."""
     chain, q, measured, _ = _data()
     measured = measured.copy()
     sigma: list[str] = []
@@ -501,14 +505,21 @@ def test_a_fit_no_robot_explains_is_not_written(
         measured[:, :3, 3] *= 1000.0
     elif edit == "swapped":
         q = q[:, [0, 2, 1, 3, 4, 5]]
-    else:
+    elif edit == "sigma":
         sigma = ["--sigma-pos", "1e-7"]  # 0.1 um, where the data carry 0.1 mm
+    elif edit == "sigma-ori":
+        sigma = ["--sigma-ori", "1e-7"]  # where the data carry 0.1 mrad
     path = tmp_path / "data.csv"
     write_measurements(path, chain, q, measured)
+    if edit == "quaternion":  # each row's qw,qx,qy,qz as qx,qy,qz,qw
+        head, *rows = path.read_text().splitlines()
+        rows = [",".join([*r.split(",")[:-4], *r.split(",")[-3:], r.split(",")[-4]]) for r in rows]
+        path.write_text("\n".join([head, *rows]) + "\n")
     out = tmp_path / "my_robot.json"
     args = ["calibrate", ROBOT, "--measurements", str(path), "--output", str(out), *sigma]
     code, _, err = run(capsys, *args)
-    line = [x for x in err.splitlines() if not x.startswith("poekin: note:")]
+    # no note before it (the error names the cause) but the model's own, where it has no meshes
+    line = [x for x in err.splitlines() if "loaded for kinematics only" not in x]
     assert code == 2 and len(line) == 1 and line[0].startswith("poekin: error: "), err
     assert re.search(cause, line[0]) and line[0].endswith(f"{out} not written"), line[0]
     assert not out.exists()

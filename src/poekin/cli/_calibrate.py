@@ -8,6 +8,7 @@ import json
 import math
 import pathlib
 import sys
+import warnings
 from collections.abc import Callable, Iterator
 from typing import TYPE_CHECKING, Any, TextIO
 
@@ -303,6 +304,25 @@ def _cmd_calibrate(args: argparse.Namespace, out: TextIO) -> int:
     source = model_source(args, None)
     chain = load(source, args.frame)
     q, measured = read_measurements(args.measurements, chain, deg=args.deg)
+    # the fit's notes wait for the check of its residual: a refusal is its one error line,
+    # which names the likely cause itself
+    with warnings.catch_warnings(record=True) as notes:
+        warnings.simplefilter("always")
+        result = calibrate(
+            chain,
+            q,
+            measured,
+            sigma_pos=args.sigma_pos,
+            sigma_ori=args.sigma_ori,
+            loss=args.loss,
+            prior_m=args.prior_m,
+            prior_rad=args.prior_rad,
+            folds=args.folds,
+            seed=args.seed,
+        )
+    result = _named(result, source)
+    if args.output:
+        _check_plausible(result, chain, q, measured, args)
     if not args.deg:
         revolute = np.array([t == "revolute" for t in chain.joint_types])
         if np.any(np.abs(q[:, revolute]) > 2 * np.pi + 1e-9):
@@ -310,21 +330,9 @@ def _cmd_calibrate(args: argparse.Namespace, out: TextIO) -> int:
                 f"joint readings up to {np.max(np.abs(q[:, revolute])):g} are read as radians "
                 "(more than a turn); if they are degrees, pass --deg"
             )
-    result = calibrate(
-        chain,
-        q,
-        measured,
-        sigma_pos=args.sigma_pos,
-        sigma_ori=args.sigma_ori,
-        loss=args.loss,
-        prior_m=args.prior_m,
-        prior_rad=args.prior_rad,
-        folds=args.folds,
-        seed=args.seed,
-    )
-    result = _named(result, source)
+    for w in notes:
+        warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
     if args.output:
-        _check_plausible(result, chain, q, measured, args)
         write_json(pathlib.Path(args.output), params_document(result))
     if args.plot:
         from poekin.calibration.plot import plot_calibration
@@ -353,7 +361,9 @@ def _cmd_calibrate(args: argparse.Namespace, out: TextIO) -> int:
 # A calibrated chain that misses its measurements by more than this (m RMS) was fitted to wrong
 # data: a robot differs from its model by millimetres, and the fit takes those out
 _IMPLAUSIBLE_M = 0.01
-_IMPLAUSIBLE_SIGMAS = 100  # or by this many times the noise the user gave (--sigma-pos)
+# ... or whose orientations it misses by this much (rad): a robot's axes are off by mrad
+_IMPLAUSIBLE_RAD = 0.05
+_IMPLAUSIBLE_SIGMAS = 100  # or by this many times the noise the user gave (--sigma-pos/-ori)
 
 
 def _check_plausible(
@@ -367,7 +377,15 @@ def _check_plausible(
         limit = min(limit, _IMPLAUSIBLE_SIGMAS * args.sigma_pos)
     miss = result.residual_rms_m
     if miss <= limit:
+        _check_orientations(result, args)
         return
+    if miss <= _IMPLAUSIBLE_M:  # only the noise given rules it out
+        raise InputError(
+            f"the calibrated chain misses the measurements by {miss * 1e3:.3g} mm RMS, "
+            f"{miss / args.sigma_pos:.3g} times the --sigma-pos given ({args.sigma_pos:g} m): "
+            "that is below the measurements' real noise; give the tracker's noise, or leave "
+            f"--sigma-pos out (estimated from the residuals); {args.output} not written"
+        )
     revolute = np.array([t == "revolute" for t in chain.joint_types])
     p_meas = measured[:, :3, 3] if measured.ndim == 3 else measured
     p_model = chain.fk(q)[:, :3, 3]
@@ -396,6 +414,29 @@ def _check_plausible(
         f"the calibrated chain still misses the measurements by {miss * 1e3:.3g} mm RMS, more "
         f"than any robot differs from its model ({bound}): {cause}; {args.output} not written"
     )
+
+
+def _check_orientations(result: Any, args: argparse.Namespace) -> None:
+    """:func:`_check_plausible` for the orientations of measured poses."""
+    miss = result.residual_rms_rad
+    if miss is None:
+        return
+    sigma = args.sigma_ori
+    if miss > _IMPLAUSIBLE_RAD:
+        raise InputError(
+            f"the calibrated chain still misses the measured orientations by {miss * 1e3:.3g} "
+            f"mrad RMS ({math.degrees(miss):.3g} deg), more than any robot differs from its "
+            f"model ({_IMPLAUSIBLE_RAD * 1e3:g} mrad): check that the quaternion columns are "
+            "qw,qx,qy,qz (w first; x,y,z,w order turns them) and the frame that was measured "
+            f"(--frame); {args.output} not written"
+        )
+    if sigma is not None and miss > _IMPLAUSIBLE_SIGMAS * sigma:
+        raise InputError(
+            f"the calibrated chain misses the measured orientations by {miss * 1e3:.3g} mrad "
+            f"RMS, {miss / sigma:.3g} times the --sigma-ori given ({sigma:g} rad): that is "
+            "below the measurements' real noise; give the tracker's noise, or leave "
+            f"--sigma-ori out (estimated from the residuals); {args.output} not written"
+        )
 
 
 def _named(result: Any, source: str) -> Any:
