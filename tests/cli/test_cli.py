@@ -454,7 +454,19 @@ BAD_INPUTS = [
     ),
     (
         ["ik", "universal_robots_ur5e", "--input", "{nan_poses}", "--output", "{tmp}/q_ik.npy"],
-        "nan_poses.npy row 1 holds NaN or inf",
+        "nan_poses.npy row 1 (from 0) holds NaN or inf",
+    ),
+    (  # issue 26: the file's own lines, never NumPy's row 0, and the column by its header
+        ["ik", "universal_robots_ur5e", "--input", "{text_cell_csv}", "--output", "{tmp}/q_ik.npy"],
+        "text_cell.csv line 4, column 'qw': 'zz' is not a number",
+    ),
+    (
+        ["fk", "universal_robots_ur5e", "--input", "{nan_q_csv}", "--output", "{tmp}/T.npy"],
+        "nan_q.csv line 3 holds NaN or inf; every value must be finite",
+    ),
+    (
+        ["fk", "universal_robots_ur5e", "--input", "{nan_q_npy}", "--output", "{tmp}/T.npy"],
+        "nan_q.npy row 1 (from 0) holds NaN or inf",
     ),
     (
         ["ik", "universal_robots_ur5e", "--input", "{q_npy}", "--output", "{tmp}/q_ik.npy"],
@@ -646,6 +658,13 @@ def test_bad_input_gives_one_line_and_exit_2(
         "nan_poses": _npy(
             tmp_path / "nan_poses.npy", np.array([[0.4, 0, 0, 1, 0, 0, 0], [np.nan] * 7])
         ),
+        "text_cell_csv": _write(
+            tmp_path,
+            "text_cell.csv",
+            "x,y,z,qw,qx,qy,qz\n0.4,0.2,0.3,1,0,0,0\n\n0.4,0.2,0.3,zz,0,0,0\n",
+        ),
+        "nan_q_csv": _write(tmp_path, "nan_q.csv", "# joints\n0,0,0,0,0,0\n0,nan,0,0,0,0\n"),
+        "nan_q_npy": _npy(tmp_path / "nan_q.npy", np.array([[0.0] * 6, [0, np.inf, 0, 0, 0, 0]])),
     }
     fills |= {
         k: _write(tmp_path, f"{k}.urdf", f'<robot name="r">{v}</robot>')

@@ -71,7 +71,12 @@ def test_read_csv_with_a_header_comments_and_one_row(tmp_path: pathlib.Path) -> 
     [
         ("q.npy", b"0,0,0,0,0,0\n", "is not a NumPy .npy file"),
         ("q.npz", b"0 0 0\n", "is not a NumPy .npz archive"),
-        ("q.csv", b"0,zero,0\n0,1,2\n", "could not convert"),
+        ("q.csv", b"0,zero,0\n0,1,2\n", "line 1, column 2: 'zero' is not a number"),
+        (  # the file's own line numbers, the header's column names (not NumPy's row 0)
+            "q.csv",
+            b"a,b,c\n# a comment\n0,1,2\n\n0,1,zz\n",
+            "q.csv line 5, column 'c': 'zz' is not a number (values separated by commas)",
+        ),
         ("q.csv", b"# nothing\n\n", "holds no numbers"),
         ("q.txt", b"0 1 2\n3 4\n", "line 2 holds 2 values, line 1 3: every row needs as many"),
         ("q.txt", b"\xff\xfe\x00garbage", "not UTF-8"),

@@ -330,6 +330,8 @@ def read_joint_values(args: argparse.Namespace, space: JointSpace) -> NDArray[np
 
     path = getattr(args, "input", None)  # commands without --input (draw) read --q only
     q = read_array(path, name="q") if path is not None else np.asarray(args.q, dtype=np.float64)
+    if path is not None and not np.all(np.isfinite(q)):
+        _refuse_not_finite(path, q)
     n = len(space.names)
     if q.ndim == 0 or q.shape[-1] != n or not np.all(np.isfinite(q)):
         return q
@@ -344,6 +346,18 @@ def read_joint_values(args: argparse.Namespace, space: JointSpace) -> NDArray[np
         return q  # out of their limits too, most likely: one note says why
     _note_limits(q, space)
     return q
+
+
+def _refuse_not_finite(path: str, q: NDArray[np.float64]) -> None:
+    """An InputError naming the first row of the ``--input`` file ``path`` that holds NaN or
+    inf: by the file's own line (a text file), or by its index from 0 (an array file)."""
+    from poekin.io.fileio import array_format, read_table
+
+    rows = q.reshape(-1, q.shape[-1]) if q.ndim > 1 else q.reshape(1, -1)
+    k = int(np.flatnonzero(~np.all(np.isfinite(rows), axis=-1))[0])
+    text = array_format(path, "--input") in (".csv", ".txt")
+    where = read_table(path).at(k) if text and q.ndim <= 2 else f"--input {path} row {k} (from 0)"
+    raise InputError(f"{where} holds NaN or inf; every value must be finite")
 
 
 def _note_limits(q: NDArray[np.float64], space: JointSpace) -> None:

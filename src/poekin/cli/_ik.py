@@ -187,7 +187,7 @@ def _targets(args: argparse.Namespace) -> tuple[FloatArray, str]:
     from poekin.io.fileio import array_format, read_array, read_table
 
     def where(k: int) -> str:  # a row of an array file, by its index
-        return f"--input {args.input} row {k}"
+        return f"--input {args.input} row {k} (from 0)"
 
     if array_format(args.input, "--input") in (".csv", ".txt"):
         text = read_table(args.input)

@@ -313,7 +313,7 @@ def _read_text(p: pathlib.Path, where: str, delimiter: str | None) -> Table:
             ndmin=2,
         )
     except ValueError as e:
-        _refused_line(numbered, where, delimiter)
+        _refused_line(numbered, where, delimiter, header)
         sep = "commas" if delimiter else "whitespace"
         raise InputError(f"{where}: {e} (values separated by {sep}, one row each)") from None
     if header is not None and len(header) != values.shape[1]:
@@ -324,15 +324,29 @@ def _read_text(p: pathlib.Path, where: str, delimiter: str | None) -> Table:
     return Table(header, values, tuple(line for line, _ in numbered), where)
 
 
-def _refused_line(numbered: list[tuple[int, str]], where: str, delimiter: str | None) -> None:
+def _refused_line(
+    numbered: list[tuple[int, str]],
+    where: str,
+    delimiter: str | None,
+    header: tuple[str, ...] | None = None,
+) -> None:
     """Raise :class:`InputError` naming the first of the file's ``(line, content)`` rows that
-    is not numbers, or whose count of values differs from the first row's."""
+    is not numbers (the line as the file counts it, and the column by its header name or its
+    place from 1), or whose count of values differs from the first row's."""
     sep = "commas" if delimiter else "whitespace"
     width = None
     for line, content in numbered:
         try:
             row = np.loadtxt(io.StringIO(content), delimiter=delimiter, ndmin=1)
         except ValueError as e:
+            cells = content.split(delimiter) if delimiter else content.split()
+            for k, cell in enumerate(cells):
+                if not is_number(cell.strip()):
+                    column = repr(header[k]) if header is not None and k < len(header) else k + 1
+                    raise InputError(
+                        f"{where} line {line}, column {column}: {cell.strip()!r} is not a "
+                        f"number (values separated by {sep})"
+                    ) from None
             raise InputError(f"{where} line {line}: {e} (values separated by {sep})") from None
         if width is not None and len(row) != width:
             raise InputError(
