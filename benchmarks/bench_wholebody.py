@@ -553,6 +553,8 @@ def step_row(
     except Exception:  # mink's NoSolutionFound
         damped = "no solution"
     vel = "" if vmax is None else f", {np.sum(np.abs(solve()) >= vmax - 1e-9)} at the limit"
+    if chain is None:
+        print(f"  {label}: {qp_solvers(tree, targets, qpos, kwargs, sizes)}", flush=True)
     print(
         f"  {label}: poekin median {fmt_us(poekin_us)} (p90 "
         f"{fmt_us(float(np.percentile(ours, 90)))}); mink solve_ik {fmt_us(mink_us)} (p90 "
@@ -568,6 +570,65 @@ def step_row(
         mink_us / poekin_us,
         f"≤ {goal_us:.0f} µs",
         poekin_us <= goal_us,
+    )
+
+
+def qp_solvers(
+    tree: poekin.Tree,
+    targets: dict[str, FloatArray],
+    qpos: FloatArray,
+    kwargs: dict[str, Any],
+    sizes: Sizes,
+) -> str:
+    """Issue 27's "measure both": the tick's own problem (``step_problem``: the same rows,
+    held frames and box) solved by poekin's active set (``solve_step``) and by daqp through
+    qpsolvers as one QP, ``min 1/2 x^T (C^T C + lam I) x - (C^T d)^T x`` with ``A x = 0`` and
+    the box: each one's median time (the problem's set-up, the same for both, apart), and how
+    far apart their answers are."""
+    from qpsolvers import solve_qp
+
+    from poekin.wholebody.solve import FLOOR
+    from poekin.wholebody.step import solve_step, step_problem
+
+    def setup() -> Any:
+        return step_problem(tree, targets, qpos, DT, **kwargs)
+
+    p = setup()
+    n = p.C.shape[-1]
+    C, d, A = p.C[0], p.d[0], p.A[0]
+
+    def daqp() -> FloatArray:
+        H = C.T @ C + (p.damping + FLOOR) * np.eye(n)
+        x = solve_qp(
+            H,
+            -(C.T @ d),
+            A=A if len(A) else None,
+            b=np.zeros(len(A)) if len(A) else None,
+            lb=p.lo[0],
+            ub=p.hi[0],
+            solver="daqp",
+        )
+        if x is None:
+            raise RuntimeError("daqp found no solution")
+        return np.asarray(x)
+
+    set_us = float(np.median(call_times_us(setup, sizes.step_calls)))
+    ours_us = float(np.median(call_times_us(lambda: solve_step(p), sizes.step_calls)))
+    daqp_us = float(np.median(call_times_us(daqp, sizes.step_calls)))
+    x_ours = (solve_step(p).reshape(-1, p.nv)[:, p.variables] * DT)[0]
+    x_daqp = daqp()
+
+    def judged(x: FloatArray) -> str:  # its cost, its held rows' and box's violation
+        cost = float(np.sum((C @ x - d) ** 2) + p.damping * np.sum(x * x))
+        held = float(np.abs(A @ x).max()) if len(A) else 0.0
+        box = float(max(np.max(p.lo[0] - x), np.max(x - p.hi[0]), 0.0))
+        return f"cost {cost:.6e}, |A x| {held:.1e}, outside the box {box:.1e}"
+
+    return (
+        f"the tick's QP ({n} variables, {len(A)} held rows, {len(d)} soft): set-up "
+        f"{fmt_us(set_us)}, then poekin's active set {fmt_us(ours_us)} ({judged(x_ours)}), "
+        f"daqp (qpsolvers) {fmt_us(daqp_us)} on the same QP ({judged(x_daqp)}); max |x - "
+        f"x_daqp| {float(np.abs(x_ours - x_daqp).max()):.1e} (x = qvel dt)"
     )
 
 

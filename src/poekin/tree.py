@@ -1512,23 +1512,25 @@ class Tree:
             UnknownFrameError, InputError: as for :meth:`ik`; a bad ``dt``, ``gain``,
                 ``damping`` or ``velocity_limits``.
         """
-        from poekin.wholebody.step import ik_step
+        from poekin.wholebody.step import solve_step, step_problem
 
-        return ik_step(
-            self,
-            targets,
-            qpos,
-            dt,
-            hold=hold,
-            position_only=position_only,
-            orientation_only=orientation_only,
-            weights=weights,
-            posture=posture,
-            velocity_limits=velocity_limits,
-            gain=gain,
-            damping=damping,
-            orientation_weight=orientation_weight,
-            freeze=freeze,
+        return solve_step(
+            step_problem(
+                self,
+                targets,
+                qpos,
+                dt,
+                hold=hold,
+                position_only=position_only,
+                orientation_only=orientation_only,
+                weights=weights,
+                posture=posture,
+                velocity_limits=velocity_limits,
+                gain=gain,
+                damping=damping,
+                orientation_weight=orientation_weight,
+                freeze=freeze,
+            )
         )
 
     def _path_joints_of_body(self, body: int) -> tuple[int, ...]:

@@ -19,7 +19,7 @@ rows, its equality constraints the held frames, its ``ConfigurationLimit`` with 
 from __future__ import annotations
 
 from collections.abc import Collection, Mapping
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -35,7 +35,7 @@ from poekin.wholebody.tasks import parse
 if TYPE_CHECKING:
     from poekin.tree import Tree
 
-__all__ = ["ik_step"]
+__all__ = ["StepProblem", "solve_step", "step_problem", "velocity"]
 
 FloatArray = NDArray[np.float64]
 
@@ -61,7 +61,28 @@ def _velocity_limits(value: ArrayLike | None, tree: Tree) -> FloatArray:
     return limits
 
 
-def ik_step(
+class StepProblem(NamedTuple):
+    """One tick's problem, as :meth:`poekin.Tree.ik_step` poses it, for ``B`` environments
+    and the ``n`` variables of ``variables``: ``min |C x - d|^2 + damping |x|^2`` with ``A x =
+    0`` and ``lo <= x <= hi`` (``x = qvel dt``; ``d`` already times the gain), then the
+    posture's move ``posture`` ``(B, n)`` (None: no posture) with ``posture_weights`` in what
+    redundancy is left. ``A (B, mh, n)``, ``C (B, ms, n)``, ``d (B, ms)``, ``lo, hi (B, n)``."""
+
+    A: FloatArray
+    C: FloatArray
+    d: FloatArray
+    lo: FloatArray
+    hi: FloatArray
+    damping: float
+    posture: FloatArray | None
+    posture_weights: FloatArray
+    variables: NDArray[np.intp]  # each variable's qvel entry
+    batch: tuple[int, ...]
+    nv: int
+    dt: float
+
+
+def step_problem(
     tree: Tree,
     targets: Mapping[str, ArrayLike],
     qpos: ArrayLike,
@@ -77,8 +98,10 @@ def ik_step(
     damping: float = 1e-12,
     orientation_weight: float = 0.3,
     freeze: Collection[str] = (),
-) -> FloatArray:
-    """:meth:`poekin.Tree.ik_step` (its docstring holds the arguments)."""
+) -> StepProblem:
+    """:meth:`poekin.Tree.ik_step`'s validated problem (its arguments), before it is solved
+    (:func:`solve_step`): what a general QP solver takes to solve the same tick
+    (``benchmarks/bench_wholebody.py`` gives it to daqp)."""
     dt = positive_number(dt, "dt", "s", zero=False)
     gain = positive_number(gain, "gain", "1/step", zero=True)
     damping = positive_number(damping, "damping", "m^2", zero=True)
@@ -99,24 +122,49 @@ def ik_step(
     A, _, C, d, _ = problem.residual(q)
     lo, hi = sp.bounds(q)
     lo, hi = np.maximum(lo, -limits), np.minimum(hi, limits)
-    B = q.shape[0]
     posture_step = None
     if np.any(problem.posture):
         reference = np.broadcast_to(tree.qpos0, q.shape)
         posture_step = sp.difference(q, reference)
+    return StepProblem(
+        A,
+        C,
+        gain * d,
+        lo,
+        hi,
+        damping,
+        posture_step,
+        problem.posture,
+        np.asarray(sp.variables, dtype=np.intp),
+        tuple(batch),
+        tree.nv,
+        dt,
+    )
+
+
+def solve_step(p: StepProblem) -> FloatArray:
+    """:meth:`poekin.Tree.ik_step`'s answer, ``qvel (*batch, nv)``: the :func:`step_problem`
+    ``p`` solved by :func:`poekin.wholebody.qp.step`."""
+    B = p.A.shape[0]
     with one_thread():  # small SVDs: a thread pool only waits (poekin._blas)
         x = qp.step(
-            A,
-            np.zeros(A.shape[:2]),
-            C,
-            gain * d,
-            lo,
-            hi,
+            p.A,
+            np.zeros(p.A.shape[:2]),
+            p.C,
+            p.d,
+            p.lo,
+            p.hi,
             np.full(B, FLOOR),
-            np.full(B, damping + FLOOR),
-            posture_step,
-            problem.posture,
+            np.full(B, p.damping + FLOOR),
+            p.posture,
+            p.posture_weights,
         ).x
-    qvel = np.zeros((B, tree.nv))
-    qvel[:, sp.variables] = x / dt
-    return qvel.reshape(*batch, tree.nv)
+    return velocity(p, x)
+
+
+def velocity(p: StepProblem, x: FloatArray) -> FloatArray:
+    """``qvel (*batch, nv)`` of a solution ``x (B, n)`` of ``p``: ``x / dt`` in the
+    variables' entries, zero in the others (frozen joints, mimic followers)."""
+    qvel = np.zeros((x.shape[0], p.nv))
+    qvel[:, p.variables] = x / p.dt
+    return qvel.reshape(*p.batch, p.nv)
