@@ -240,6 +240,10 @@ def test_held_frames_that_conflict_are_named(g1: tuple[poekin.Tree, mujoco.MjMod
         (np.eye(3), r"'pelvis' \(pose\) must have shape \(\.\.\., 4, 4\), got \(3, 3\)"),
         (np.full((4, 4), np.nan), "'pelvis' contains NaN or inf"),
         ("a", "must be an array of numbers"),
+        (  # checked with the others in one call, then alone, naming it
+            np.diag([2.0, 1.0, 1.0, 1.0]),
+            "the target of 'pelvis' is not a rigid transform: its rotation block is not",
+        ),
     ],
 )
 def test_bad_targets(g1: tuple[poekin.Tree, mujoco.MjModel], value: object, message: str) -> None:

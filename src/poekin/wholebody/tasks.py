@@ -111,8 +111,11 @@ def _finite(arr: FloatArray, name: str) -> FloatArray:
     return arr
 
 
-def _target(value: ArrayLike, name: str, mode: Mode) -> tuple[FloatArray, FloatArray]:
-    """``(R, p)`` of one frame's target, validated for its mode."""
+def _target(
+    value: ArrayLike, name: str, mode: Mode, rigid: bool = False
+) -> tuple[FloatArray, FloatArray]:
+    """``(R, p)`` of one frame's target, validated for its mode (``rigid``: a ``(4, 4)``
+    float64 array already checked to be a finite rigid transform, :func:`_rigid`)."""
     try:
         arr = np.asarray(value, dtype=np.float64)
     except (TypeError, ValueError):
@@ -121,7 +124,7 @@ def _target(value: ArrayLike, name: str, mode: Mode) -> tuple[FloatArray, FloatA
         ) from None
     shape = arr.shape
     if shape[-2:] == (4, 4):
-        T = check_targets(_finite(arr, name))
+        T = np.ascontiguousarray(arr) if rigid else _checked(_finite(arr, name), name)
         R, p = T[..., :3, :3], T[..., :3, 3]
         if mode == "position":
             R = np.broadcast_to(np.eye(3), R.shape)
@@ -134,13 +137,42 @@ def _target(value: ArrayLike, name: str, mode: Mode) -> tuple[FloatArray, FloatA
         T = np.zeros((*shape[:-2], 4, 4))
         T[..., :3, :3] = _finite(arr, name)
         T[..., 3, 3] = 1.0
-        return check_targets(T)[..., :3, :3], np.zeros((*shape[:-2], 3))
+        return _checked(T, name)[..., :3, :3], np.zeros((*shape[:-2], 3))
     wanted = {
         "pose": "(..., 4, 4)",
         "position": "(..., 3) or a pose (..., 4, 4)",
         "orientation": "(..., 3, 3) or a pose (..., 4, 4)",
     }[mode]
     raise InputError(f"the target of {name!r} ({mode}) must have shape {wanted}, got {shape}")
+
+
+def _checked(T: FloatArray, name: str) -> FloatArray:
+    """:func:`poekin.ik.numerical.check_targets` of frame ``name``'s target, its message
+    naming the frame."""
+    try:
+        return check_targets(T)
+    except InputError as e:
+        raise InputError(f"the target of {name!r}{str(e).removeprefix('target')}") from None
+
+
+def _rigid(targets: Mapping[str, ArrayLike]) -> frozenset[str]:
+    """The names of the targets that are single ``(4, 4)`` float64 poses, all finite rigid
+    transforms: checked in one call (a control tick's targets: one check, not one per frame;
+    issue 27's step), or none if any of them is not (each is then checked alone, and the
+    message names it)."""
+    poses = {
+        name: value
+        for name, value in targets.items()
+        if isinstance(value, np.ndarray) and value.shape == (4, 4) and value.dtype == np.float64
+    }
+    if len(poses) < 2:
+        return frozenset()
+    stacked = np.stack(list(poses.values()))
+    try:
+        check_targets(stacked)
+    except InputError:
+        return frozenset()
+    return frozenset(poses)
 
 
 def _weight(value: object, name: str) -> float:
@@ -207,6 +239,7 @@ def parse(
             "weight (a soft target): drop it from hold or from weights"
         )
     tasks = []
+    rigid = _rigid(targets)
     for name, value in targets.items():
         index = indices[name]
         mode: Mode = (
@@ -218,7 +251,7 @@ def parse(
         )
         if index < 0 and name in by_orientation:
             raise InputError(f"{COM!r} is a point: it has no orientation to place")
-        R, p = _target(value, name, mode)
+        R, p = _target(value, name, mode, name in rigid)
         tasks.append(
             Task(name, index, mode, name in held, _weight(weights.get(name, 1.0), name), R, p)
         )
