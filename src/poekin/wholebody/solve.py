@@ -127,63 +127,75 @@ class Problem:
         self, qpos: FloatArray, rows: IntArray | None = None
     ) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray, list[tuple[FloatArray, ...]]]:
         """At ``qpos (B, nq)`` (for the entries ``rows`` of the problem): the held and soft
-        rows ``A, b, C, d`` and each task's ``(pos_err, ori_err)``."""
+        rows ``A, b, C, d`` and each task's ``(pos_err, ori_err)``. Every task's numbers are
+        computed at once where they can be (one call of each NumPy function for all of them,
+        element by element as one task's: the same bits)."""
         tree, k = self.tree, self.orientation_weight
         poses = tree.fk(qpos)
         variables = self.space.variables
-        found = []  # per task: its rotation, its point, Jw, Jv at qpos
-        for t in self.tasks:
+        B, count = len(qpos), len(self.tasks)
+        R_now = np.empty((B, count, 3, 3))  # each task's frame now: rotation, point
+        point = np.empty((B, count, 3))
+        frames = [i for i, t in enumerate(self.tasks) if t.index >= 0]
+        at = [self.tasks[i].index for i in frames]
+        chosen = poses[:, at]  # (B, frames, 4, 4)
+        R_now[:, frames] = chosen[..., :3, :3]
+        point[:, frames] = chosen[..., :3, 3]
+        J = np.empty((B, count, 6, len(variables)))  # [Jw; Jv] each
+        for i, t in enumerate(self.tasks):
             if t.index < 0:
                 Jv = tree.com_jacobian(qpos)[:, :, variables]
-                found.append(
-                    (np.broadcast_to(np.eye(3), (len(qpos), 3, 3)), tree.com(qpos), 0 * Jv, Jv)
-                )
-                continue
-            T = poses[:, t.index]
-            J = tree.jacobian(qpos, t.name)[:, :, variables]
-            found.append((T[:, :3, :3], T[:, :3, 3], J[:, :3], J[:, 3:]))
-        R_t = np.stack([R if rows is None else R[rows] for R in self.R], axis=1)
-        R_now = np.stack([f[0] for f in found], axis=1)
+                R_now[:, i], point[:, i] = np.eye(3), tree.com(qpos)
+                J[:, i, :3], J[:, i, 3:] = 0 * Jv, Jv
+            else:
+                J[:, i] = tree.jacobian(qpos, t.name)[:, :, variables]
+        R_t, p_t = self._targets(rows)
         M = (R_t @ np.swapaxes(R_now, -1, -2)).reshape(-1, 3, 3)  # every task's at once
-        e_o_all = rotation_error(M).reshape(len(qpos), -1, 3)
-        angle_all = _angle(M).reshape(len(qpos), -1)
-        held_J: list[FloatArray] = []
-        held_r: list[FloatArray] = []
-        soft_J: list[FloatArray] = []
-        soft_r: list[FloatArray] = []
+        e_o = rotation_error(M).reshape(B, count, 3)
+        angle = _angle(M).reshape(B, count)
+        e_p = p_t - point
+        pos_all = np.sqrt(np.sum(e_p * e_p, axis=-1))
+        k_e_o, k_Jw = k * e_o, k * J[:, :, :3]
+        zero = np.zeros(B)
         errs: list[tuple[FloatArray, ...]] = []
-        for i, (t, p_all, (_, point, Jw, Jv)) in enumerate(
-            zip(self.tasks, self.p, found, strict=True)
-        ):
-            e_p = (p_all if rows is None else p_all[rows]) - point
-            e_o = e_o_all[:, i]
-            parts_r, parts_J = [], []
-            if t.mode != "position":
-                parts_r.append(k * e_o)
-                parts_J.append(k * Jw)
-            if t.mode != "orientation":
-                parts_r.append(e_p)
-                parts_J.append(Jv)
-            r, J = np.concatenate(parts_r, axis=1), np.concatenate(parts_J, axis=1)
-            zero = np.zeros(len(e_p))
-            pos: FloatArray = (
-                np.sqrt(np.sum(e_p * e_p, axis=1)) if t.mode != "orientation" else zero
+        held: list[tuple[FloatArray, FloatArray]] = []  # each task's rows: J, r
+        soft: list[tuple[FloatArray, FloatArray]] = []
+        for i, t in enumerate(self.tasks):
+            parts = ([(k_Jw[:, i], k_e_o[:, i])] if t.mode != "position" else []) + (
+                [(J[:, i, 3:], e_p[:, i])] if t.mode != "orientation" else []
             )
-            ori: FloatArray = angle_all[:, i] if t.mode != "position" else zero
-            errs.append((pos, ori))
+            one = len(parts) == 1
+            rows_J = parts[0][0] if one else np.concatenate([j for j, _ in parts], axis=1)
+            rows_r = parts[0][1] if one else np.concatenate([r for _, r in parts], axis=1)
+            errs.append(
+                (
+                    pos_all[:, i] if t.mode != "orientation" else zero,
+                    angle[:, i] if t.mode != "position" else zero,
+                )
+            )
             if t.held:
-                held_J.append(J)
-                held_r.append(r)
+                held.append((rows_J, rows_r))
             else:
                 w = math.sqrt(t.weight)
-                soft_J.append(w * J)
-                soft_r.append(w * r)
-        B, n = qpos.shape[0], self.space.n
-        A = np.concatenate(held_J, axis=1) if held_J else np.zeros((B, 0, n))
-        b = np.concatenate(held_r, axis=1) if held_r else np.zeros((B, 0))
-        C = np.concatenate(soft_J, axis=1) if soft_J else np.zeros((B, 0, n))
-        d = np.concatenate(soft_r, axis=1) if soft_r else np.zeros((B, 0))
+                soft.append((w * rows_J, w * rows_r))
+        n = self.space.n
+        A = np.concatenate([h[0] for h in held], axis=1) if held else np.zeros((B, 0, n))
+        b = np.concatenate([h[1] for h in held], axis=1) if held else np.zeros((B, 0))
+        C = np.concatenate([f[0] for f in soft], axis=1) if soft else np.zeros((B, 0, n))
+        d = np.concatenate([f[1] for f in soft], axis=1) if soft else np.zeros((B, 0))
         return A, b, C, d, errs
+
+    def _targets(self, rows: IntArray | None) -> tuple[FloatArray, FloatArray]:
+        """Every task's target rotation ``(B, tasks, 3, 3)`` and point ``(B, tasks, 3)`` (of
+        the entries ``rows``): stacked once for the whole problem."""
+        if rows is None:
+            return self._stacked_targets
+        R_t, p_t = self._stacked_targets
+        return R_t[rows], p_t[rows]
+
+    @functools.cached_property
+    def _stacked_targets(self) -> tuple[FloatArray, FloatArray]:
+        return np.stack(self.R, axis=1), np.stack(self.p, axis=1)
 
 
 def rotation_error(M: FloatArray) -> FloatArray:
