@@ -858,42 +858,26 @@ class Chain:
             )
             if quick is not None:
                 return quick  # None: the usual path validates, and says what is wrong
-        return self._ik_general(
-            T,
-            q0,
-            seed,
-            pos_tol,
-            ori_tol,
-            position_only,
-            orientation_weight,
-            max_iterations,
-            max_attempts,
-            max_total_iterations,
-            params,
-            nearest_branch,
-            posture,
-            (avoid, obstacles, margin, ignore),
-        )
+        solver = (pos_tol, ori_tol, position_only, orientation_weight, max_iterations, max_attempts)
+        more = (max_total_iterations, params, nearest_branch, posture)
+        return self._ik_general(T, q0, seed, solver, more, (avoid, obstacles, margin, ignore))
 
     def _ik_general(
         self,
         T: ArrayLike,
         q0: ArrayLike | None,
         seed: int,
-        pos_tol: float,
-        ori_tol: float,
-        position_only: bool,
-        orientation_weight: float,
-        max_iterations: int,
-        max_attempts: int,
-        max_total_iterations: int | None,
-        params: ChainParams | None,
-        nearest_branch: bool,
-        posture: float | ArrayLike,
+        solver: tuple[float, float, bool, float, int, int],
+        more: tuple[int | None, ChainParams | None, bool, float | ArrayLike],
         avoiding: tuple[Any, Any, float, Sequence[tuple[str, str]]],
     ) -> IKResult:
         """:meth:`ik` where the quick path does not serve (a method of its own: its closures
-        would cost every call of :meth:`ik` their cells, issue 26)."""
+        would cost every call of :meth:`ik` their cells, issue 26), with its arguments in
+        three groups: the numerical solve's own (``pos_tol`` to ``max_attempts``), the others
+        of the solve (``max_total_iterations``, ``params``, ``nearest_branch``, ``posture``),
+        and collision avoidance's."""
+        pos_tol, ori_tol, position_only, orientation_weight, max_iterations, max_attempts = solver
+        max_total_iterations, params, nearest_branch, posture = more
         avoid, obstacles, margin, ignore = avoiding
         if (
             avoid is not False
@@ -917,19 +901,8 @@ class Chain:
                 (max_total_iterations, params, nearest_branch, posture),
             )
         if not (isinstance(posture, (int, float)) and posture == 0):
-            return self._ik_posture(
-                T,
-                q0,
-                posture,
-                seed,
-                pos_tol,
-                ori_tol,
-                position_only,
-                orientation_weight,
-                max_iterations,
-                max_attempts,
-                (max_total_iterations, params, nearest_branch),
-            )
+            others = (max_total_iterations, params, nearest_branch)
+            return self._ik_posture(T, q0, posture, seed, *solver, others)
         from poekin.ik.numerical import Settings, settings, solve
 
         def numpy_options() -> Settings:  # the NumPy solve's (the kernel's) settings
