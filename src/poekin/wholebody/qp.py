@@ -182,6 +182,8 @@ def _to_release(
     """Per entry, the held entry whose multiplier has the wrong sign the most (level 2's
     Lagrangian ``g + A^T nu + mu = 0``, ``g`` the gradient of level 2's cost; ``nu`` from the
     free entries), or none."""
+    if not np.any(fixed):  # none held at a bound, none to release (the multipliers unneeded)
+        return np.zeros(fixed.shape, dtype=bool)
     g = _bmtv(C, _bmv(C, x) - d) + lam_soft[:, None] * (x - x_hold)
     free = ~fixed
     At = np.swapaxes(A, 1, 2) * free[:, :, None]
