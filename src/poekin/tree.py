@@ -213,6 +213,7 @@ class Tree:
     _slot_offset: FloatArray = dataclasses.field(init=False, repr=False)
     _body_joints: tuple[tuple[int, ...], ...] = dataclasses.field(init=False, repr=False)
     _nq: int = dataclasses.field(init=False, repr=False)
+    _nv: int = dataclasses.field(init=False, repr=False)
     _full_adr: IntArray = dataclasses.field(init=False, repr=False)
     _dof_adr: IntArray = dataclasses.field(init=False, repr=False)  # each joint's first qvel column
     _kernel: Any = dataclasses.field(init=False, repr=False, compare=False)
@@ -425,6 +426,7 @@ class Tree:
         set_(self, "_slot_scale", np.array(scale))
         set_(self, "_slot_offset", np.array(offset))
         set_(self, "_nq", nq)
+        set_(self, "_nv", nv)
         sizes = [_QPOS_SIZE[t] for t in self.joint_types]
         full_adr = np.concatenate([[0], np.cumsum(sizes)[:-1]]).astype(np.intp)
         full_adr.flags.writeable = False
@@ -494,7 +496,7 @@ class Tree:
     @property
     def nv(self) -> int:
         """Degrees of freedom (MuJoCo's ``nv``): 6 per free, 3 per ball, 1 per hinge/slide."""
-        return sum(_DOF[t] for t, m in zip(self.joint_types, self.mimics, strict=True) if m is None)
+        return self._nv
 
     @property
     def frame_names(self) -> tuple[str, ...]:
