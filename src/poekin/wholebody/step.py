@@ -45,12 +45,17 @@ def _velocity_limits(value: ArrayLike | None, tree: Tree) -> FloatArray:
     (:attr:`poekin.Tree.joint_velocity_limits` on hinge and slide entries, none on ball and
     free ones)."""
     nv = tree.nv
-    if value is None:
-        out = np.full(nv, np.inf)
-        for k, (kind, mimic) in enumerate(zip(tree.joint_types, tree.mimics, strict=True)):
-            if mimic is None and kind in ("revolute", "prismatic"):
-                out[tree._dof_adr[k]] = tree.joint_velocity_limits[k]
-        return out
+    if value is None:  # the model's, kept with the tree (read-only: callers take new arrays)
+        out = tree._ik_cache.get("velocity_limits")
+        if out is None:
+            out = np.full(nv, np.inf)
+            for k, (kind, mimic) in enumerate(zip(tree.joint_types, tree.mimics, strict=True)):
+                if mimic is None and kind in ("revolute", "prismatic"):
+                    out[tree._dof_adr[k]] = tree.joint_velocity_limits[k]
+            out.flags.writeable = False
+            tree._ik_cache["velocity_limits"] = out
+        model: FloatArray = out
+        return model
     arr = np.asarray(value, dtype=np.float64)
     if arr.shape not in ((), (nv,)) or np.any(np.isnan(arr)) or np.any(arr <= 0):
         raise InputError(
