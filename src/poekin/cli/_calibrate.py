@@ -307,7 +307,6 @@ def _cmd_calibrate(args: argparse.Namespace, out: TextIO) -> int:
     # the fit's notes wait for the check of its residual: a refusal is its one error line,
     # which names the likely cause itself
     with warnings.catch_warnings(record=True) as notes:
-        warnings.simplefilter("always")
         result = calibrate(
             chain,
             q,
@@ -380,11 +379,13 @@ def _check_plausible(
         _check_orientations(result, args)
         return
     if miss <= _IMPLAUSIBLE_M:  # only the noise given rules it out
-        raise InputError(
-            f"the calibrated chain misses the measurements by {miss * 1e3:.3g} mm RMS, "
-            f"{miss / args.sigma_pos:.3g} times the --sigma-pos given ({args.sigma_pos:g} m): "
-            "that is below the measurements' real noise; give the tracker's noise, or leave "
-            f"--sigma-pos out (estimated from the residuals); {args.output} not written"
+        raise _noise_below(
+            f"the measurements by {miss * 1e3:.3g} mm",
+            miss,
+            "--sigma-pos",
+            args.sigma_pos,
+            "m",
+            args,
         )
     revolute = np.array([t == "revolute" for t in chain.joint_types])
     p_meas = measured[:, :3, 3] if measured.ndim == 3 else measured
@@ -431,12 +432,26 @@ def _check_orientations(result: Any, args: argparse.Namespace) -> None:
             f"(--frame); {args.output} not written"
         )
     if sigma is not None and miss > _IMPLAUSIBLE_SIGMAS * sigma:
-        raise InputError(
-            f"the calibrated chain misses the measured orientations by {miss * 1e3:.3g} mrad "
-            f"RMS, {miss / sigma:.3g} times the --sigma-ori given ({sigma:g} rad): that is "
-            "below the measurements' real noise; give the tracker's noise, or leave "
-            f"--sigma-ori out (estimated from the residuals); {args.output} not written"
+        raise _noise_below(
+            f"the measured orientations by {miss * 1e3:.3g} mrad",
+            miss,
+            "--sigma-ori",
+            sigma,
+            "rad",
+            args,
         )
+
+
+def _noise_below(
+    missed: str, miss: float, flag: str, sigma: float, unit: str, args: argparse.Namespace
+) -> InputError:
+    """The refusal of a fit that only the noise given (``flag``, ``sigma`` in ``unit``) rules
+    out: ``missed`` says what it misses by how much (RMS)."""
+    return InputError(
+        f"the calibrated chain misses {missed} RMS, {miss / sigma:.3g} times the {flag} given "
+        f"({sigma:g} {unit}): that is below the measurements' real noise; give the tracker's "
+        f"noise, or leave {flag} out (estimated from the residuals); {args.output} not written"
+    )
 
 
 def _named(result: Any, source: str) -> Any:

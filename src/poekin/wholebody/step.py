@@ -35,7 +35,7 @@ from poekin.wholebody.tasks import parse
 if TYPE_CHECKING:
     from poekin.tree import Tree
 
-__all__ = ["StepProblem", "solve_step", "step_problem", "velocity"]
+__all__ = ["StepProblem", "solve_step", "step_problem"]
 
 FloatArray = NDArray[np.float64]
 
@@ -164,12 +164,6 @@ def solve_step(p: StepProblem) -> FloatArray:
             p.posture,
             p.posture_weights,
         ).x
-    return velocity(p, x)
-
-
-def velocity(p: StepProblem, x: FloatArray) -> FloatArray:
-    """``qvel (*batch, nv)`` of a solution ``x (B, n)`` of ``p``: ``x / dt`` in the
-    variables' entries, zero in the others (frozen joints, mimic followers)."""
-    qvel = np.zeros((x.shape[0], p.nv))
+    qvel = np.zeros((B, p.nv))  # zero where no variable is (frozen joints, mimic followers)
     qvel[:, p.variables] = x / p.dt
     return qvel.reshape(*p.batch, p.nv)
