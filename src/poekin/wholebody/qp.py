@@ -11,22 +11,32 @@ each batch entry it finds ``x (n,)`` that
    space allows: the move there nearest ``posture`` in the norm ``sum w_i x_i^2`` of the
    posture's weights (equal weights: the orthogonal projection), which changes neither level
    above;
-4. with every bounded entry within ``lo <= x <= hi``: an active set. An entry that leaves its
-   box is held at its bound (a row ``x_i = bound`` joins level 1) and the levels are solved
-   again; an entry held where the first-order optimality condition (the Lagrangian's
-   gradient, with the held rows' multipliers) says it would move back inside is released.
+4. with every bounded entry within ``lo <= x <= hi``: a primal active set (Nocedal and
+   Wright's algorithm 16.3, as :mod:`poekin.ik.step` runs for a chain). From ``x = 0``
+   (clipped into the box) each round either moves toward the levels' answer for the free
+   entries, the fixed ones held where they are, as far as the box allows (the entry that
+   stops the move is fixed at its bound); or, at that answer, releases the fixed entry whose
+   multiplier has the wrong sign, level by level (level 1's gradient where the box keeps its
+   rows from being met, else level 2's Lagrangian with the held rows' multipliers), or stops
+   where none has. Every round keeps ``x`` in the box, and where ``x = 0`` meets the held
+   rows (``b = 0``: a control tick) every round meets them, so a step cut short by the
+   rounds is still within every bound with the held rows met. The posture's level does not
+   release entries: one it takes to a bound stays there.
 
-Null spaces come from one SVD per level (a singular value below ``RANK_TOL`` times the
-largest, or below the absolute floor, counts as zero), so the batch runs in lock-step:
-every array is ``(B, ...)`` and an entry's result does not depend on the others'.
+Each entry's levels are solved in the coordinates of its free entries, with the null spaces
+from one SVD per level (a singular value below ``RANK_TOL`` times the largest, or below the
+absolute floor, counts as zero). The batch runs in lock-step, every array ``(B, ...)``, and
+an entry's result does not depend on the others'.
 """
 
 from __future__ import annotations
 
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 import numpy as np
 from numpy.typing import NDArray
+
+from poekin.ik.step import max_rounds
 
 __all__ = ["RANK_TOL", "Step", "step"]
 
@@ -34,8 +44,13 @@ FloatArray = NDArray[np.float64]
 BoolArray = NDArray[np.bool_]
 
 RANK_TOL = 1e-9  # a singular value below this times the largest (or 1) is a null direction
-_BOUND_TOL = 1e-12  # an entry this far past its bound is outside
 _RELEASE_TOL = 1e-12  # a held entry's multiplier of the wrong sign beyond this is released
+# level 1's gradient on a fixed entry below this many times its damping's pull is the damping's
+DAMPING_SLACK = 100.0
+# releases of one entry in one step at most: where the levels' damping makes the multipliers
+# and the levels' answer disagree (level 1's damped answer leaving the box where its rows, met,
+# would not need to), an entry released would be stopped again at once, for ever
+MAX_RELEASES = 2
 
 
 class Step(NamedTuple):
@@ -58,18 +73,22 @@ def _bmtv(M: FloatArray, v: FloatArray) -> FloatArray:
 
 
 def _damped_solve(
-    M: FloatArray, r: FloatArray, lam: FloatArray
+    M: FloatArray, r: FloatArray, lam: FloatArray, null_space: bool = True
 ) -> tuple[FloatArray, FloatArray, BoolArray]:
     """``x = V diag(s / (s^2 + lam)) U^T r`` over the range of ``M (B, m, n)`` and the null
     space's orthonormal basis ``N (B, n, n)`` (zero columns where not null), with the null
-    mask over ``V``'s rows."""
+    mask over ``V``'s rows; without ``null_space``, ``N`` and the mask only where ``m >= n``
+    (``V`` whole) and empty ``(B, n, 0)``, ``(B, 0)`` otherwise (a smaller SVD)."""
     B, m, n = M.shape
-    U, s, Vt = np.linalg.svd(M, full_matrices=m < n)  # every row of V either way
+    whole = null_space and m < n  # every row of V either way
+    U, s, Vt = np.linalg.svd(M, full_matrices=whole)
     k = s.shape[1]
     top = np.maximum(s[:, :1], 1.0) if k else np.ones((B, 1))
     ranged = s > RANK_TOL * top
     gain = np.where(ranged, s / (s * s + lam[:, None]), 0.0)
     x = np.einsum("bki,bk->bi", Vt[:, :k, :], gain * np.einsum("bjk,bj->bk", U[:, :, :k], r))
+    if not (whole or m >= n):
+        return x, np.zeros((B, n, 0)), np.zeros((B, 0), dtype=bool)
     null = np.ones((B, n), dtype=bool)
     null[:, :k] = ~ranged
     N = np.swapaxes(Vt, 1, 2) * null[:, None, :]
@@ -102,30 +121,94 @@ def step(
         :class:`Step`.
     """
     B, n = lo.shape
-    fixed = np.zeros((B, n), dtype=bool)
-    value = np.zeros((B, n))
-    released = np.zeros((B, n), dtype=bool)
-    for _ in range(2 * n + 1):
-        x, x_soft, x_hold = _levels(
-            A, b, C, d, fixed, value, lam_hold, lam_soft, posture, posture_weights
-        )
-        below = ~fixed & (x < lo - _BOUND_TOL)
-        above = ~fixed & (x > hi + _BOUND_TOL)
-        outside = below | above
-        if np.any(outside):
-            # hold every entry that leaves its box at the bound it crosses
-            fixed |= outside
-            value = np.where(below, lo, np.where(above, hi, value))
-            continue
-        # release a held entry (one per pass, each at most once: no cycling) whose
-        # multiplier says it would move back inside
-        release = _to_release(A, C, d, x_soft, x_hold, fixed, value, lo, hi, lam_soft)
-        release &= ~released
-        if not np.any(release):
-            return Step(x, fixed, np.sqrt(np.sum((x - x_soft) ** 2, axis=1)))
-        released |= release
-        fixed &= ~release
+    x = np.minimum(np.maximum(0.0, lo), hi)
+    x_soft, x_hold = x.copy(), x.copy()  # levels 1-2 and level 1 alone, at the last optimum
+    pinned = lo >= hi  # an entry whose bounds meet never moves, and is never released
+    fixed = pinned.copy()
+    optimal = np.zeros(B, dtype=bool)  # x is the optimum of its free entries: test them
+    releases = np.zeros((B, n), dtype=np.int64)
+    done = np.zeros(B, dtype=bool)
+    for _ in range(max_rounds(n)):
+        moving = np.flatnonzero(~done & ~optimal)
+        testing = np.flatnonzero(~done & optimal)
+        if moving.size == 0 and testing.size == 0:
+            break
+        if moving.size:
+            _move(
+                (A, b, C, d, lo, hi, lam_hold, lam_soft, posture, posture_weights),
+                moving,
+                x,
+                (x_soft, x_hold),
+                fixed,
+                optimal,
+            )
+        if testing.size:
+            i = testing
+            release = _to_release(
+                A[i],
+                b[i],
+                C[i],
+                d[i],
+                x[i],
+                x_soft[i],
+                x_hold[i],
+                fixed[i] & ~pinned[i] & (releases[i] < MAX_RELEASES),
+                hi[i],
+                lam_hold[i],
+                lam_soft[i],
+            )
+            some = np.any(release, axis=1)
+            releases[i] += release
+            fixed[i] &= ~release
+            optimal[i] = ~some
+            done[i] = ~some
     return Step(x, fixed, np.sqrt(np.sum((x - x_soft) ** 2, axis=1)))
+
+
+def _move(
+    problem: tuple[Any, ...],
+    i: NDArray[np.intp],
+    x: FloatArray,
+    answers: tuple[FloatArray, FloatArray],
+    fixed: BoolArray,
+    optimal: BoolArray,
+) -> None:
+    """One move of the entries ``i`` of ``problem`` (:func:`step`'s arguments), in place:
+    toward the optimum of their free entries (:func:`_levels`, the fixed ones where they
+    are), as far as the box allows. The first entry that would leave it stops at its bound
+    and is fixed; an entry that gets there is at an optimum (``optimal``, with its levels'
+    answers in ``answers``: that of levels 1 and 2, and of level 1)."""
+    A, b, C, d, lo, hi, lam_hold, lam_soft, posture, weights = problem
+    x_soft, x_hold = answers
+    x_i, lo_i, hi_i = x[i], lo[i], hi[i]
+    target, t_soft, t_hold = _levels(
+        A[i],
+        b[i],
+        C[i],
+        d[i],
+        fixed[i],
+        x_i,
+        lam_hold[i],
+        lam_soft[i],
+        None if posture is None else posture[i],
+        weights,
+    )
+    p = target - x_i
+    go = ~fixed[i] & (p != 0.0)
+    room = np.where(p < 0.0, lo_i - x_i, hi_i - x_i)
+    ratio = np.where(go, room / np.where(go, p, 1.0), np.inf)
+    alpha = np.min(ratio, axis=1, initial=np.inf)  # where the first entry stops the move
+    full = alpha >= 1.0
+    # every entry that stops it there (those already at a bound the move pushes on, at
+    # alpha = 0, all at once) goes to its bound and is fixed
+    block = ~full[:, None] & (ratio <= alpha[:, None])
+    moved = np.where(full[:, None], target, x_i + np.where(full, 1.0, alpha)[:, None] * p)
+    moved = np.where(block, np.where(p < 0.0, lo_i, hi_i), moved)
+    x[i] = np.minimum(np.maximum(moved, lo_i), hi_i)
+    fixed[i] |= block
+    optimal[i] = full
+    x_soft[i[full]] = t_soft[full]
+    x_hold[i[full]] = t_hold[full]
 
 
 def _levels(
@@ -141,67 +224,149 @@ def _levels(
     weights: FloatArray | None,
 ) -> tuple[FloatArray, FloatArray, FloatArray]:
     """Levels 1 to 3 with the ``fixed`` entries at ``value``: ``x``, and that of levels 1
-    and 2 only, and of level 1 only."""
-    free = ~fixed
+    and 2 only, and of level 1 only.
+
+    Each entry is solved in the coordinates of its free entries (:func:`_free_levels`), the
+    entries with as many free ones side by side: the fixed entries' columns are gone from
+    every matrix rather than held by rows of an identity (the same null spaces and solutions,
+    in smaller SVDs), and an entry's numbers depend on its own rows only."""
+    B, n = fixed.shape
     fixed_value = np.where(fixed, value, 0.0)
-    if A.shape[1] == 0:  # no held rows: level 1 is the held entries alone, its null space theirs
-        x_hold = fixed_value
-        Z = free[:, None, :] * np.eye(A.shape[2])
+    free_count = n - np.sum(fixed, axis=1)
+    counts = np.unique(free_count)
+    x_hold, x_soft, x = np.empty((B, n)), np.empty((B, n)), np.empty((B, n))
+    for nf in counts:
+        rows = slice(None) if len(counts) == 1 else np.flatnonzero(free_count == nf)
+        # each entry's free entries, in order (a stable sort puts False first)
+        order = np.argsort(fixed[rows], axis=1, kind="stable")[:, :nf]
+        moves = _free_levels(
+            A[rows],
+            b[rows],
+            C[rows],
+            d[rows],
+            order,
+            fixed_value[rows],
+            lam_hold[rows],
+            lam_soft[rows],
+            None if posture is None else posture[rows],
+            weights,
+        )
+        total = fixed_value[rows]
+        for k, move in enumerate(moves):  # x_hold, then + level 2's move, then + level 3's
+            full = np.zeros_like(total)
+            np.put_along_axis(full, order, move, axis=1)
+            total = total + full
+            (x_hold, x_soft, x)[k][rows] = total
+        if posture is None:
+            x[rows] = total
+    return x, x_soft, x_hold
+
+
+def _free_levels(
+    A: FloatArray,
+    b: FloatArray,
+    C: FloatArray,
+    d: FloatArray,
+    order: NDArray[np.intp],
+    fixed_value: FloatArray,
+    lam_hold: FloatArray,
+    lam_soft: FloatArray,
+    posture: FloatArray | None,
+    weights: FloatArray | None,
+) -> list[FloatArray]:
+    """:func:`_levels` for entries with the same number ``f`` of free entries, ``order (B,
+    f)`` their indices: each level's move in those coordinates, ``(B, f)`` (level 1's, then
+    2's, then 3's where there is a posture)."""
+    A_free = np.take_along_axis(A, order[:, None, :], axis=2)
+    C_free = np.take_along_axis(C, order[:, None, :], axis=2)
+    f = order.shape[1]
+    if A.shape[1] == 0:  # no held rows: level 1 is the fixed entries alone, the rest free
+        x1 = np.zeros(order.shape)
+        Z = np.broadcast_to(np.eye(f), (len(order), f, f))
     else:
-        eye = fixed[:, :, None] * np.eye(A.shape[2])
-        M = np.concatenate([A * free[:, None, :], eye], axis=1)
-        r = np.concatenate([b - _bmv(A, fixed_value), np.zeros(fixed.shape)], axis=1)
-        x1, Z, _ = _damped_solve(M, r, lam_hold)
-        x_hold = x1 + fixed_value
-    Y = C @ Z
-    z, N, _ = _damped_solve(Y, d - _bmv(C, x_hold), lam_soft)
-    x_soft = x_hold + _bmv(Z, z)
+        x1, Z, _ = _damped_solve(A_free, b - _bmv(A, fixed_value), lam_hold)
+    x_hold = fixed_value.copy()
+    np.put_along_axis(x_hold, order, x1, axis=1)
+    Y = C_free @ Z
+    z, N, _ = _damped_solve(Y, d - _bmv(C, x_hold), lam_soft, posture is not None)
+    moves = [x1, _bmv(Z, z)]
     if posture is None:
-        return x_soft, x_soft, x_hold
+        return moves
     ZN = Z @ N  # an orthonormal basis of what is left (and zero columns)
-    p = np.where(fixed, 0.0, posture)
+    p = np.take_along_axis(posture, order, axis=1)
     if weights is None or np.all(weights == weights[0]):
-        return x_soft + _bmv(ZN, _bmtv(ZN, p)), x_soft, x_hold
-    root = np.sqrt(weights)
-    c = _lstsq(root[None, :, None] * ZN, root * p)  # min |W^1/2 (ZN c - p)|
-    return x_soft + _bmv(ZN, c), x_soft, x_hold
+        moves.append(_bmv(ZN, _bmtv(ZN, p)))
+        return moves
+    root = np.sqrt(weights)[order]
+    # min |W^1/2 (ZN c - p)|: ZN's columns are unit or zero but for rounding, so a singular
+    # value below RANK_TOL times the largest weight is rounding (were it relative to the
+    # largest singular value alone, a space left empty would magnify the rounding to a move)
+    c = _lstsq(root[:, :, None] * ZN, root * p, RANK_TOL * float(np.max(root, initial=0.0)))
+    moves.append(_bmv(ZN, c))
+    return moves
 
 
 def _to_release(
     A: FloatArray,
+    b: FloatArray,
     C: FloatArray,
     d: FloatArray,
     x: FloatArray,
+    x_soft: FloatArray,
     x_hold: FloatArray,
     fixed: BoolArray,
-    value: FloatArray,
-    lo: FloatArray,
     hi: FloatArray,
+    lam_hold: FloatArray,
     lam_soft: FloatArray,
 ) -> BoolArray:
-    """Per entry, the held entry whose multiplier has the wrong sign the most (level 2's
-    Lagrangian ``g + A^T nu + mu = 0``, ``g`` the gradient of level 2's cost; ``nu`` from the
-    free entries), or none."""
+    """Per entry at an optimum of its free entries, the fixed entry (of ``fixed``, those that
+    may be released) to release, or none, by the levels' multipliers in turn: where level 1's
+    multiplier (its cost's gradient) has the wrong sign beyond rounding, the entry is a
+    candidate; where it has the right sign, level 1 needs the entry at its bound; where level
+    1 is indifferent, level 2's Lagrangian ``g + A^T nu + mu = 0`` says (``g`` the gradient of
+    level 2's cost, whose damping pulls a fixed entry toward 0; ``nu`` the held rows'
+    multipliers, from the free entries). Of the candidates, the most wrong, level 1's first."""
+    B, n = x.shape
     if not np.any(fixed):  # none held at a bound, none to release (the multipliers unneeded)
-        return np.zeros(fixed.shape, dtype=bool)
-    g = _bmtv(C, _bmv(C, x) - d) + lam_soft[:, None] * (x - x_hold)
-    free = ~fixed
-    At = np.swapaxes(A, 1, 2) * free[:, :, None]
-    nu = np.zeros((A.shape[0], A.shape[1]))
+        return np.zeros((B, n), dtype=bool)
+    sign = np.where(x >= hi, 1.0, -1.0)  # that of a multiplier that wants the entry inside
+    r1 = _bmv(A, x) - b
+    wrong1 = sign * _bmtv(A, r1)  # the gradient of |A x - b|^2 / 2: the rows, not the damping
+    size_A = np.sqrt(np.sum(A * A, axis=1))
+    size_r1 = np.sqrt(np.sum(r1 * r1, axis=1))[:, None]
+    # rounding, and what level 1's damping leaves (its rows met as nearly as the damping lets
+    # them: |A_j^T r| ~ lam |x|), is indifference: level 1 decides where the box keeps its
+    # rows from being met
+    reach = np.max(np.abs(x), axis=1, initial=0.0)[:, None]
+    tol1 = _RELEASE_TOL * (1.0 + size_A * size_r1) + DAMPING_SLACK * lam_hold[:, None] * (
+        reach * (1.0 + size_A)
+    )
+    g = _bmtv(C, _bmv(C, x_soft) - d) + lam_soft[:, None] * np.where(fixed, x, x_soft - x_hold)
+    nu = np.zeros((B, A.shape[1]))
     if A.shape[1]:
-        nu = _lstsq(At, -g * free)
-    residual = g + np.einsum("bji,bj->bi", A, nu)
-    at_hi = fixed & (value >= hi)
-    at_lo = fixed & (value <= lo) & ~at_hi
-    wrong = np.where(at_hi, residual, np.where(at_lo, -residual, -np.inf))
-    wrong = np.where(wrong > _RELEASE_TOL * (1.0 + np.abs(g)), wrong, -np.inf)
-    worst = np.argmax(wrong, axis=1)
-    has = np.isfinite(np.max(wrong, axis=1))
-    out: BoolArray = has[:, None] & (np.arange(x.shape[1])[None, :] == worst[:, None])
+        nu = _lstsq(np.swapaxes(A, 1, 2) * ~fixed[:, :, None], -g * ~fixed)
+    wrong2 = sign * (g + _bmtv(A, nu))
+    first = fixed & (wrong1 > tol1)
+    second = fixed & (np.abs(wrong1) <= tol1) & (wrong2 > _RELEASE_TOL * (1.0 + np.abs(g)))
+    score = np.where(
+        np.any(first, axis=1, keepdims=True),
+        np.where(first, wrong1, -np.inf),
+        np.where(second, wrong2, -np.inf),
+    )
+    worst = np.argmax(score, axis=1)
+    has = np.isfinite(np.max(score, axis=1))
+    out: BoolArray = has[:, None] & (np.arange(n)[None, :] == worst[:, None])
     return out
 
 
-def _lstsq(M: FloatArray, r: FloatArray) -> FloatArray:
-    """Least-squares solutions of ``M (B, n, m) y = r (B, n)``, of least norm."""
-    pinv = np.asarray(np.linalg.pinv(M, rcond=RANK_TOL), dtype=np.float64)
-    return _bmv(pinv, r)
+def _lstsq(M: FloatArray, r: FloatArray, floor: float = 0.0) -> FloatArray:
+    """Least-squares solutions of ``M (B, n, m) y = r (B, n)``, of least norm: a singular
+    value below ``RANK_TOL`` times the largest, or below ``floor``, counts as zero."""
+    if floor == 0.0:
+        pinv = np.asarray(np.linalg.pinv(M, rcond=RANK_TOL), dtype=np.float64)
+        return _bmv(pinv, r)
+    U, s, Vt = np.linalg.svd(M, full_matrices=False)
+    top = s[:, :1] if s.shape[1] else np.zeros((len(M), 1))
+    kept = s > np.maximum(RANK_TOL * top, floor)
+    inverse = np.where(kept, 1.0 / np.where(kept, s, 1.0), 0.0)
+    return _bmtv(Vt, inverse * _bmtv(U, r))
