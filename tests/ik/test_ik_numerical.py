@@ -653,3 +653,41 @@ def test_closed_form_of_targets_of_every_magnitude(name: str) -> None:
     assert not every.valid[far].any()
     assert np.isfinite(every.q[every.valid]).all()
     assert within_limits(every.q[every.valid], chain.limits).all()
+
+
+@pytest.mark.skipif(not _fast.compiled_kernel(), reason="needs the compiled kernel")
+@pytest.mark.parametrize("shape", [(), (1,), (3, 1, 2)])
+def test_the_kernels_target_check_decides_as_numpys(
+    shape: tuple[int, ...], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """check_targets' one pass in the kernel (a plain float64 array) accepts exactly what its
+    NumPy tests accept: rotations off by 1e-9 to 1e-3 (either side of the 1e-6 bound on R^T R),
+    mirrors, last rows off by 1e-14 to 1e-10, NaN, and arrays the kernel does not read."""
+    rng = np.random.default_rng(len(shape))
+    cases = []
+    for scale in (1e-9, 1e-8, 1e-5, 1e-3):
+        T = np.array(poekin.exp_se3(rng.normal(size=(*shape, 6))))
+        T[..., :3, :3] += scale * rng.normal(size=(*shape, 3, 3))
+        cases.append(T)
+    mirror = np.array(poekin.exp_se3(rng.normal(size=(*shape, 6))))
+    mirror[..., :3, 0] *= -1
+    cases.append(mirror)
+    for scale in (1e-14, 1e-10):
+        T = np.array(poekin.exp_se3(rng.normal(size=(*shape, 6))))
+        T[..., 3, 0] += scale
+        cases.append(T)
+    nan = np.array(poekin.exp_se3(rng.normal(size=(*shape, 6))))
+    nan[..., 0, 3] = np.nan
+    cases += [nan, np.swapaxes(cases[0], -1, -2), cases[0].astype(np.float32)]
+
+    def decide(T: np.ndarray) -> bool:
+        try:
+            numerical.check_targets(T)
+        except poekin.InputError:
+            return False
+        return True
+
+    with_kernel = [decide(T) for T in cases]
+    monkeypatch.setattr(_fast, "rigid_targets", lambda T: False)
+    assert with_kernel == [decide(T) for T in cases]
+    assert True in with_kernel and False in with_kernel

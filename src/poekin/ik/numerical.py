@@ -751,6 +751,9 @@ def chain_pose_entries(T: Any) -> _pose.Pose:
 
 def check_targets(T: ArrayLike) -> FloatArray:
     """``T`` as float64 ``(..., 4, 4)`` rigid transforms, or :class:`InputError`."""
+    if _fast.rigid_targets(T):  # the kernel's one pass: T as it is (a few poses a tick)
+        plain: FloatArray = T  # type: ignore[assignment]
+        return plain
     arr = real_array(T, "targets")
     if arr.ndim < 2 or arr.shape[-2:] != (4, 4):
         raise InputError(f"targets must have shape (..., 4, 4), got {arr.shape}")

@@ -48,6 +48,7 @@ __all__ = [
     "ik_kernel",
     "kernel_description",
     "result_shape",
+    "rigid_targets",
     "run_checked",
     "set_threads",
 ]
@@ -66,6 +67,14 @@ _JACOBIAN_CODES: dict[str, float] = {"space": 0.0, "body": 1.0, "world": 2.0}
 def compiled_kernel() -> bool:
     """Whether the compiled kernel is installed (else FK runs on the pure-NumPy path)."""
     return _kernel is not None
+
+
+def rigid_targets(T: object) -> bool:
+    """Whether ``T`` is a plain float64 ``(..., 4, 4)`` ndarray (C-contiguous, aligned, native
+    byte order) of finite rigid transforms by :func:`poekin.ik.numerical.check_targets`'
+    tests, decided by the kernel in one pass; False where it is not, or without the kernel
+    (the NumPy check then decides, and says why)."""
+    return _kernel is not None and bool(_kernel.rigid_targets(T))
 
 
 #: How much slower the NumPy path is than the kernel on a batch: 63x (UR5e ``chain.fk``) and 39x

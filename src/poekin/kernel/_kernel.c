@@ -1579,6 +1579,23 @@ static PyObject *ordered(PyObject *Py_UNUSED(mod), PyObject *args) {
     return Py_BuildValue("(NN)", q_out, v_out);
 }
 
+/* rigid_targets(T) -> bool: True where T is exactly a C-contiguous, aligned, native float64
+ * ndarray of shape (..., 4, 4) whose every matrix is a finite rigid transform by
+ * poekin.ik.numerical.check_targets' tests (ik_rigid); False otherwise, the NumPy check then
+ * deciding, and saying why. */
+static PyObject *rigid_targets(PyObject *Py_UNUSED(mod), PyObject *obj) {
+    PyArrayObject *a = ik_plain(obj);
+    if (a == NULL) Py_RETURN_FALSE;
+    int nd = PyArray_NDIM(a);
+    const npy_intp *dims = PyArray_DIMS(a);
+    if (nd < 2 || dims[nd - 2] != 4 || dims[nd - 1] != 4) Py_RETURN_FALSE;
+    npy_intp count = PyArray_SIZE(a) / 16;
+    const double *T = (const double *)PyArray_DATA(a);
+    for (npy_intp t = 0; t < count; ++t)
+        if (!ik_rigid(T + 16 * t)) Py_RETURN_FALSE;
+    Py_RETURN_TRUE;
+}
+
 static PyMethodDef module_methods[] = {
     {"set_threads", set_threads, METH_O, "set_threads(n): threads for big batches"},
     {"get_threads", get_threads, METH_NOARGS, "get_threads() -> int"},
@@ -1586,6 +1603,8 @@ static PyMethodDef module_methods[] = {
     {"get_width", get_width, METH_NOARGS, "get_width() -> configurations per block"},
     {"ik_all", (PyCFunction)(void (*)(void))ik_all, METH_FASTCALL,
      "ik_all(kind, params, T, limits) -> (q, valid, bad): every closed-form IK branch"},
+    {"rigid_targets", rigid_targets, METH_O,
+     "rigid_targets(T) -> bool: T a plain float64 (..., 4, 4) array of rigid transforms"},
     {"ordered", ordered, METH_VARARGS,
      "ordered(q, valid, ref, limits, revolute) -> (q, valid): branches nearest ref, sorted"},
     {"distance", distance, METH_VARARGS,

@@ -209,6 +209,10 @@ def rotation_error(M: FloatArray) -> FloatArray:
     ax, ay, az = M[:, 2, 1] + M[:, 1, 2], M[:, 0, 2] + M[:, 2, 0], M[:, 1, 0] + M[:, 0, 1]
     four = np.stack([1 + tr, 1 + m00 - m11 - m22, 1 - m00 + m11 - m22, 1 - m00 - m11 + m22], axis=1)
     k = np.argmax(four, axis=1)
+    if not np.any(k):  # w the largest everywhere (within 120 degrees): case 0 alone, its bits
+        s0 = 0.25 / (0.5 * np.sqrt(np.maximum(four[:, 0], 0.0)))
+        only: FloatArray = 2.0 * np.stack([sx * s0, sy * s0, sz * s0], axis=1)
+        return only
     rows = np.arange(len(M))
     r = 0.5 * np.sqrt(np.maximum(four[rows, k], 0.0))
     s = 0.25 / r

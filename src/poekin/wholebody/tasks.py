@@ -25,6 +25,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from poekin.errors import InputError, UnknownFrameError, did_you_mean
 from poekin.ik.numerical import check_targets
+from poekin.kernel._fast import rigid_targets
 
 if TYPE_CHECKING:
     from poekin.tree import Tree
@@ -111,11 +112,8 @@ def _finite(arr: FloatArray, name: str) -> FloatArray:
     return arr
 
 
-def _target(
-    value: ArrayLike, name: str, mode: Mode, rigid: bool = False
-) -> tuple[FloatArray, FloatArray]:
-    """``(R, p)`` of one frame's target, validated for its mode (``rigid``: a ``(4, 4)``
-    float64 array already checked to be a finite rigid transform, :func:`_rigid`)."""
+def _target(value: ArrayLike, name: str, mode: Mode) -> tuple[FloatArray, FloatArray]:
+    """``(R, p)`` of one frame's target, validated for its mode."""
     try:
         arr = np.asarray(value, dtype=np.float64)
     except (TypeError, ValueError):
@@ -124,7 +122,8 @@ def _target(
         ) from None
     shape = arr.shape
     if shape[-2:] == (4, 4):
-        T = np.ascontiguousarray(arr) if rigid else _checked(_finite(arr, name), name)
+        # a plain pose of a control tick: the kernel's one pass (check_targets' own fast path)
+        T = arr if rigid_targets(arr) else _checked(_finite(arr, name), name)
         R, p = T[..., :3, :3], T[..., :3, 3]
         if mode == "position":
             R = np.broadcast_to(np.eye(3), R.shape)
@@ -153,26 +152,6 @@ def _checked(T: FloatArray, name: str) -> FloatArray:
         return check_targets(T)
     except InputError as e:
         raise InputError(f"the target of {name!r}{str(e).removeprefix('target')}") from None
-
-
-def _rigid(targets: Mapping[str, ArrayLike]) -> frozenset[str]:
-    """The names of the targets that are single ``(4, 4)`` float64 poses, all finite rigid
-    transforms: checked in one call (a control tick's targets: one check, not one per frame;
-    issue 27's step), or none if any of them is not (each is then checked alone, and the
-    message names it)."""
-    poses = {
-        name: value
-        for name, value in targets.items()
-        if isinstance(value, np.ndarray) and value.shape == (4, 4) and value.dtype == np.float64
-    }
-    if len(poses) < 2:
-        return frozenset()
-    stacked = np.stack(list(poses.values()))
-    try:
-        check_targets(stacked)
-    except InputError:
-        return frozenset()
-    return frozenset(poses)
 
 
 def _weight(value: object, name: str) -> float:
@@ -239,7 +218,6 @@ def parse(
             "weight (a soft target): drop it from hold or from weights"
         )
     tasks = []
-    rigid = _rigid(targets)
     for name, value in targets.items():
         index = indices[name]
         mode: Mode = (
@@ -251,7 +229,7 @@ def parse(
         )
         if index < 0 and name in by_orientation:
             raise InputError(f"{COM!r} is a point: it has no orientation to place")
-        R, p = _target(value, name, mode, name in rigid)
+        R, p = _target(value, name, mode)
         tasks.append(
             Task(name, index, mode, name in held, _weight(weights.get(name, 1.0), name), R, p)
         )
