@@ -163,3 +163,25 @@ def test_a_batch_gives_each_entry_its_own_bits() -> None:
         alone = _step(problem, 1e-6, posture[i : i + 1], weights)
         np.testing.assert_array_equal(alone.x[0], together.x[i])
         np.testing.assert_array_equal(alone.at_bound[0], together.at_bound[i])
+
+
+def test_a_big_batch_shared_over_threads_keeps_its_bits() -> None:
+    """A batch big enough for its SVDs to be shared out over two threads: the bits of one."""
+    import poekin
+
+    n, mh, ms, B = 8, 2, 5, 4 * qp.SPLIT_MATRICES
+    stacked = [
+        np.concatenate(parts)
+        for parts in zip(*(_problem(s, n, mh, ms) for s in range(B)), strict=True)
+    ]
+    args = (*stacked, np.full(B, HOLD_DAMPING), np.full(B, 1e-6))
+    before = poekin.get_threads()
+    try:
+        poekin.set_threads(1)
+        one = qp.step(*args)
+        poekin.set_threads(2)
+        two = qp.step(*args)
+    finally:
+        poekin.set_threads(before)
+    np.testing.assert_array_equal(one.x, two.x)
+    np.testing.assert_array_equal(one.at_bound, two.at_bound)

@@ -31,12 +31,15 @@ an entry's result does not depend on the others'.
 
 from __future__ import annotations
 
+import functools
+from concurrent.futures import ThreadPoolExecutor
 from typing import Any, NamedTuple
 
 import numpy as np
 from numpy.typing import NDArray
 
 from poekin.ik.step import max_rounds
+from poekin.kernel._fast import get_threads
 
 __all__ = ["RANK_TOL", "Step", "step"]
 
@@ -51,6 +54,7 @@ DAMPING_SLACK = 100.0
 # and the levels' answer disagree (level 1's damped answer leaving the box where its rows, met,
 # would not need to), an entry released would be stopped again at once, for ever
 MAX_RELEASES = 2
+SPLIT_MATRICES = 16  # matrices per thread at least, for a batch's SVDs to be shared out
 
 
 class Step(NamedTuple):
@@ -81,7 +85,7 @@ def _damped_solve(
     (``V`` whole) and empty ``(B, n, 0)``, ``(B, 0)`` otherwise (a smaller SVD)."""
     B, m, n = M.shape
     whole = null_space and m < n  # every row of V either way
-    U, s, Vt = np.linalg.svd(M, full_matrices=whole)
+    U, s, Vt = _svd(M, whole)
     k = s.shape[1]
     top = np.maximum(s[:, :1], 1.0) if k else np.ones((B, 1))
     ranged = s > RANK_TOL * top
@@ -93,6 +97,29 @@ def _damped_solve(
     null[:, :k] = ~ranged
     N = np.swapaxes(Vt, 1, 2) * null[:, None, :]
     return x, N, null
+
+
+def _svd(M: FloatArray, full_matrices: bool) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """``numpy.linalg.svd`` of the matrices ``M (B, m, n)``, a big batch shared out over the
+    threads :func:`poekin.set_threads` allows (LAPACK runs each matrix alone, without the
+    GIL: the same bits however the batch is split)."""
+    threads = min(get_threads(), len(M) // SPLIT_MATRICES)
+    if threads < 2:
+        U, s, Vt = np.linalg.svd(M, full_matrices=full_matrices)
+        return U, s, Vt
+    parts = list(
+        _pool(threads).map(
+            lambda part: np.linalg.svd(part, full_matrices=full_matrices),
+            np.array_split(M, threads),
+        )
+    )
+    U, s, Vt = (np.concatenate([part[k] for part in parts]) for k in range(3))
+    return U, s, Vt
+
+
+@functools.cache
+def _pool(threads: int) -> ThreadPoolExecutor:
+    return ThreadPoolExecutor(threads, thread_name_prefix="poekin-qp")
 
 
 def step(
