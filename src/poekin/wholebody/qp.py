@@ -155,6 +155,8 @@ def step(
     optimal = np.zeros(B, dtype=bool)  # x is the optimum of its free entries: test them
     releases = np.zeros((B, n), dtype=np.int64)
     done = np.zeros(B, dtype=bool)
+    problem = (A, b, C, d, lo, hi, lam_hold, lam_soft, posture, posture_weights)
+    _guess(problem, x, (x_soft, x_hold), fixed, optimal)
     for _ in range(max_rounds(n)):
         moving = np.flatnonzero(~done & ~optimal)
         testing = np.flatnonzero(~done & optimal)
@@ -162,7 +164,7 @@ def step(
             break
         if moving.size:
             _move(
-                (A, b, C, d, lo, hi, lam_hold, lam_soft, posture, posture_weights),
+                problem,
                 moving,
                 x,
                 (x_soft, x_hold),
@@ -192,6 +194,77 @@ def step(
     return Step(x, fixed, np.sqrt(np.sum((x - x_soft) ** 2, axis=1)))
 
 
+def _solve(
+    problem: tuple[Any, ...], i: NDArray[np.intp] | slice, fixed: BoolArray, value: FloatArray
+) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """:func:`_levels` of the entries ``i`` (indices, or every entry) of ``problem``
+    (:func:`step`'s arguments) with the ``fixed (len(i), n)`` entries at ``value``."""
+    A, b, C, d, _, _, lam_hold, lam_soft, posture, weights = problem
+    return _levels(
+        A[i],
+        b[i],
+        C[i],
+        d[i],
+        fixed,
+        value,
+        lam_hold[i],
+        lam_soft[i],
+        None if posture is None else posture[i],
+        weights,
+    )
+
+
+def _guess(
+    problem: tuple[Any, ...],
+    x: FloatArray,
+    answers: tuple[FloatArray, FloatArray],
+    fixed: BoolArray,
+    optimal: BoolArray,
+) -> None:
+    """The first round, in place: the levels' answer with every entry it takes out of the
+    box held at the bound it crosses, where that answer is inside the box (a control tick
+    whose velocity limits bind: one more solve, not one per entry); else the first move of
+    :func:`_move` from ``x``."""
+    lo, hi = problem[4], problem[5]
+    everyone = np.arange(len(x))
+    first = _solve(problem, slice(None), fixed, x)
+    below, above = ~fixed & (first[0] < lo), ~fixed & (first[0] > hi)
+    crossed = np.flatnonzero(np.any(below | above, axis=1))
+    if crossed.size == 0:
+        _advance(problem, everyone, x, answers, fixed, optimal, first)
+        return
+    held = fixed[crossed] | below[crossed] | above[crossed]
+    at = np.where(below[crossed], lo[crossed], np.where(above[crossed], hi[crossed], x[crossed]))
+    second = _solve(problem, crossed, held, at)
+    # taken where it is inside the box and meets the held rows as well as the first answer
+    # (the entries held may leave too few free to meet them)
+    A, b = problem[0][crossed], problem[1][crossed]
+    before = np.sqrt(np.sum((_bmv(A, first[0][crossed]) - b) ** 2, axis=1))
+    after = np.sqrt(np.sum((_bmv(A, second[0]) - b) ** 2, axis=1))
+    size_b = np.sqrt(np.sum(b * b, axis=1))
+    inside = np.all((second[0] >= lo[crossed]) & (second[0] <= hi[crossed]), axis=1) & (
+        after <= before + _RELEASE_TOL * (1.0 + size_b)
+    )
+    took = crossed[inside]
+    x[took] = second[0][inside]
+    fixed[took] = held[inside]
+    optimal[took] = True
+    answers[0][took], answers[1][took] = second[1][inside], second[2][inside]
+    rest = np.ones(len(x), dtype=bool)
+    rest[took] = False
+    others = np.flatnonzero(rest)
+    if others.size:
+        _advance(
+            problem,
+            others,
+            x,
+            answers,
+            fixed,
+            optimal,
+            (first[0][others], first[1][others], first[2][others]),
+        )
+
+
 def _move(
     problem: tuple[Any, ...],
     i: NDArray[np.intp],
@@ -202,24 +275,27 @@ def _move(
 ) -> None:
     """One move of the entries ``i`` of ``problem`` (:func:`step`'s arguments), in place:
     toward the optimum of their free entries (:func:`_levels`, the fixed ones where they
-    are), as far as the box allows. The first entry that would leave it stops at its bound
-    and is fixed; an entry that gets there is at an optimum (``optimal``, with its levels'
-    answers in ``answers``: that of levels 1 and 2, and of level 1)."""
-    A, b, C, d, lo, hi, lam_hold, lam_soft, posture, weights = problem
+    are), as far as the box allows (:func:`_advance`)."""
+    _advance(problem, i, x, answers, fixed, optimal, _solve(problem, i, fixed[i], x[i]))
+
+
+def _advance(
+    problem: tuple[Any, ...],
+    i: NDArray[np.intp],
+    x: FloatArray,
+    answers: tuple[FloatArray, FloatArray],
+    fixed: BoolArray,
+    optimal: BoolArray,
+    targets: tuple[FloatArray, FloatArray, FloatArray],
+) -> None:
+    """The entries ``i`` moved toward ``targets`` (their levels' answers, of levels 1 to 3,
+    1 and 2, and 1) as far as the box allows, in place. The first entry that would leave it
+    stops at its bound and is fixed; an entry that gets there is at an optimum (``optimal``,
+    with its levels' answers in ``answers``: that of levels 1 and 2, and of level 1)."""
+    lo, hi = problem[4], problem[5]
     x_soft, x_hold = answers
+    target, t_soft, t_hold = targets
     x_i, lo_i, hi_i = x[i], lo[i], hi[i]
-    target, t_soft, t_hold = _levels(
-        A[i],
-        b[i],
-        C[i],
-        d[i],
-        fixed[i],
-        x_i,
-        lam_hold[i],
-        lam_soft[i],
-        None if posture is None else posture[i],
-        weights,
-    )
     p = target - x_i
     go = ~fixed[i] & (p != 0.0)
     room = np.where(p < 0.0, lo_i - x_i, hi_i - x_i)
@@ -259,13 +335,18 @@ def _levels(
     in smaller SVDs), and an entry's numbers depend on its own rows only."""
     B, n = fixed.shape
     fixed_value = np.where(fixed, value, 0.0)
-    free_count = n - np.sum(fixed, axis=1)
-    counts = np.unique(free_count)
     x_hold, x_soft, x = np.empty((B, n)), np.empty((B, n)), np.empty((B, n))
-    for nf in counts:
-        rows = slice(None) if len(counts) == 1 else np.flatnonzero(free_count == nf)
-        # each entry's free entries, in order (a stable sort puts False first)
-        order = np.argsort(fixed[rows], axis=1, kind="stable")[:, :nf]
+    if B == 0 or np.all(fixed == fixed[0]):  # one free set (one entry; a batch alike): shared
+        groups: list[tuple[Any, NDArray[np.intp]]] = [
+            (slice(None), np.flatnonzero(~fixed[0]) if B else np.arange(n))
+        ]
+    else:  # each entry's free entries, in order (a stable sort puts False first)
+        free_count = n - np.sum(fixed, axis=1)
+        groups = []
+        for nf in np.unique(free_count):
+            rows = np.flatnonzero(free_count == nf)
+            groups.append((rows, np.argsort(fixed[rows], axis=1, kind="stable")[:, :nf]))
+    for rows, order in groups:
         moves = _free_levels(
             A[rows],
             b[rows],
@@ -280,13 +361,33 @@ def _levels(
         )
         total = fixed_value[rows]
         for k, move in enumerate(moves):  # x_hold, then + level 2's move, then + level 3's
-            full = np.zeros_like(total)
-            np.put_along_axis(full, order, move, axis=1)
-            total = total + full
+            total = _add_at(total, order, move)
             (x_hold, x_soft, x)[k][rows] = total
         if posture is None:
             x[rows] = total
     return x, x_soft, x_hold
+
+
+def _gather(M: FloatArray, order: NDArray[np.intp]) -> FloatArray:
+    """The columns ``order`` of ``M (B, ..., n)``: shared ``(f,)``, or each entry's ``(B,
+    f)``."""
+    if order.ndim == 1:
+        shared: FloatArray = M[..., order]
+        return shared
+    index = order.reshape(len(order), *([1] * (M.ndim - 2)), order.shape[1])
+    each: FloatArray = np.take_along_axis(M, index, axis=-1)
+    return each
+
+
+def _add_at(total: FloatArray, order: NDArray[np.intp], move: FloatArray) -> FloatArray:
+    """``total (B, n)`` with ``move (B, f)`` added at the columns ``order`` (as
+    :func:`_gather`)."""
+    out: FloatArray = np.array(total)
+    if order.ndim == 1:
+        out[:, order] = total[:, order] + move
+    else:
+        np.put_along_axis(out, order, np.take_along_axis(total, order, axis=1) + move, axis=1)
+    return out
 
 
 def _free_levels(
@@ -301,30 +402,30 @@ def _free_levels(
     posture: FloatArray | None,
     weights: FloatArray | None,
 ) -> list[FloatArray]:
-    """:func:`_levels` for entries with the same number ``f`` of free entries, ``order (B,
-    f)`` their indices: each level's move in those coordinates, ``(B, f)`` (level 1's, then
-    2's, then 3's where there is a posture)."""
-    A_free = np.take_along_axis(A, order[:, None, :], axis=2)
-    C_free = np.take_along_axis(C, order[:, None, :], axis=2)
-    f = order.shape[1]
+    """:func:`_levels` for entries with the same number ``f`` of free entries, ``order``
+    their indices (``(f,)`` shared, or ``(B, f)``): each level's move in those coordinates,
+    ``(B, f)`` (level 1's, then 2's, then 3's where there is a posture)."""
+    B, f = len(A), order.shape[-1]
+    A_free, C_free = _gather(A, order), _gather(C, order)
     if A.shape[1] == 0:  # no held rows: level 1 is the fixed entries alone, the rest free
-        x1 = np.zeros(order.shape)
-        Z = np.broadcast_to(np.eye(f), (len(order), f, f))
+        x1 = np.zeros((B, f))
+        x_hold = fixed_value
+        z, N, _ = _damped_solve(C_free, d - _bmv(C, x_hold), lam_soft, posture is not None)
+        moves = [x1, z]  # Z = I: its products are the same numbers
+        ZN = N
     else:
         x1, Z, _ = _damped_solve(A_free, b - _bmv(A, fixed_value), lam_hold)
-    x_hold = fixed_value.copy()
-    np.put_along_axis(x_hold, order, x1, axis=1)
-    Y = C_free @ Z
-    z, N, _ = _damped_solve(Y, d - _bmv(C, x_hold), lam_soft, posture is not None)
-    moves = [x1, _bmv(Z, z)]
+        x_hold = _add_at(fixed_value, order, x1)
+        z, N, _ = _damped_solve(C_free @ Z, d - _bmv(C, x_hold), lam_soft, posture is not None)
+        moves = [x1, _bmv(Z, z)]
+        ZN = Z @ N if posture is not None else N  # a basis of what is left (and zero columns)
     if posture is None:
         return moves
-    ZN = Z @ N  # an orthonormal basis of what is left (and zero columns)
-    p = np.take_along_axis(posture, order, axis=1)
+    p = _gather(posture, order)
     if weights is None or np.all(weights == weights[0]):
         moves.append(_bmv(ZN, _bmtv(ZN, p)))
         return moves
-    root = np.sqrt(weights)[order]
+    root = np.broadcast_to(np.sqrt(weights)[order], (B, f))
     # min |W^1/2 (ZN c - p)|: ZN's columns are unit or zero but for rounding, so a singular
     # value below RANK_TOL times the largest weight is rounding (were it relative to the
     # largest singular value alone, a space left empty would magnify the rounding to a move)
@@ -357,6 +458,10 @@ def _to_release(
     if not np.any(fixed):  # none held at a bound, none to release (the multipliers unneeded)
         return np.zeros((B, n), dtype=bool)
     sign = np.where(x >= hi, 1.0, -1.0)  # that of a multiplier that wants the entry inside
+    g = _bmtv(C, _bmv(C, x_soft) - d) + lam_soft[:, None] * np.where(fixed, x, x_soft - x_hold)
+    if A.shape[1] == 0:  # level 2 alone: its gradient is the multiplier
+        wrong = np.where(fixed & (sign * g > _RELEASE_TOL * (1.0 + np.abs(g))), sign * g, -np.inf)
+        return _worst(wrong)
     r1 = _bmv(A, x) - b
     wrong1 = sign * _bmtv(A, r1)  # the gradient of |A x - b|^2 / 2: the rows, not the damping
     size_A = np.sqrt(np.sum(A * A, axis=1))
@@ -368,10 +473,7 @@ def _to_release(
     tol1 = _RELEASE_TOL * (1.0 + size_A * size_r1) + DAMPING_SLACK * lam_hold[:, None] * (
         reach * (1.0 + size_A)
     )
-    g = _bmtv(C, _bmv(C, x_soft) - d) + lam_soft[:, None] * np.where(fixed, x, x_soft - x_hold)
-    nu = np.zeros((B, A.shape[1]))
-    if A.shape[1]:
-        nu = _lstsq(np.swapaxes(A, 1, 2) * ~fixed[:, :, None], -g * ~fixed)
+    nu = _lstsq(np.swapaxes(A, 1, 2) * ~fixed[:, :, None], -g * ~fixed)
     wrong2 = sign * (g + _bmtv(A, nu))
     first = fixed & (wrong1 > tol1)
     second = fixed & (np.abs(wrong1) <= tol1) & (wrong2 > _RELEASE_TOL * (1.0 + np.abs(g)))
@@ -380,9 +482,14 @@ def _to_release(
         np.where(first, wrong1, -np.inf),
         np.where(second, wrong2, -np.inf),
     )
+    return _worst(score)
+
+
+def _worst(score: FloatArray) -> BoolArray:
+    """Per row of ``score (B, n)``, its largest finite entry (a mask), or none."""
     worst = np.argmax(score, axis=1)
     has = np.isfinite(np.max(score, axis=1))
-    out: BoolArray = has[:, None] & (np.arange(n)[None, :] == worst[:, None])
+    out: BoolArray = has[:, None] & (np.arange(score.shape[1])[None, :] == worst[:, None])
     return out
 
 
