@@ -236,14 +236,15 @@ def _guess(
     held = fixed[crossed] | below[crossed] | above[crossed]
     at = np.where(below[crossed], lo[crossed], np.where(above[crossed], hi[crossed], x[crossed]))
     second = _solve(problem, crossed, held, at)
-    # taken where it is inside the box and meets the held rows as well as the first answer
-    # (the entries held may leave too few free to meet them)
+    # taken where it is inside the box and meets the held rows about as well as the first
+    # answer: within twice its residual (what level 1's damping leaves of them moves a little
+    # with the entries free), not a residual the entries held leave too few free to remove
     A, b = problem[0][crossed], problem[1][crossed]
     before = np.sqrt(np.sum((_bmv(A, first[0][crossed]) - b) ** 2, axis=1))
     after = np.sqrt(np.sum((_bmv(A, second[0]) - b) ** 2, axis=1))
     size_b = np.sqrt(np.sum(b * b, axis=1))
     inside = np.all((second[0] >= lo[crossed]) & (second[0] <= hi[crossed]), axis=1) & (
-        after <= before + _RELEASE_TOL * (1.0 + size_b)
+        after <= 2.0 * before + _RELEASE_TOL * (1.0 + size_b)
     )
     took = crossed[inside]
     x[took] = second[0][inside]
