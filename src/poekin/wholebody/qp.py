@@ -31,6 +31,7 @@ an entry's result does not depend on the others'.
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 from concurrent.futures import ThreadPoolExecutor
 from typing import Any, NamedTuple
@@ -55,6 +56,20 @@ DAMPING_SLACK = 100.0
 # would not need to), an entry released would be stopped again at once, for ever
 MAX_RELEASES = 2
 SPLIT_MATRICES = 16  # matrices per thread at least, for a batch's SVDs to be shared out
+
+
+@dataclasses.dataclass(frozen=True)
+class _Rounds:
+    """The active set's state, ``(B, ...)`` arrays changed in place by the rounds: the step
+    ``x``, the answers of levels 1 and 2 (``x_soft``) and of level 1 (``x_hold``) at the last
+    optimum, the ``fixed`` entries (each at a bound), and whether ``x`` is the ``optimal``
+    answer of its free entries (its multipliers are then tested)."""
+
+    x: FloatArray
+    x_soft: FloatArray
+    x_hold: FloatArray
+    fixed: BoolArray
+    optimal: BoolArray
 
 
 class Step(NamedTuple):
@@ -149,28 +164,20 @@ def step(
     """
     B, n = lo.shape
     x = np.minimum(np.maximum(0.0, lo), hi)
-    x_soft, x_hold = x.copy(), x.copy()  # levels 1-2 and level 1 alone, at the last optimum
     pinned = lo >= hi  # an entry whose bounds meet never moves, and is never released
-    fixed = pinned.copy()
-    optimal = np.zeros(B, dtype=bool)  # x is the optimum of its free entries: test them
+    st = _Rounds(x, x.copy(), x.copy(), pinned.copy(), np.zeros(B, dtype=bool))
     releases = np.zeros((B, n), dtype=np.int64)
     done = np.zeros(B, dtype=bool)
     problem = (A, b, C, d, lo, hi, lam_hold, lam_soft, posture, posture_weights)
-    _guess(problem, x, (x_soft, x_hold), fixed, optimal)
+    _guess(problem, st)
     for _ in range(max_rounds(n)):
-        moving = np.flatnonzero(~done & ~optimal)
-        testing = np.flatnonzero(~done & optimal)
+        moving = np.flatnonzero(~done & ~st.optimal)
+        testing = np.flatnonzero(~done & st.optimal)
         if moving.size == 0 and testing.size == 0:
             break
-        if moving.size:
-            _move(
-                problem,
-                moving,
-                x,
-                (x_soft, x_hold),
-                fixed,
-                optimal,
-            )
+        if moving.size:  # toward the free entries' optimum, the fixed ones where they are
+            i = moving
+            _advance(problem, i, st, _solve(problem, i, st.fixed[i], st.x[i]))
         if testing.size:
             i = testing
             release = _to_release(
@@ -178,20 +185,20 @@ def step(
                 b[i],
                 C[i],
                 d[i],
-                x[i],
-                x_soft[i],
-                x_hold[i],
-                fixed[i] & ~pinned[i] & (releases[i] < MAX_RELEASES),
+                st.x[i],
+                st.x_soft[i],
+                st.x_hold[i],
+                st.fixed[i] & ~pinned[i] & (releases[i] < MAX_RELEASES),
                 hi[i],
                 lam_hold[i],
                 lam_soft[i],
             )
             some = np.any(release, axis=1)
             releases[i] += release
-            fixed[i] &= ~release
-            optimal[i] = ~some
+            st.fixed[i] &= ~release
+            st.optimal[i] = ~some
             done[i] = ~some
-    return Step(x, fixed, np.sqrt(np.sum((x - x_soft) ** 2, axis=1)))
+    return Step(st.x, st.fixed, np.sqrt(np.sum((st.x - st.x_soft) ** 2, axis=1)))
 
 
 def _solve(
@@ -214,27 +221,20 @@ def _solve(
     )
 
 
-def _guess(
-    problem: tuple[Any, ...],
-    x: FloatArray,
-    answers: tuple[FloatArray, FloatArray],
-    fixed: BoolArray,
-    optimal: BoolArray,
-) -> None:
+def _guess(problem: tuple[Any, ...], st: _Rounds) -> None:
     """The first round, in place: the levels' answer with every entry it takes out of the
     box held at the bound it crosses, where that answer is inside the box (a control tick
-    whose velocity limits bind: one more solve, not one per entry); else the first move of
-    :func:`_move` from ``x``."""
+    whose velocity limits bind: one more solve, not one per entry); else the first move
+    toward the free answer (:func:`_advance`)."""
     lo, hi = problem[4], problem[5]
-    everyone = np.arange(len(x))
-    first = _solve(problem, slice(None), fixed, x)
-    below, above = ~fixed & (first[0] < lo), ~fixed & (first[0] > hi)
+    first = _solve(problem, slice(None), st.fixed, st.x)
+    below, above = ~st.fixed & (first[0] < lo), ~st.fixed & (first[0] > hi)
     crossed = np.flatnonzero(np.any(below | above, axis=1))
     if crossed.size == 0:
-        _advance(problem, everyone, x, answers, fixed, optimal, first)
+        _advance(problem, np.arange(len(st.x)), st, first)
         return
-    held = fixed[crossed] | below[crossed] | above[crossed]
-    at = np.where(below[crossed], lo[crossed], np.where(above[crossed], hi[crossed], x[crossed]))
+    held = st.fixed[crossed] | below[crossed] | above[crossed]
+    at = np.where(below[crossed], lo[crossed], np.where(above[crossed], hi[crossed], st.x[crossed]))
     second = _solve(problem, crossed, held, at)
     # taken where it is inside the box and meets the held rows about as well as the first
     # answer: within twice its residual (what level 1's damping leaves of them moves a little
@@ -247,58 +247,31 @@ def _guess(
         after <= 2.0 * before + _RELEASE_TOL * (1.0 + size_b)
     )
     took = crossed[inside]
-    x[took] = second[0][inside]
-    fixed[took] = held[inside]
-    optimal[took] = True
-    answers[0][took], answers[1][took] = second[1][inside], second[2][inside]
-    rest = np.ones(len(x), dtype=bool)
+    st.x[took], st.x_soft[took], st.x_hold[took] = (answer[inside] for answer in second)
+    st.fixed[took] = held[inside]
+    st.optimal[took] = True
+    rest = np.ones(len(st.x), dtype=bool)
     rest[took] = False
     others = np.flatnonzero(rest)
     if others.size:
-        _advance(
-            problem,
-            others,
-            x,
-            answers,
-            fixed,
-            optimal,
-            (first[0][others], first[1][others], first[2][others]),
-        )
-
-
-def _move(
-    problem: tuple[Any, ...],
-    i: NDArray[np.intp],
-    x: FloatArray,
-    answers: tuple[FloatArray, FloatArray],
-    fixed: BoolArray,
-    optimal: BoolArray,
-) -> None:
-    """One move of the entries ``i`` of ``problem`` (:func:`step`'s arguments), in place:
-    toward the optimum of their free entries (:func:`_levels`, the fixed ones where they
-    are), as far as the box allows (:func:`_advance`)."""
-    _advance(problem, i, x, answers, fixed, optimal, _solve(problem, i, fixed[i], x[i]))
+        _advance(problem, others, st, (first[0][others], first[1][others], first[2][others]))
 
 
 def _advance(
     problem: tuple[Any, ...],
     i: NDArray[np.intp],
-    x: FloatArray,
-    answers: tuple[FloatArray, FloatArray],
-    fixed: BoolArray,
-    optimal: BoolArray,
+    st: _Rounds,
     targets: tuple[FloatArray, FloatArray, FloatArray],
 ) -> None:
     """The entries ``i`` moved toward ``targets`` (their levels' answers, of levels 1 to 3,
     1 and 2, and 1) as far as the box allows, in place. The first entry that would leave it
-    stops at its bound and is fixed; an entry that gets there is at an optimum (``optimal``,
-    with its levels' answers in ``answers``: that of levels 1 and 2, and of level 1)."""
+    stops at its bound and is fixed; an entry that gets there is at an optimum, its levels'
+    answers kept."""
     lo, hi = problem[4], problem[5]
-    x_soft, x_hold = answers
     target, t_soft, t_hold = targets
-    x_i, lo_i, hi_i = x[i], lo[i], hi[i]
+    x_i, lo_i, hi_i = st.x[i], lo[i], hi[i]
     p = target - x_i
-    go = ~fixed[i] & (p != 0.0)
+    go = ~st.fixed[i] & (p != 0.0)
     room = np.where(p < 0.0, lo_i - x_i, hi_i - x_i)
     ratio = np.where(go, room / np.where(go, p, 1.0), np.inf)
     alpha = np.min(ratio, axis=1, initial=np.inf)  # where the first entry stops the move
@@ -308,11 +281,11 @@ def _advance(
     block = ~full[:, None] & (ratio <= alpha[:, None])
     moved = np.where(full[:, None], target, x_i + np.where(full, 1.0, alpha)[:, None] * p)
     moved = np.where(block, np.where(p < 0.0, lo_i, hi_i), moved)
-    x[i] = np.minimum(np.maximum(moved, lo_i), hi_i)
-    fixed[i] |= block
-    optimal[i] = full
-    x_soft[i[full]] = t_soft[full]
-    x_hold[i[full]] = t_hold[full]
+    st.x[i] = np.minimum(np.maximum(moved, lo_i), hi_i)
+    st.fixed[i] |= block
+    st.optimal[i] = full
+    st.x_soft[i[full]] = t_soft[full]
+    st.x_hold[i[full]] = t_hold[full]
 
 
 def _levels(
