@@ -348,6 +348,12 @@ def read_joint_values(args: argparse.Namespace, space: JointSpace) -> NDArray[np
     return q
 
 
+def input_row(path: str, k: int) -> str:
+    """Row ``k`` of the ``--input`` array file ``path``, named for a message: by its index
+    from 0 (a text file's rows are named by their own lines, ``read_table(path).at``)."""
+    return f"--input {path} row {k} (from 0)"
+
+
 def _refuse_not_finite(path: str, q: NDArray[np.float64]) -> None:
     """An InputError naming the first row of the ``--input`` file ``path`` that holds NaN or
     inf: by the file's own line (a text file), or by its index from 0 (an array file)."""
@@ -356,7 +362,7 @@ def _refuse_not_finite(path: str, q: NDArray[np.float64]) -> None:
     rows = q.reshape(-1, q.shape[-1]) if q.ndim > 1 else q.reshape(1, -1)
     k = int(np.flatnonzero(~np.all(np.isfinite(rows), axis=-1))[0])
     text = array_format(path, "--input") in (".csv", ".txt")
-    where = read_table(path).at(k) if text and q.ndim <= 2 else f"--input {path} row {k} (from 0)"
+    where = read_table(path).at(k) if text and q.ndim <= 2 else input_row(path, k)
     raise InputError(f"{where} holds NaN or inf; every value must be finite")
 
 

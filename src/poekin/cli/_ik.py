@@ -43,6 +43,7 @@ from poekin.cli._args import (
     add_placement,
     add_precision,
     add_source,
+    input_row,
     model_source,
     note,
     read_values,
@@ -187,7 +188,7 @@ def _targets(args: argparse.Namespace) -> tuple[FloatArray, str]:
     from poekin.io.fileio import array_format, read_array, read_table
 
     def where(k: int) -> str:  # a row of an array file, by its index
-        return f"--input {args.input} row {k} (from 0)"
+        return input_row(args.input, k)
 
     if array_format(args.input, "--input") in (".csv", ".txt"):
         text = read_table(args.input)
