@@ -75,14 +75,20 @@ def test_box_least_squares_against_bvls(seed: int, n: int, ms: int, lam: float) 
     st.integers(1, 3),
     st.integers(1, 6),
     st.floats(1e-4, 1e-2),
+    st.booleans(),
 )
-def test_held_rows_and_box_against_daqp(seed: int, n: int, mh: int, ms: int, lam: float) -> None:
+def test_held_rows_and_box_against_daqp(
+    seed: int, n: int, mh: int, ms: int, lam: float, pinned: bool
+) -> None:
     """``A x = 0`` exactly, then ``min |C x - d|^2 + lam |x|^2`` in the box: daqp's minimiser
     (the problem ``ik_step`` poses, with a damping that keeps daqp's Hessian well
-    conditioned)."""
+    conditioned); ``pinned``: two entries' bounds meet at 0 (joints at a limit whose velocity
+    the step cannot use), never free in the multipliers."""
     qpsolvers = pytest.importorskip("qpsolvers")
     problem = _problem(seed, n, mh, ms)
     A, _, C, d, lo, hi = problem
+    if pinned:
+        lo[0, :2] = hi[0, :2] = 0.0
     x = _step(problem, lam).x[0]
     H = C[0].T @ C[0] + lam * np.eye(n)
     ref = qpsolvers.solve_qp(

@@ -188,6 +188,7 @@ def step(
                 st.x[i],
                 st.x_soft[i],
                 st.x_hold[i],
+                st.fixed[i],
                 st.fixed[i] & ~pinned[i] & (releases[i] < MAX_RELEASES),
                 hi[i],
                 lam_hold[i],
@@ -417,24 +418,27 @@ def _to_release(
     x_soft: FloatArray,
     x_hold: FloatArray,
     fixed: BoolArray,
+    releasable: BoolArray,
     hi: FloatArray,
     lam_hold: FloatArray,
     lam_soft: FloatArray,
 ) -> BoolArray:
-    """Per entry at an optimum of its free entries, the fixed entry (of ``fixed``, those that
-    may be released) to release, or none, by the levels' multipliers in turn: where level 1's
+    """Per entry at an optimum of its free entries, the fixed entry (of ``fixed``; of those
+    ``releasable``) to release, or none, by the levels' multipliers in turn: where level 1's
     multiplier (its cost's gradient) has the wrong sign beyond rounding, the entry is a
     candidate; where it has the right sign, level 1 needs the entry at its bound; where level
     1 is indifferent, level 2's Lagrangian ``g + A^T nu + mu = 0`` says (``g`` the gradient of
     level 2's cost, whose damping pulls a fixed entry toward 0; ``nu`` the held rows'
     multipliers, from the free entries). Of the candidates, the most wrong, level 1's first."""
     B, n = x.shape
-    if not np.any(fixed):  # none held at a bound, none to release (the multipliers unneeded)
+    if not np.any(releasable):  # none to release (the multipliers unneeded)
         return np.zeros((B, n), dtype=bool)
     sign = np.where(x >= hi, 1.0, -1.0)  # that of a multiplier that wants the entry inside
     g = _bmtv(C, _bmv(C, x_soft) - d) + lam_soft[:, None] * np.where(fixed, x, x_soft - x_hold)
     if A.shape[1] == 0:  # level 2 alone: its gradient is the multiplier
-        wrong = np.where(fixed & (sign * g > _RELEASE_TOL * (1.0 + np.abs(g))), sign * g, -np.inf)
+        wrong = np.where(
+            releasable & (sign * g > _RELEASE_TOL * (1.0 + np.abs(g))), sign * g, -np.inf
+        )
         return _worst(wrong)
     r1 = _bmv(A, x) - b
     wrong1 = sign * _bmtv(A, r1)  # the gradient of |A x - b|^2 / 2: the rows, not the damping
@@ -449,8 +453,8 @@ def _to_release(
     )
     nu = _lstsq(np.swapaxes(A, 1, 2) * ~fixed[:, :, None], -g * ~fixed)
     wrong2 = sign * (g + _bmtv(A, nu))
-    first = fixed & (wrong1 > tol1)
-    second = fixed & (np.abs(wrong1) <= tol1) & (wrong2 > _RELEASE_TOL * (1.0 + np.abs(g)))
+    first = releasable & (wrong1 > tol1)
+    second = releasable & (np.abs(wrong1) <= tol1) & (wrong2 > _RELEASE_TOL * (1.0 + np.abs(g)))
     score = np.where(
         np.any(first, axis=1, keepdims=True),
         np.where(first, wrong1, -np.inf),
