@@ -14,6 +14,8 @@ import mujoco
 import numpy as np
 import pytest
 from helpers import MJ_TOL, load_quiet, mj_frame_pose
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 import poekin
 from poekin.chain import Chain
@@ -691,3 +693,33 @@ def test_the_kernels_target_check_decides_as_numpys(
     monkeypatch.setattr(_fast, "rigid_targets", lambda T: False)
     assert with_kernel == [decide(T) for T in cases]
     assert True in with_kernel and False in with_kernel
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    seed=st.integers(0, 2**32 - 1),
+    n=st.integers(1, 7),
+    shape=st.sampled_from([(), (1,), (3, 1, 2)]),
+    damping=st.sampled_from([0.0, 1e-12, 1e-3, 1.0]),
+)
+def test_the_ldlt_solve_is_numpy_s_solve(
+    seed: int, n: int, shape: tuple[int, ...], damping: float
+) -> None:
+    """The damped normal equations' solve (``L D L^T``) against LAPACK's, over batch shapes:
+    the systems ``J^T J + lam I`` of random Jacobians, rank-deficient ones too (two equal
+    columns: a pivot at rounding, taken as ``tiny``, where LAPACK's answer is meaningless)."""
+    rng = np.random.default_rng(seed)
+    J = rng.normal(size=(*shape, 6, n))
+    A = np.swapaxes(J, -1, -2) @ J + (damping + 1e-9) * np.eye(n)
+    b = rng.normal(size=(*shape, n))
+    rows = [[A[..., i, j] for j in range(n)] for i in range(n)]
+    x = np.stack(numerical._cholesky_solve(rows, [b[..., i] for i in range(n)], 1e-300, np), -1)
+    expected = np.linalg.solve(A, b[..., None])[..., 0]
+    scale = np.linalg.cond(A)[..., None] * np.abs(expected).max(axis=-1, keepdims=True)
+    assert np.all(np.abs(x - expected) <= 1e-13 * scale + 1e-300)
+    if n >= 2:  # a column repeated: the singular system's pivot is floored, the answer finite
+        J[..., 1] = J[..., 0]
+        S = np.swapaxes(J, -1, -2) @ J
+        rows = [[S[..., i, j] for j in range(n)] for i in range(n)]
+        y = numerical._cholesky_solve(rows, [b[..., i] for i in range(n)], 1e-12, np)
+        assert all(np.all(np.isfinite(v)) for v in y)

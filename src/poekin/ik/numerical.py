@@ -343,31 +343,40 @@ def jacobian_rows(columns: Sequence[Column], quat: Sequence[Entry], s: Settings)
 
 
 def _cholesky_solve(A: list[Entries], b: Entries, tiny: float, xp: Any) -> Entries:
-    """``A x = b`` for symmetric positive definite ``A`` (its lower triangle is read), by
-    Cholesky; a pivot below ``tiny`` (rounding, in a damped system) is taken as ``tiny``."""
+    """``A x = b`` for symmetric positive definite ``A`` (its lower triangle is read), by its
+    ``L D L^T`` factorisation (Cholesky's without square roots, ``L`` unit lower triangular);
+    a pivot ``D_j`` below ``tiny`` (rounding, in a damped system) is taken as ``tiny``.
+
+    The one division of each row is off the chain of dependent operations that an iteration
+    waits for: ``E_ij = L_ij D_j`` is kept beside ``L``, and the solves divide by ``D`` once,
+    between the forward and the backward pass (the kernel's single calls, issue 26)."""
     n = len(b)
     L: list[Entries] = [[None] * n for _ in range(n)]
+    E: list[Entries] = [[None] * n for _ in range(n)]
+    D: Entries = [None] * n
     for j in range(n):
-        for i in range(j, n):
+        acc = A[j][j]
+        for k in range(j):
+            acc = acc - E[j][k] * L[j][k]
+        D[j] = xp.where(acc > tiny, acc, tiny)
+        for i in range(j + 1, n):
             acc = A[i][j]
             for k in range(j):
-                acc = acc - L[i][k] * L[j][k]
-            if i == j:
-                L[j][j] = xp.sqrt(xp.where(acc > tiny, acc, tiny))
-            else:
-                L[i][j] = acc / L[j][j]
+                acc = acc - E[i][k] * L[j][k]
+            E[i][j] = acc
+            L[i][j] = acc / D[j]
     y: Entries = []
     for i in range(n):
         acc = b[i]
         for k in range(i):
             acc = acc - L[i][k] * y[k]
-        y.append(acc / L[i][i])
+        y.append(acc)
     x: Entries = [None] * n
     for i in reversed(range(n)):
-        acc = y[i]
+        acc = y[i] / D[i]
         for k in range(i + 1, n):
             acc = acc - L[k][i] * x[k]
-        x[i] = acc / L[i][i]
+        x[i] = acc
     return x
 
 

@@ -23,30 +23,28 @@ AI vl ik_lselect(vl mask, vl a, vl b) { return (mask & a) | (~mask & b); }
 /* _cholesky_solve for s <= IK_STEP_MAX_JOINTS */
 AI void ik_step_cholesky(vd A[IK_STEP_MAX_JOINTS][IK_STEP_MAX_JOINTS], const vd *b, vd *x, int s,
                          double tiny) {
-    vd L[IK_STEP_MAX_JOINTS][IK_STEP_MAX_JOINTS], y[IK_STEP_MAX_JOINTS];
+    vd L[IK_STEP_MAX_JOINTS][IK_STEP_MAX_JOINTS], E[IK_STEP_MAX_JOINTS][IK_STEP_MAX_JOINTS], D[IK_STEP_MAX_JOINTS], y[IK_STEP_MAX_JOINTS];
     const vd t0 = (vd){0} + tiny;
     for (int j = 0; j < s; ++j) {
-        for (int i = j; i < s; ++i) {
-            vd acc = A[i][j];
-            for (int k = 0; k < j; ++k) acc = acc - L[i][k] * L[j][k];
-            if (i == j) {
-                acc = vselect(acc > tiny, acc, t0);
-                for (int l = 0; l < LANES; ++l) acc[l] = sqrt(acc[l]);
-                L[j][j] = acc;
-            } else {
-                L[i][j] = acc / L[j][j];
-            }
+        vd acc = A[j][j];
+        for (int k = 0; k < j; ++k) acc = acc - E[j][k] * L[j][k];
+        D[j] = vselect(acc > tiny, acc, t0);
+        for (int i = j + 1; i < s; ++i) {
+            acc = A[i][j];
+            for (int k = 0; k < j; ++k) acc = acc - E[i][k] * L[j][k];
+            E[i][j] = acc;
+            L[i][j] = acc / D[j];
         }
     }
     for (int i = 0; i < s; ++i) {
         vd acc = b[i];
         for (int k = 0; k < i; ++k) acc = acc - L[i][k] * y[k];
-        y[i] = acc / L[i][i];
+        y[i] = acc;
     }
     for (int i = s - 1; i >= 0; --i) {
-        vd acc = y[i];
+        vd acc = y[i] / D[i];
         for (int k = i + 1; k < s; ++k) acc = acc - L[k][i] * x[k];
-        x[i] = acc / L[i][i];
+        x[i] = acc;
     }
 }
 
