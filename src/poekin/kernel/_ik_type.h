@@ -10,9 +10,12 @@ typedef struct {
     IKModel model;
     double *numbers; /* lo, hi, base, span: n each (owned) */
     int *flags;      /* owned */
+    PyObject *options; /* the options tuple of the last solve, read into opt (a reference) */
+    IKOptions opt;
 } IKSolverObject;
 
 static void IKSolver_dealloc(IKSolverObject *self) {
+    Py_XDECREF(self->options);
     Py_XDECREF(self->kernel);
     Py_XDECREF(self->args);
     PyMem_Free(self->numbers);
@@ -235,7 +238,13 @@ static PyObject *IKSolver_solve(IKSolverObject *self, PyObject *const *args, Py_
     }
     const IKModel *m = &self->model;
     IKOptions opt;
-    if (ik_read_options(args[3], &opt) < 0) return NULL;
+    if (args[3] == self->options && self->options != NULL) {
+        opt = self->opt; /* the same tuple as the last solve's: its numbers, read then */
+    } else {
+        if (ik_read_options(args[3], &opt) < 0) return NULL;
+        Py_XSETREF(self->options, Py_NewRef(args[3]));
+        self->opt = opt;
+    }
     uint64_t seed = PyLong_AsUnsignedLongLong(args[2]);
     if (seed == (uint64_t)-1 && PyErr_Occurred()) return NULL;
     int checked = PyObject_IsTrue(args[4]);
