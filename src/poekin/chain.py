@@ -355,6 +355,10 @@ class Chain:
     _jacobian_world_kernel: Any = dataclasses.field(init=False, repr=False)
     # what inverse kinematics derives from the chain, at first use (poekin.ik.numerical)
     _ik_cache: dict[Any, Any] = dataclasses.field(init=False, repr=False, compare=False)
+    # the compiled calls of ik(T[, q0]) and ik_all(T) with their other arguments at the
+    # defaults, once the first call has built what they need (fast_method's (fn, *bound))
+    _ik_quick: Any = dataclasses.field(default=None, init=False, repr=False, compare=False)
+    _ik_all_quick: Any = dataclasses.field(default=None, init=False, repr=False, compare=False)
     # T_world_base and T_flange_tool that with_base and with_tool folded into screws and home
     _base: FloatArray | None = dataclasses.field(default=None, repr=False, kw_only=True)
     _tool: FloatArray | None = dataclasses.field(default=None, repr=False, kw_only=True)
@@ -722,6 +726,7 @@ class Chain:
         pose = poe(self._constants.body, th, np, left=self._constants.home)
         return _pose.to_array(pose, "4x4", np, zeros_like_batch(q, np))  # type: ignore[no-any-return]
 
+    @_fast.fast_method("_ik_quick", names=("T", "q0"))
     def ik(
         self,
         T: ArrayLike,
@@ -1189,6 +1194,7 @@ class Chain:
         )
         return solve_chain(self, T, q0, posture=posture, seed=seed, options=options)
 
+    @_fast.fast_method("_ik_all_quick", names=("T", "near"))
     def ik_all(
         self,
         T: ArrayLike,

@@ -84,3 +84,60 @@ def test_ik_all_of_one_target_is_its_row_of_a_batch(ur5e: Chain) -> None:
     _same(ur5e.ik_all(T[0].tolist()).q, batch.q[0])  # a list: the usual way
     found = analytic.ik_all(ur5e, T[0], refine=False)  # the usual way
     _same(found.q, batch.q[0])
+
+
+def test_the_call_in_c_gives_the_usual_bits_and_leaves_the_rest_to_python() -> None:
+    """After its first call a chain answers ``ik(T[, q0])`` and ``ik_all(T)`` in C (the
+    armed ``_ik_quick`` and ``_ik_all_quick``): the same bits as the Python way (a keyword
+    the C call does not take), and what it does not take goes to Python as before."""
+    from helpers import load_quiet
+
+    chain = poekin.load(load_quiet("universal_robots_ur5e"))  # a chain of its own: not armed
+    assert chain._ik_quick is None and chain._ik_all_quick is None
+    q, T = _targets(chain, 4)
+    first = chain.ik(T[0])
+    assert chain._ik_quick is not None
+    chain.ik_all(T[0])  # finds the geometry
+    chain.ik_all(T[0])  # and the short way's call arms the C one
+    assert chain._ik_all_quick is not None
+    _same(chain.ik(T[0]).q, first.q)
+    for k in range(len(T)):
+        for q0 in (None, q[k] + 0.01):
+            quick = chain.ik(T[k], q0)
+            usual = chain.ik(T[k], q0, seed=0)  # a keyword: the Python way
+            assert type(quick) is numerical.IKResult
+            for name in ("q", "success", "pos_err", "ori_err", "iterations", "attempts"):
+                _same(getattr(quick, name), getattr(usual, name))
+            _same(chain.ik(T=T[k], q0=q0).q, usual.q)
+        all_quick, all_usual = chain.ik_all(T[k]), chain.ik_all(T[k], refine=True)
+        assert type(all_quick) is analytic.IKSolutions
+        _same(all_quick.q, all_usual.q)
+        _same(all_quick.valid, all_usual.valid)
+        _same(all_quick.ori_err, all_usual.ori_err)
+        assert all_quick.geometry is all_usual.geometry and all_quick.collides is None
+    with pytest.raises(TypeError, match="positional"):
+        chain.ik_all(T[0], q[0])  # type: ignore[misc]  # near is keyword-only, in C as in Python
+    with pytest.raises(TypeError, match="positional"):
+        chain.ik(T[0], q[0], 3)  # type: ignore[misc]
+    with pytest.raises(InputError, match="target"):
+        chain.ik(T[0][:3])
+    ordered = chain.ik_all(T[0], near=q[0])  # near: the Python way orders the branches
+    assert np.allclose(ordered.q[0], q[0], atol=1e-8)
+
+
+def test_an_armed_chain_pickles_and_keeps_its_signature() -> None:
+    import inspect
+    import pickle
+
+    from helpers import load_quiet
+
+    chain = poekin.load(load_quiet("universal_robots_ur5e"))
+    _, T = _targets(chain, 2)
+    before, before_all = chain.ik(T[1]), chain.ik_all(T[1])
+    again = pickle.loads(pickle.dumps(chain))
+    _same(again.ik(T[1]).q, before.q)
+    _same(again.ik_all(T[1]).q, before_all.q)
+    params = inspect.signature(Chain.ik).parameters
+    assert list(params)[:3] == ["self", "T", "q0"] and params["seed"].default == 0
+    assert "numerical inverse kinematics" in (Chain.ik.__doc__ or "")
+    assert list(inspect.signature(Chain.ik_all).parameters)[:3] == ["self", "T", "near"]

@@ -911,6 +911,9 @@ def _quick(chain: Chain, T: FloatArray, near: ArrayLike | None) -> IKSolutions |
         if type(geo) is not Geometry or geo.nearest:
             return None
         _last = weakref.ref(chain), geo
+        # Chain.ik_all(T)'s own call in C from now on (fast_method)
+        armed = (_kernel.quick_ik_all, geo._kind, geo._params, chain.limits, geo, IKSolutions)
+        object.__setattr__(chain, "_ik_all_quick", armed)
     done = _kernel.ik_all(geo._kind, geo._params, T, chain.limits, True)  # in T's batch shape
     if done is None:
         return None

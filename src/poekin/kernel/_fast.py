@@ -114,13 +114,21 @@ def _note_slow_path(batch: tuple[int, ...]) -> None:
 _Method = TypeVar("_Method", bound=Callable[..., Any])
 
 
-def fast_method(kernel_attr: str) -> Callable[[_Method], _Method]:
+def fast_method(
+    kernel_attr: str, names: tuple[str, ...] | None = None
+) -> Callable[[_Method], _Method]:
     """Decorator for a method ``m(self, q, out=None, form="4x4", params=None)`` or
     ``m(self, q, params=None)``: a call ``obj.m(...)`` first runs
     ``getattr(obj, kernel_attr).run(q, out, form)`` in C, and runs the decorated function only
     when that attribute is None, the kernel answers None (arguments to validate, convert or
     refuse, or not NumPy arrays) or ``params`` is given. Without the compiled kernel the
     function is returned as it is.
+
+    With ``names`` (one to three of the method's first parameters), the attribute holds
+    ``(fn, *bound)`` once the object knows its default call (None before): a call that gives
+    only those parameters runs ``fn(obj, *those, *bound)`` in C (None for one not given), and
+    the decorated function where ``fn`` answers None, or for any other argument
+    (``Chain.ik(T, q0)``: :func:`poekin.ik.numerical.solve_quick` arms it).
 
     A Python method around the kernel costs a frame per call: 8-18% of a single UR5e call.
     torch.compile traces Python, not C: it sees the Python ``__get__`` and ``__call__``
@@ -133,8 +141,10 @@ def fast_method(kernel_attr: str) -> Callable[[_Method], _Method]:
     def decorate(method: _Method) -> _Method:
         if _kernel is None:
             return method
-        names = tuple(n for n in inspect.signature(method).parameters if n != "params")[1:]
-        fast = _kernel.FastMethod(kernel_attr, method, names)
+        given = names
+        if given is None:
+            given = tuple(n for n in inspect.signature(method).parameters if n != "params")[1:]
+        fast = _kernel.FastMethod(kernel_attr, method, given)
         functools.update_wrapper(fast, method)
         return fast  # type: ignore[no-any-return]
 

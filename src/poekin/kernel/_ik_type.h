@@ -197,32 +197,44 @@ static int ik_run(IKTask *proto, int threads) {
     return next < proto->N ? -1 : 0;
 }
 
-/* The names of an IK result's fields, in solve's order (interned at the first solve). */
-static PyObject *ik_result_names[6];
-
-/* An instance of the class `type` (poekin.ik.numerical.IKResult) with the six arrays as its
- * attributes, as object.__new__ and the frozen dataclass's own __init__ would set them; NULL
- * with an exception set. Steals the six references. */
-static PyObject *ik_result(PyObject *type, PyObject *out[6]) {
-    static const char *names[6] = {"q", "success", "pos_err", "ori_err", "iterations", "attempts"};
+/* An instance of the class `type` (a frozen dataclass: poekin.ik.numerical.IKResult,
+ * poekin.ik.analytic.IKSolutions) with the n values as its attributes `names` (interned
+ * strings), as object.__new__ and the dataclass's own __init__ would set them; NULL with an
+ * exception set. Steals the n references. */
+static PyObject *ik_new_result(PyObject *type, PyObject *const *names, PyObject **values, int n) {
     PyObject *obj = NULL, *empty = NULL;
-    for (int k = 0; k < 6; ++k)
-        if (ik_result_names[k] == NULL &&
-            (ik_result_names[k] = PyUnicode_InternFromString(names[k])) == NULL)
-            goto done;
     if (!PyType_Check(type)) {
-        PyErr_SetString(PyExc_TypeError, "solve's result type must be a class");
+        PyErr_SetString(PyExc_TypeError, "a result type must be a class");
         goto done;
     }
     empty = PyTuple_New(0);
     if (empty == NULL) goto done;
     obj = PyBaseObject_Type.tp_new((PyTypeObject *)type, empty, NULL);
-    for (int k = 0; k < 6 && obj != NULL; ++k)
-        if (PyObject_GenericSetAttr(obj, ik_result_names[k], out[k]) < 0) Py_CLEAR(obj);
+    for (int k = 0; k < n && obj != NULL; ++k)
+        if (PyObject_GenericSetAttr(obj, names[k], values[k]) < 0) Py_CLEAR(obj);
 done:
     Py_XDECREF(empty);
-    for (int k = 0; k < 6; ++k) Py_DECREF(out[k]);
+    for (int k = 0; k < n; ++k) Py_DECREF(values[k]);
     return obj;
+}
+
+/* interned[k], the n C strings of names interned where not yet; -1 with an exception set. */
+static int ik_intern(const char *const *names, PyObject **interned, int n) {
+    for (int k = 0; k < n; ++k)
+        if (interned[k] == NULL && (interned[k] = PyUnicode_InternFromString(names[k])) == NULL)
+            return -1;
+    return 0;
+}
+
+/* An IK result (poekin.ik.numerical.IKResult) of the six arrays of solve, in its order. */
+static PyObject *ik_result(PyObject *type, PyObject *out[6]) {
+    static const char *names[6] = {"q", "success", "pos_err", "ori_err", "iterations", "attempts"};
+    static PyObject *interned[6];
+    if (ik_intern(names, interned, 6) < 0) {
+        for (int k = 0; k < 6; ++k) Py_DECREF(out[k]);
+        return NULL;
+    }
+    return ik_new_result(type, interned, out, 6);
 }
 
 /* solve(T, q0, seed, options, checked[, result]): (q, success, pos_err, ori_err, iterations,
@@ -418,6 +430,23 @@ static PyObject *IKSolver_step(IKSolverObject *self, PyObject *const *args, Py_s
     return out;
 }
 
+/* The seed 0 (Chain.ik's default), made once. */
+static PyObject *ik_seed_zero;
+
+/* quick(chain, T, q0, options, result): Chain.ik(T[, q0]) with every other argument at its
+ * default, as poekin.ik.numerical arms it (the chain's _ik_quick, which FastMethod calls):
+ * solve(T, q0, 0, options, False, result), None where that needs the usual path (issue 26: a
+ * single call's own cost, without a Python frame). */
+static PyObject *IKSolver_quick(IKSolverObject *self, PyObject *const *args, Py_ssize_t nargs) {
+    if (nargs != 5) {
+        PyErr_SetString(PyExc_TypeError, "quick(chain, T, q0, options, result)");
+        return NULL;
+    }
+    if (ik_seed_zero == NULL && (ik_seed_zero = PyLong_FromLong(0)) == NULL) return NULL;
+    PyObject *solve_args[6] = {args[1], args[2], ik_seed_zero, args[3], Py_False, args[4]};
+    return IKSolver_solve(self, solve_args, 6);
+}
+
 static PyMethodDef IKSolver_methods[] = {
     {"solve", (PyCFunction)(void (*)(void))IKSolver_solve, METH_FASTCALL,
      "solve(T, q0, seed, options, checked) -> (q, success, pos_err, ori_err, iterations, "
@@ -425,6 +454,9 @@ static PyMethodDef IKSolver_methods[] = {
     {"step", (PyCFunction)(void (*)(void))IKSolver_step, METH_FASTCALL,
      "step(T, q, reach, options, gain, lam, release, rounds, checked) -> x, the differential "
      "step of poekin.ik.step, or None if the arguments need validating first"},
+    {"quick", (PyCFunction)(void (*)(void))IKSolver_quick, METH_FASTCALL,
+     "quick(chain, T, q0, options, result): Chain.ik's call with the other arguments at their "
+     "defaults, solve(T, q0, 0, options, False, result)"},
     {"__reduce__", (PyCFunction)IKSolver_reduce, METH_NOARGS, NULL},
     {NULL, NULL, 0, NULL},
 };

@@ -652,11 +652,18 @@ static PyTypeObject KernelType = {
  * other keyword goes to the fallback. It saves a Python frame per call: a controller's single
  * calls are as fast as the kernel's own.
  *
+ * The attribute may instead hold a tuple (fn, *bound), which the Python side sets once it
+ * knows what the call with the other arguments at their defaults needs (Chain.ik's solver and
+ * options): the call is then fn(obj, the named parameters with None for those not given,
+ * *bound), and the fallback runs where fn answers None.
+ *
  * Tools that trace Python rather than run it (torch.compile's Dynamo) cannot enter this C call:
  * for them the type's dict holds a __get__ and a __call__ written in Python (expose_python) that
  * bind and call the Python fallback instead, which they trace. The interpreter never uses that entry (it calls the C
  * slots), so calls keep their speed, and a non-data method descriptor keeps CPython's
  * specialised method call. */
+#define FAST_MAX_BOUND 8 /* the most bound arguments of a (fn, *bound) */
+
 typedef struct {
     PyObject_HEAD PyObject *attr; /* interned name of the instance attribute holding the Kernel */
     PyObject *fallback;
@@ -691,6 +698,20 @@ static PyObject *FastMethod_vectorcall(FastMethodObject *self, PyObject *const *
         PyObject *result = Kernel_run((KernelObject *)kernel, run_args, n_run);
         Py_DECREF(kernel);
         if (result != Py_None) return result; /* the poses, or NULL for an error */
+        Py_DECREF(result);
+    } else if (PyTuple_CheckExact(kernel) && PyTuple_GET_SIZE(kernel) >= 1 &&
+               PyTuple_GET_SIZE(kernel) <= 1 + FAST_MAX_BOUND) {
+        /* (fn, *bound): fn(obj, the parameters (None where not given), *bound) */
+        PyObject *call[1 + 3 + FAST_MAX_BOUND];
+        const Py_ssize_t n_bound = PyTuple_GET_SIZE(kernel) - 1;
+        call[0] = args[0];
+        for (Py_ssize_t j = 0; j < n_names; ++j) call[1 + j] = given[j] != NULL ? given[j] : Py_None;
+        for (Py_ssize_t b = 0; b < n_bound; ++b)
+            call[1 + n_names + b] = PyTuple_GET_ITEM(kernel, 1 + b);
+        PyObject *result =
+            PyObject_Vectorcall(PyTuple_GET_ITEM(kernel, 0), call, 1 + n_names + n_bound, NULL);
+        Py_DECREF(kernel);
+        if (result != Py_None) return result; /* the answer, or NULL for an error */
         Py_DECREF(result);
     } else {
         Py_DECREF(kernel);
@@ -954,6 +975,30 @@ static PyObject *ik_all(PyObject *Py_UNUSED(mod), PyObject *const *args, Py_ssiz
     PyTuple_SET_ITEM(result, 1, (PyObject *)valid);
     PyTuple_SET_ITEM(result, 2, none);
     return result;
+}
+
+/* quick_ik_all(chain, T, near, kind, params, limits, geometry, result): Chain.ik_all(T) with
+ * every other argument at its default, on a chain of an exact geometry, as
+ * poekin.ik.analytic arms it (the chain's _ik_all_quick, which FastMethod calls): the class
+ * `result` (IKSolutions) of ik_all(kind, params, T, limits, True)'s q and valid, the geometry,
+ * the chain and T; None where that needs the usual path (near given, or ik_all's None). */
+static PyObject *quick_ik_all(PyObject *mod, PyObject *const *args, Py_ssize_t nargs) {
+    static const char *names[5] = {"q", "valid", "geometry", "_chain", "_targets"};
+    static PyObject *interned[5];
+    if (nargs != 8) {
+        PyErr_SetString(PyExc_TypeError,
+                        "quick_ik_all(chain, T, near, kind, params, limits, geometry, result)");
+        return NULL;
+    }
+    if (args[2] != Py_None) Py_RETURN_NONE;
+    if (ik_intern(names, interned, 5) < 0) return NULL;
+    PyObject *all_args[5] = {args[3], args[4], args[1], args[5], Py_True};
+    PyObject *done = ik_all(mod, all_args, 5);
+    if (done == NULL || done == Py_None) return done;
+    PyObject *values[5] = {Py_NewRef(PyTuple_GET_ITEM(done, 0)), Py_NewRef(PyTuple_GET_ITEM(done, 1)),
+                           Py_NewRef(args[6]), Py_NewRef(args[0]), Py_NewRef(args[1])};
+    Py_DECREF(done);
+    return ik_new_result(args[7], interned, values, 5);
 }
 
 /* ------------------------------------------------------------------------------------------ */
@@ -1603,6 +1648,9 @@ static PyMethodDef module_methods[] = {
     {"get_width", get_width, METH_NOARGS, "get_width() -> configurations per block"},
     {"ik_all", (PyCFunction)(void (*)(void))ik_all, METH_FASTCALL,
      "ik_all(kind, params, T, limits) -> (q, valid, bad): every closed-form IK branch"},
+    {"quick_ik_all", (PyCFunction)(void (*)(void))quick_ik_all, METH_FASTCALL,
+     "quick_ik_all(chain, T, near, kind, params, limits, geometry, result): Chain.ik_all's "
+     "default call"},
     {"rigid_targets", rigid_targets, METH_O,
      "rigid_targets(T) -> bool: T a plain float64 (..., 4, 4) array of rigid transforms"},
     {"ordered", ordered, METH_VARARGS,
