@@ -200,3 +200,33 @@ def test_a_urdfs_velocity_limits_bound_the_step() -> None:
     qvel = tree.ik_step({frame: far}, np.zeros(tree.nq), 0.01)
     assert np.all(np.abs(qvel) <= tree.joint_velocity_limits * (1 + 1e-12))
     assert np.any(np.isclose(np.abs(qvel), tree.joint_velocity_limits, rtol=1e-12))
+
+
+@pytest.mark.parametrize("robot", ["universal_robots_ur5e", "franka_fr3"])
+def test_a_joint_outside_its_limits_moves_back_at_its_velocity_limit(robot: str) -> None:
+    """A joint beyond its limit by more than one tick's reach (a simulation's overshoot) has
+    no step that brings it inside: it moves back at its velocity limit, as chain.ik_step's does
+    (the tree's step could leave it where it was before), and the others stay in their box."""
+    tree = poekin.load_tree(load_quiet(robot))
+    chain = poekin.load(load_quiet(robot))
+    lo, hi = tree.joint_limits[:, 0], tree.joint_limits[:, 1]
+    q = np.clip(np.asarray(tree.qpos0, dtype=float), lo, hi)
+    T = tree.pose(q, "attachment_site")
+    dt, speed = 0.01, 1.0
+    for j in range(tree.nq):
+        for side, beyond in ((1.0, hi[j] + 0.3), (-1.0, lo[j] - 0.3)):
+            qo = q.copy()
+            qo[j] = beyond
+            qvel = tree.ik_step({"attachment_site": T}, qo, dt, velocity_limits=speed)
+            assert qvel[j] == -side * speed, (j, side, qvel)
+            assert chain.ik_step(T, qo, dt, velocity_limits=speed)[j] == qvel[j]
+            x = qvel * dt
+            others = np.arange(tree.nq) != j
+            assert np.all(np.abs(qvel) <= speed)
+            assert np.all(qo[others] + x[others] >= lo[others] - 1e-12)
+            assert np.all(qo[others] + x[others] <= hi[others] + 1e-12)
+    # no velocity limit: back inside in one tick
+    qo = q.copy()
+    qo[0] = hi[0] + 0.3
+    qvel = tree.ik_step({"attachment_site": T}, qo, dt, velocity_limits=np.inf)
+    assert qo[0] + qvel[0] * dt <= hi[0] + 1e-12

@@ -85,6 +85,20 @@ class Space:
         hi[:, self.scalar_v] = np.maximum(self.upper - q, 0.0)
         return lo, hi
 
+    def step_bounds(self, qpos: FloatArray, reach: FloatArray) -> tuple[FloatArray, FloatArray]:
+        """``(B, n)`` bounds on one control tick's step from ``qpos``, each entry within
+        ``reach`` ``(n,)`` of zero (``v_max dt``): hinge and slide ``clamp(lower - q, -reach,
+        reach)`` to ``clamp(upper - q, -reach, reach)``, so that a joint outside its limits
+        moves back toward them, at most at its velocity limit (:meth:`bounds` lets it stay
+        where it is: an iteration of :meth:`poekin.Tree.ik` starts inside)."""
+        B = qpos.shape[0]
+        lo = np.full((B, self.n), -np.inf)
+        hi = np.full((B, self.n), np.inf)
+        q = qpos[:, self.scalar_q]
+        lo[:, self.scalar_v] = self.lower - q
+        hi[:, self.scalar_v] = self.upper - q
+        return np.clip(lo, -reach, reach), np.clip(hi, -reach, reach)
+
     def difference(self, qpos: FloatArray, reference: FloatArray) -> FloatArray:
         """``(B, n)`` the step from ``qpos`` toward ``reference`` for a posture: hinge and
         slide ``reference - qpos``, ball joints the rotation vector between the quaternions,

@@ -9,7 +9,9 @@ qvel dt``:
 2. the soft rows ``min sum w |J x - gain e|^2 + damping |x|^2`` in that null space;
 3. the posture (toward the reference configuration, weighted) in what null space is left;
 4. every hinge and slide joint within its limits at ``qpos + qvel dt`` and within its
-   velocity limit: ``max(lower - q, -v_max dt) <= x <= min(upper - q, v_max dt)``.
+   velocity limit: ``clamp(lower - q, -v_max dt, v_max dt) <= x <= clamp(upper - q, -v_max dt,
+   v_max dt)`` (a joint outside its limits moves back toward them, at most at its velocity
+   limit, as :meth:`poekin.Chain.ik_step`'s does).
 
 It is the problem mink's ``solve_ik`` poses as a general QP (a frame task's cost the same
 rows, its equality constraints the held frames, its ``ConfigurationLimit`` with gain 1 and its
@@ -125,8 +127,7 @@ def step_problem(
     sp = problem.space
     limits = _velocity_limits(velocity_limits, tree)[sp.variables] * dt
     A, _, C, d, _ = problem.residual(q)
-    lo, hi = sp.bounds(q)
-    lo, hi = np.maximum(lo, -limits), np.minimum(hi, limits)
+    lo, hi = sp.step_bounds(q, limits)
     posture_step = None
     if np.any(problem.posture):
         reference = np.broadcast_to(tree.qpos0, q.shape)
