@@ -16,9 +16,10 @@ from __future__ import annotations
 
 import dataclasses
 import functools
+import inspect
 import types
 from collections.abc import Callable, Sequence
-from typing import TYPE_CHECKING, Any, Literal
+from typing import TYPE_CHECKING, Any, ClassVar, Literal
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -359,6 +360,10 @@ class Chain:
     # defaults, once the first call has built what they need (fast_method's (fn, *bound))
     _ik_quick: Any = dataclasses.field(default=None, init=False, repr=False, compare=False)
     _ik_all_quick: Any = dataclasses.field(default=None, init=False, repr=False, compare=False)
+    # ik's defaults of pos_tol, ori_tol, position_only, orientation_weight, max_iterations and
+    # max_attempts, the options of its call in C (read below the class from the signature as
+    # written, whatever later wraps or replaces the method)
+    _IK_DEFAULTS: ClassVar[tuple[float, float, bool, float, int, int]]
     # T_world_base and T_flange_tool that with_base and with_tool folded into screws and home
     _base: FloatArray | None = dataclasses.field(default=None, repr=False, kw_only=True)
     _tool: FloatArray | None = dataclasses.field(default=None, repr=False, kw_only=True)
@@ -1399,3 +1404,15 @@ class Chain:
             ],
             "home": self.home.tolist(),
         }
+
+
+def _ik_defaults(method: Callable[..., Any]) -> tuple[float, float, bool, float, int, int]:
+    """``method``'s (:meth:`Chain.ik`'s) defaults of the options its call in C takes."""
+    given = inspect.signature(method).parameters
+    names = ("pos_tol", "ori_tol", "position_only", "orientation_weight")
+    counts = ("max_iterations", "max_attempts")
+    defaults = (*(given[n].default for n in names), *(given[n].default for n in counts))
+    return defaults  # type: ignore[return-value]
+
+
+Chain._IK_DEFAULTS = _ik_defaults(Chain.ik)

@@ -60,7 +60,6 @@ from __future__ import annotations
 
 import dataclasses
 import functools
-import inspect
 import math
 import os
 import sys
@@ -951,7 +950,7 @@ def solve_quick(
         memo: list[tuple[Any, ...] | None] = [None]
         quick = chain._ik_cache["quick"] = (kernel, chain_terms(chain).scale, memo)
         # Chain.ik(T[, q0])'s own call in C from now on (fast_method), the defaults' options
-        options = _quick_options(chain_terms(chain).scale, *_ik_defaults(type(chain)))
+        options = _quick_options(chain_terms(chain).scale, *chain._IK_DEFAULTS)
         object.__setattr__(chain, "_ik_quick", (kernel.quick, options, IKResult))
     kernel, scale, memo = quick
     seen = memo[0]  # the options of the chain's last call: the very same objects, validated
@@ -999,18 +998,6 @@ def solve_valid(chain: Chain, T: FloatArray, q0: FloatArray, options: Settings) 
         if found is not None:
             return found
     return solve(chain, T, q0, options=options)
-
-
-def _ik_defaults(cls: Any) -> tuple[float, float, bool, float, int, int]:
-    """The defaults of ``pos_tol``, ``ori_tol``, ``position_only``, ``orientation_weight``,
-    ``max_iterations`` and ``max_attempts`` in the signature of ``cls.ik``
-    (:meth:`poekin.Chain.ik`, read off the chain's class: the solver does not import the
-    model): the options of the call in C that :func:`solve_quick` arms (its seed 0), once per
-    chain."""
-    given = inspect.signature(cls.ik).parameters
-    names = ("pos_tol", "ori_tol", "position_only", "orientation_weight")
-    counts = ("max_iterations", "max_attempts")
-    return (*(given[n].default for n in names), *(given[n].default for n in counts))  # type: ignore[return-value]
 
 
 @functools.lru_cache(maxsize=64, typed=True)
