@@ -151,11 +151,16 @@ class Problem:
                 J[:, i] = tree.jacobian(qpos, t.name)[:, :, variables]
         R_t, p_t = self._targets(rows)
         M = (R_t @ np.swapaxes(R_now, -1, -2)).reshape(-1, 3, 3)  # every task's at once
-        e_o = rotation_error(M).reshape(B, count, 3)
+        quat = rotation_quaternion(M).reshape(B, count, 4)
+        e_o = 2.0 * quat[..., 1:]
         angle = _angle(M).reshape(B, count)
         e_p = p_t - point
         pos_all = np.sqrt(np.sum(e_p * e_p, axis=-1))
-        k_e_o, k_Jw = k * e_o, k * J[:, :, :3]
+        # e_o's exact derivative, as poekin.ik.numerical.jacobian_rows: turning the frame by
+        # a dt changes e_o by -(w I + [u]) a dt, (w, u) the quaternion (k a near a solution)
+        Jw = J[:, :, :3]
+        turned = np.cross(quat[..., 1:, None], Jw, axisa=-2, axisb=-2, axisc=-2)
+        k_e_o, k_Jw = k * e_o, k * (quat[..., :1, None] * Jw + turned)
         zero = np.zeros(B)
         errs: list[tuple[FloatArray, ...]] = []
         held: list[tuple[FloatArray, FloatArray]] = []  # each task's rows: J, r
@@ -198,11 +203,12 @@ class Problem:
         return np.stack(self.R, axis=1), np.stack(self.p, axis=1)
 
 
-def rotation_error(M: FloatArray) -> FloatArray:
-    """``(B, 3)``: ``2 (x, y, z)`` of the unit quaternion ``(w >= 0)`` of rotations ``M (B, 3,
+def rotation_quaternion(M: FloatArray) -> FloatArray:
+    """``(B, 4)``: the unit quaternion ``(w, x, y, z)``, ``w >= 0``, of rotations ``M (B, 3,
     3)``, by Shepperd's method (the largest of ``w, x, y, z`` from the diagonal, the others
-    from the off-diagonal sums and differences): ``2 sin(theta / 2)`` times the axis, as
-    :mod:`poekin.ik.numerical` defines a frame's orientation error, never zero at pi."""
+    from the off-diagonal sums and differences). ``2 (x, y, z)`` is ``2 sin(theta / 2)`` times
+    the axis, a frame's orientation error as :mod:`poekin.ik.numerical` defines it, never zero
+    at pi."""
     m00, m11, m22 = M[:, 0, 0], M[:, 1, 1], M[:, 2, 2]
     tr = m00 + m11 + m22
     sx, sy, sz = M[:, 2, 1] - M[:, 1, 2], M[:, 0, 2] - M[:, 2, 0], M[:, 1, 0] - M[:, 0, 1]
@@ -210,8 +216,9 @@ def rotation_error(M: FloatArray) -> FloatArray:
     four = np.stack([1 + tr, 1 + m00 - m11 - m22, 1 - m00 + m11 - m22, 1 - m00 - m11 + m22], axis=1)
     k = np.argmax(four, axis=1)
     if not np.any(k):  # w the largest everywhere (within 120 degrees): case 0 alone, its bits
-        s0 = 0.25 / (0.5 * np.sqrt(np.maximum(four[:, 0], 0.0)))
-        only: FloatArray = 2.0 * np.stack([sx * s0, sy * s0, sz * s0], axis=1)
+        r0 = 0.5 * np.sqrt(np.maximum(four[:, 0], 0.0))
+        s0 = 0.25 / r0
+        only: FloatArray = np.stack([r0, sx * s0, sy * s0, sz * s0], axis=1)
         return only
     rows = np.arange(len(M))
     r = 0.5 * np.sqrt(np.maximum(four[rows, k], 0.0))
@@ -221,7 +228,13 @@ def rotation_error(M: FloatArray) -> FloatArray:
         [r, xs, ys, zs, xs, r, azs, ays, ys, azs, r, axs, zs, ays, axs, r], axis=1
     ).reshape(-1, 4, 4)
     quat = cases[rows, k]
-    vec: FloatArray = 2.0 * np.where(quat[:, :1] < 0, -quat[:, 1:], quat[:, 1:])
+    signed: FloatArray = np.where(quat[:, :1] < 0, -quat, quat)
+    return signed
+
+
+def rotation_error(M: FloatArray) -> FloatArray:
+    """``(B, 3)``: ``2 (x, y, z)`` of :func:`rotation_quaternion`, the orientation error."""
+    vec: FloatArray = 2.0 * rotation_quaternion(M)[:, 1:]
     return vec
 
 

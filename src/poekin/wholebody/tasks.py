@@ -8,9 +8,10 @@ Every target broadcasts against the others and against ``qpos``'s batch axes.
 
 Each task contributes rows to the residual, in world coordinates, as
 :mod:`poekin.ik.numerical` defines them for one frame: ``k e_o`` (three rows, ``k`` the
-orientation weight in m/rad) and ``e_p`` (three rows, m). A soft task's rows are multiplied by
-``sqrt(weight)``, so that its cost is ``weight |r|^2``. Held tasks are constraints and have no
-weight.
+orientation weight in m/rad) and ``e_p`` (three rows, m), with their Jacobian as it does (the
+exact derivative of ``e_o``, :func:`poekin.ik.numerical.jacobian_rows`). A soft task's rows are
+multiplied by ``sqrt(weight)``, so that its cost is ``weight |r|^2``. Held tasks are
+constraints and have no weight.
 """
 
 from __future__ import annotations
