@@ -1492,6 +1492,10 @@ class Tree:
         MuJoCo does (``mj_integratePos``: a free joint's linear part in the world frame, its
         angular part and a ball joint's about the body's own axes).
 
+        One soft frame of an arm (a tree whose every joint is a hinge or slide on that
+        frame's path), without held frames, weights, posture or frozen joints, is the problem
+        of :meth:`Chain.ik_step <poekin.Chain.ik_step>`, and runs its compiled kernel.
+
         Args:
             targets: frame names (or ``"com"``) to targets, as for :meth:`ik`.
             qpos: ``(..., nq)`` the configuration now (MuJoCo's layout); the batch broadcasts
@@ -1516,6 +1520,21 @@ class Tree:
         """
         from poekin.wholebody.step import solve_step, step_problem
 
+        if (
+            type(targets) is dict
+            and len(targets) == 1
+            and hold is None
+            and orientation_only is None
+            and weights is None
+            and type(posture) is float
+            and posture == 0.0
+            and not freeze
+        ):  # one frame of an arm: the compiled step of its chain, the same problem
+            qvel = self._chain_step(
+                targets, qpos, dt, position_only, velocity_limits, gain, damping, orientation_weight
+            )
+            if qvel is not None:
+                return qvel
         return solve_step(
             step_problem(
                 self,
@@ -1534,6 +1553,79 @@ class Tree:
                 freeze=freeze,
             )
         )
+
+    def _chain_step(
+        self,
+        targets: dict[str, ArrayLike],
+        qpos: ArrayLike,
+        dt: float,
+        position_only: object,
+        velocity_limits: ArrayLike | None,
+        gain: float,
+        damping: float,
+        orientation_weight: float,
+    ) -> FloatArray | None:
+        """:meth:`ik_step` of one soft frame (no held frame, posture, weight or frozen joint)
+        by :meth:`Chain.ik_step <poekin.Chain.ik_step>`, the compiled kernel's, where the tree
+        is that frame's chain (:meth:`_arm_chain`): the same problem (the frame's residual rows
+        and their exact derivative, the damping, the box of the limits and the velocity
+        limits), which the chain solves by the box's active set rather than the null-space
+        levels. None where that does not serve, or where the chain refuses the arguments: the
+        usual path then solves, or says what is wrong."""
+        ((frame, T),) = targets.items()
+        if type(frame) is not str:
+            return None
+        if position_only is None:
+            point = False
+        elif position_only == frame or (
+            isinstance(position_only, set | frozenset | list | tuple)
+            and len(position_only) > 0
+            and all(name == frame for name in position_only)
+        ):
+            point = True
+        else:
+            return None
+        key = f"arm_chain {frame}"
+        if key not in self._ik_cache:
+            self._ik_cache[key] = self._arm_chain(frame)
+        chain = self._ik_cache[key]
+        q = qpos if type(qpos) is np.ndarray else np.asarray(qpos)
+        if chain is None or q.dtype != np.float64 or q.ndim < 1 or q.shape[-1] != self.nq:
+            return None
+        from poekin.wholebody.step import model_velocity_limits
+
+        try:
+            qvel: FloatArray = chain.ik_step(
+                T,
+                q,
+                dt,
+                velocity_limits=model_velocity_limits(velocity_limits, self),
+                gain=gain,
+                damping=damping,
+                position_only=point,
+                orientation_weight=orientation_weight,
+            )
+        except InputError:
+            return None
+        return qvel
+
+    def _arm_chain(self, frame: str) -> Chain | None:
+        """The chain of ``frame`` where the tree is that chain, in qpos and qvel alike: every
+        joint on the frame's path in qpos order, each a hinge or a slide, none a mimic; else
+        None (a tree with joints off the path, a floating base, mimic joints)."""
+        try:
+            joints = self.path_joints(frame)
+        except UnknownFrameError:
+            return None
+        plain = all(t in ("revolute", "prismatic") for t in self.joint_types) and all(
+            m is None for m in self.mimics
+        )
+        every = list(range(len(self.joint_names)))
+        if not plain or list(joints) != every:
+            return None
+        if list(self.qpos_adr) != every or list(self._dof_adr) != every:
+            return None
+        return self.chain(frame)
 
     def _path_joints_of_body(self, body: int) -> tuple[int, ...]:
         path = []

@@ -230,3 +230,41 @@ def test_a_joint_outside_its_limits_moves_back_at_its_velocity_limit(robot: str)
     qo[0] = hi[0] + 0.3
     qvel = tree.ik_step({"attachment_site": T}, qo, dt, velocity_limits=np.inf)
     assert qo[0] + qvel[0] * dt <= hi[0] + 1e-12
+
+
+@pytest.mark.parametrize("robot", ["universal_robots_ur5e", "franka_fr3"])
+def test_one_frame_of_an_arm_is_the_chains_step(robot: str) -> None:
+    """One soft frame of an arm runs chain.ik_step's kernel: the same problem as the tree's own
+    levels pose (the residual's exact derivative, the box), so the same step to rounding where
+    it is unique, and the same cost where it is not (a position target of a redundant arm at
+    its velocity limits); a tree that is not an arm keeps the levels."""
+    from poekin.wholebody.step import solve_step, step_problem
+
+    tree = poekin.load_tree(load_quiet(robot))
+    chain = poekin.load(load_quiet(robot))
+    frame = "attachment_site"
+    lo, hi = tree.joint_limits[:, 0], tree.joint_limits[:, 1]
+    rng = np.random.default_rng(27)
+    q = rng.uniform(lo, hi, (200, tree.nq))
+    T = tree.pose(np.clip(q + rng.normal(0.0, 0.3, q.shape), lo, hi), frame)
+    for options in ({}, {"velocity_limits": 1.0}, {"gain": 0.5, "damping": 1e-6}):
+        fast = tree.ik_step({frame: T}, q, 0.01, **options)
+        levels = solve_step(step_problem(tree, {frame: T}, q, 0.01, **options))
+        scale = np.abs(levels).max(axis=-1, keepdims=True)
+        assert np.all(np.abs(fast - levels) <= 1e-9 * scale), options
+        assert np.array_equal(fast, chain.ik_step(T, q, 0.01, **options))
+    point = {"position_only": {frame}, "velocity_limits": 2.0}
+    fast = tree.ik_step({frame: T}, q, 0.01, **point)
+    problem = step_problem(tree, {frame: T}, q, 0.01, **point)
+    levels = solve_step(problem)
+
+    def cost(qvel: np.ndarray) -> np.ndarray:
+        x = qvel * 0.01
+        r = np.einsum("bij,bj->bi", problem.C, x) - problem.d
+        return np.sum(r * r, axis=1) + problem.damping * np.sum(x * x, axis=1)
+
+    assert np.all(np.abs(cost(fast) - cost(levels)) <= 1e-12 * (1.0 + cost(levels)))
+    assert np.all(fast * 0.01 >= problem.lo - 1e-15) and np.all(fast * 0.01 <= problem.hi + 1e-15)
+    assert tree._ik_cache[f"arm_chain {frame}"] is not None
+    g1 = poekin.load_tree(load_quiet("unitree_g1"))
+    assert g1._arm_chain("left_elbow_roll_link") is None  # a floating base, other limbs

@@ -50,7 +50,7 @@ from poekin.motion._banded import solve_pentadiagonal
 from poekin.wholebody import qp
 from poekin.wholebody.solve import Problem, _problem
 from poekin.wholebody.space import Space, quat_log_between
-from poekin.wholebody.step import _velocity_limits
+from poekin.wholebody.step import model_velocity_limits
 from poekin.wholebody.tasks import parse
 
 if TYPE_CHECKING:
@@ -217,7 +217,7 @@ def track(
             [mask.get(t.name, np.zeros(T, dtype=bool)) for t in problem.tasks], axis=1
         )
         held_rows = np.repeat(held_frames, [t.rows for t in problem.tasks], axis=1)
-        limits = _velocity_limits(velocity_limits, tree)[sp.variables][sp.scalar_v] * dt
+        limits = model_velocity_limits(velocity_limits, tree)[sp.variables][sp.scalar_v] * dt
         clip = _Clip(
             problem,
             T,

@@ -37,12 +37,12 @@ from poekin.wholebody.tasks import parse
 if TYPE_CHECKING:
     from poekin.tree import Tree
 
-__all__ = ["StepProblem", "solve_step", "step_problem"]
+__all__ = ["StepProblem", "model_velocity_limits", "solve_step", "step_problem"]
 
 FloatArray = NDArray[np.float64]
 
 
-def _velocity_limits(value: ArrayLike | None, tree: Tree) -> FloatArray:
+def model_velocity_limits(value: ArrayLike | None, tree: Tree) -> FloatArray:
     """``(nv,)`` each qvel entry's largest speed: ``value``, or the model's
     (:attr:`poekin.Tree.joint_velocity_limits` on hinge and slide entries, none on ball and
     free ones)."""
@@ -125,7 +125,7 @@ def step_problem(
         tree, tasks, qpos, posture, freeze, options, 0, clip=False, starts=False
     )
     sp = problem.space
-    limits = _velocity_limits(velocity_limits, tree)[sp.variables] * dt
+    limits = model_velocity_limits(velocity_limits, tree)[sp.variables] * dt
     A, _, C, d, _ = problem.residual(q)
     lo, hi = sp.step_bounds(q, limits)
     posture_step = None
