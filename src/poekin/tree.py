@@ -1518,8 +1518,6 @@ class Tree:
             UnknownFrameError, InputError: as for :meth:`ik`; a bad ``dt``, ``gain``,
                 ``damping`` or ``velocity_limits``.
         """
-        from poekin.wholebody.step import solve_step, step_problem
-
         if (
             type(targets) is dict
             and len(targets) == 1
@@ -1535,6 +1533,8 @@ class Tree:
             )
             if qvel is not None:
                 return qvel
+        from poekin.wholebody.step import solve_step, step_problem
+
         return solve_step(
             step_problem(
                 self,
@@ -1585,21 +1585,20 @@ class Tree:
             point = True
         else:
             return None
-        key = f"arm_chain {frame}"
-        if key not in self._ik_cache:
-            self._ik_cache[key] = self._arm_chain(frame)
-        chain = self._ik_cache[key]
+        arms = self._ik_cache.setdefault("arm_chains", {})  # frame: _arm_chain's answer
+        if frame not in arms:
+            arms[frame] = self._arm_chain(frame)
+        arm = arms[frame]
         q = qpos if type(qpos) is np.ndarray else np.asarray(qpos)
-        if chain is None or q.dtype != np.float64 or q.ndim < 1 or q.shape[-1] != self.nq:
+        if arm is None or q.dtype != np.float64 or q.ndim < 1 or q.shape[-1] != self.nq:
             return None
-        from poekin.wholebody.step import model_velocity_limits
-
+        chain, model_limits = arm
         try:
             qvel: FloatArray = chain.ik_step(
                 T,
                 q,
                 dt,
-                velocity_limits=model_velocity_limits(velocity_limits, self),
+                velocity_limits=model_limits if velocity_limits is None else velocity_limits,
                 gain=gain,
                 damping=damping,
                 position_only=point,
@@ -1609,10 +1608,11 @@ class Tree:
             return None
         return qvel
 
-    def _arm_chain(self, frame: str) -> Chain | None:
-        """The chain of ``frame`` where the tree is that chain, in qpos and qvel alike: every
-        joint on the frame's path in qpos order, each a hinge or a slide, none a mimic; else
-        None (a tree with joints off the path, a floating base, mimic joints)."""
+    def _arm_chain(self, frame: str) -> tuple[Chain, FloatArray | None] | None:
+        """The chain of ``frame`` where the tree is that chain, in qpos and qvel alike (every
+        joint on the frame's path in qpos order, each a hinge or a slide, none a mimic), with
+        the model's velocity limits for its step (None where there are none); else None (a
+        tree with joints off the path, a floating base, mimic joints)."""
         try:
             joints = self.path_joints(frame)
         except UnknownFrameError:
@@ -1625,7 +1625,10 @@ class Tree:
             return None
         if list(self.qpos_adr) != every or list(self._dof_adr) != every:
             return None
-        return self.chain(frame)
+        from poekin.wholebody.step import model_velocity_limits
+
+        limits = model_velocity_limits(None, self)
+        return self.chain(frame), None if np.all(np.isinf(limits)) else limits
 
     def _path_joints_of_body(self, body: int) -> tuple[int, ...]:
         path = []
