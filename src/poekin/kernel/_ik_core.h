@@ -92,33 +92,38 @@ AI vd ik_dot_rows(vd *const *A, int i, vd *const *B, int j, int m) {
     return t;
 }
 
-/* _cholesky_solve: A x = b for s <= 6 by L D L^T, lower triangle of A read, pivots below tiny
- * taken as tiny. */
-AI void ik_cholesky_solve(vd A[6][6], const vd *b, vd *x, int s, double tiny) {
-    vd L[6][6], E[6][6], D[6], y[6];
-    const vd t0 = (vd){0} + tiny;
-    for (int j = 0; j < s; ++j) {
-        vd acc = A[j][j];
-        for (int k = 0; k < j; ++k) acc = acc - E[j][k] * L[j][k];
-        D[j] = vselect(acc > tiny, acc, t0);
-        for (int i = j + 1; i < s; ++i) {
-            acc = A[i][j];
-            for (int k = 0; k < j; ++k) acc = acc - E[i][k] * L[j][k];
-            E[i][j] = acc;
-            L[i][j] = acc / D[j];
-        }
+#ifndef IK_LDL_SOLVE
+/* _cholesky_solve's body for a system of size s <= N: A x = b by L D L^T, the lower triangle
+ * of A read, pivots below tiny taken as tiny (both sizes' functions: ik_cholesky_solve here,
+ * ik_step_cholesky in _ik_step.h) */
+#define IK_LDL_SOLVE(N)                                                                        \
+    vd L[N][N], E[N][N], D[N], y[N];                                                           \
+    const vd t0 = (vd){0} + tiny;                                                              \
+    for (int j = 0; j < s; ++j) {                                                              \
+        vd acc = A[j][j];                                                                      \
+        for (int k = 0; k < j; ++k) acc = acc - E[j][k] * L[j][k];                             \
+        D[j] = vselect(acc > tiny, acc, t0);                                                   \
+        for (int i = j + 1; i < s; ++i) {                                                      \
+            acc = A[i][j];                                                                     \
+            for (int k = 0; k < j; ++k) acc = acc - E[i][k] * L[j][k];                         \
+            E[i][j] = acc;                                                                     \
+            L[i][j] = acc / D[j];                                                              \
+        }                                                                                      \
+    }                                                                                          \
+    for (int i = 0; i < s; ++i) {                                                              \
+        vd acc = b[i];                                                                         \
+        for (int k = 0; k < i; ++k) acc = acc - L[i][k] * y[k];                                \
+        y[i] = acc;                                                                            \
+    }                                                                                          \
+    for (int i = s - 1; i >= 0; --i) {                                                         \
+        vd acc = y[i] / D[i];                                                                  \
+        for (int k = i + 1; k < s; ++k) acc = acc - L[k][i] * x[k];                            \
+        x[i] = acc;                                                                            \
     }
-    for (int i = 0; i < s; ++i) {
-        vd acc = b[i];
-        for (int k = 0; k < i; ++k) acc = acc - L[i][k] * y[k];
-        y[i] = acc;
-    }
-    for (int i = s - 1; i >= 0; --i) {
-        vd acc = y[i] / D[i];
-        for (int k = i + 1; k < s; ++k) acc = acc - L[k][i] * x[k];
-        x[i] = acc;
-    }
-}
+#endif
+
+/* _cholesky_solve: A x = b for s <= 6 (IK_LDL_SOLVE). */
+AI void ik_cholesky_solve(vd A[6][6], const vd *b, vd *x, int s, double tiny) { IK_LDL_SOLVE(6) }
 
 /* damped_step: d = (J^T J + lam I)^-1 J^T r for n <= m, else J^T (J J^T + lam I)^-1 r. */
 AI void ik_damped_step_sized(vd *const *J, const vd *r, vd lam, double tiny, int m, int n,

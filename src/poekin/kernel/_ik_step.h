@@ -20,32 +20,10 @@ AI vd ik_vmin(vd a, vd b) { return vselect(a <= b, a, b); }
 /* numpy.where of masks */
 AI vl ik_lselect(vl mask, vl a, vl b) { return (mask & a) | (~mask & b); }
 
-/* _cholesky_solve for s <= IK_STEP_MAX_JOINTS */
+/* _cholesky_solve for s <= IK_STEP_MAX_JOINTS (IK_LDL_SOLVE, _ik_core.h) */
 AI void ik_step_cholesky(vd A[IK_STEP_MAX_JOINTS][IK_STEP_MAX_JOINTS], const vd *b, vd *x, int s,
                          double tiny) {
-    vd L[IK_STEP_MAX_JOINTS][IK_STEP_MAX_JOINTS], E[IK_STEP_MAX_JOINTS][IK_STEP_MAX_JOINTS], D[IK_STEP_MAX_JOINTS], y[IK_STEP_MAX_JOINTS];
-    const vd t0 = (vd){0} + tiny;
-    for (int j = 0; j < s; ++j) {
-        vd acc = A[j][j];
-        for (int k = 0; k < j; ++k) acc = acc - E[j][k] * L[j][k];
-        D[j] = vselect(acc > tiny, acc, t0);
-        for (int i = j + 1; i < s; ++i) {
-            acc = A[i][j];
-            for (int k = 0; k < j; ++k) acc = acc - E[i][k] * L[j][k];
-            E[i][j] = acc;
-            L[i][j] = acc / D[j];
-        }
-    }
-    for (int i = 0; i < s; ++i) {
-        vd acc = b[i];
-        for (int k = 0; k < i; ++k) acc = acc - L[i][k] * y[k];
-        y[i] = acc;
-    }
-    for (int i = s - 1; i >= 0; --i) {
-        vd acc = y[i] / D[i];
-        for (int k = i + 1; k < s; ++k) acc = acc - L[k][i] * x[k];
-        x[i] = acc;
-    }
+    IK_LDL_SOLVE(IK_STEP_MAX_JOINTS)
 }
 
 /* damped_step_primal: (J^T J + lam I) d = J^T r, n x n */
