@@ -75,29 +75,30 @@ class Space:
         return out
 
     def bounds(self, qpos: FloatArray) -> tuple[FloatArray, FloatArray]:
-        """``(B, n)`` bounds on a step from ``qpos``: the limits less the position; none for
-        quaternion and free-position entries."""
-        B = qpos.shape[0]
-        lo = np.full((B, self.n), -np.inf)
-        hi = np.full((B, self.n), np.inf)
-        q = qpos[:, self.scalar_q]
-        lo[:, self.scalar_v] = np.minimum(self.lower - q, 0.0)
-        hi[:, self.scalar_v] = np.maximum(self.upper - q, 0.0)
-        return lo, hi
+        """``(B, n)`` bounds on a step from ``qpos``: the limits less the position, each
+        holding zero (a joint outside its limits may stay where it is: an iteration of
+        :meth:`poekin.Tree.ik` starts inside); none for quaternion and free-position entries."""
+        lo, hi = self._room(qpos)
+        return np.minimum(lo, 0.0), np.maximum(hi, 0.0)
 
     def step_bounds(self, qpos: FloatArray, reach: FloatArray) -> tuple[FloatArray, FloatArray]:
         """``(B, n)`` bounds on one control tick's step from ``qpos``, each entry within
         ``reach`` ``(n,)`` of zero (``v_max dt``): hinge and slide ``clamp(lower - q, -reach,
         reach)`` to ``clamp(upper - q, -reach, reach)``, so that a joint outside its limits
-        moves back toward them, at most at its velocity limit (:meth:`bounds` lets it stay
-        where it is: an iteration of :meth:`poekin.Tree.ik` starts inside)."""
+        moves back toward them, at most at its velocity limit (:meth:`bounds` lets it stay)."""
+        lo, hi = self._room(qpos)
+        return np.clip(lo, -reach, reach), np.clip(hi, -reach, reach)
+
+    def _room(self, qpos: FloatArray) -> tuple[FloatArray, FloatArray]:
+        """``(B, n)`` hinge and slide ``lower - q`` and ``upper - q``; -inf and inf for the
+        quaternion and free-position entries."""
         B = qpos.shape[0]
         lo = np.full((B, self.n), -np.inf)
         hi = np.full((B, self.n), np.inf)
         q = qpos[:, self.scalar_q]
         lo[:, self.scalar_v] = self.lower - q
         hi[:, self.scalar_v] = self.upper - q
-        return np.clip(lo, -reach, reach), np.clip(hi, -reach, reach)
+        return lo, hi
 
     def difference(self, qpos: FloatArray, reference: FloatArray) -> FloatArray:
         """``(B, n)`` the step from ``qpos`` toward ``reference`` for a posture: hinge and
