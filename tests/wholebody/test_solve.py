@@ -290,8 +290,9 @@ def test_a_mimic_joint_follows_its_leader() -> None:
 
 def test_rotation_error_is_the_quaternion_vector_of_lie() -> None:
     """The residual's orientation rows: 2 (x, y, z) of the quaternion with w >= 0, as
-    poekin.lie.rotation_to_quat gives it, at every angle up to pi about every axis."""
-    from poekin.wholebody.solve import _angle, rotation_error
+    poekin.lie.rotation_to_quat gives it, at every angle up to pi about every axis; and its
+    w, which their derivative takes."""
+    from poekin.wholebody.solve import _angle, rotation_quaternion
 
     rng = np.random.default_rng(0)
     w = rng.normal(size=(3000, 3))
@@ -301,7 +302,9 @@ def test_rotation_error_is_the_quaternion_vector_of_lie() -> None:
     R = poekin.lie.exp_so3(w)
     quat = poekin.lie.rotation_to_quat(R)
     expected = 2.0 * np.where(quat[:, :1] < 0, -quat[:, 1:], quat[:, 1:])
-    np.testing.assert_allclose(rotation_error(R), expected, atol=2e-15, rtol=0)
+    found = rotation_quaternion(R)
+    np.testing.assert_allclose(2.0 * found[:, 1:], expected, atol=2e-15, rtol=0)
+    np.testing.assert_allclose(found[:, 0], np.abs(quat[:, 0]), atol=2e-15, rtol=0)
     np.testing.assert_allclose(_angle(R), poekin.lie.rotation_angle(R), atol=1e-15, rtol=0)
 
 

@@ -232,12 +232,6 @@ def rotation_quaternion(M: FloatArray) -> FloatArray:
     return signed
 
 
-def rotation_error(M: FloatArray) -> FloatArray:
-    """``(B, 3)``: ``2 (x, y, z)`` of :func:`rotation_quaternion`, the orientation error."""
-    vec: FloatArray = 2.0 * rotation_quaternion(M)[:, 1:]
-    return vec
-
-
 def _angle(M: FloatArray) -> FloatArray:
     """The geodesic angle of rotations ``M`` (rad, ``[0, pi]``): ``atan2(|vee(M)|, (tr M - 1)
     / 2)``, as :func:`poekin.pose_errors`."""
