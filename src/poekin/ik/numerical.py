@@ -950,7 +950,7 @@ def solve_quick(
         memo: list[tuple[Any, ...] | None] = [None]
         quick = chain._ik_cache["quick"] = (kernel, chain_terms(chain).scale, memo)
         # Chain.ik(T[, q0])'s own call in C from now on (fast_method), the defaults' options
-        options = _quick_options(chain_terms(chain).scale, *chain._IK_DEFAULTS)
+        options = _quick_options(quick[1], *chain._IK_DEFAULTS)
         object.__setattr__(chain, "_ik_quick", (kernel.quick, options, IKResult))
     kernel, scale, memo = quick
     seen = memo[0]  # the options of the chain's last call: the very same objects, validated
