@@ -15,21 +15,25 @@ for one frame task, a ``ConfigurationLimit`` of gain 1 and a ``VelocityLimit``
 (``tests/ik/test_ik_step.py`` checks the two against each other), and :meth:`poekin.Tree.ik_step`
 poses for a tree (by a null-space method with SVDs, which also takes held frames and posture).
 
-**The active set** (the primal method for bounds, Nocedal and Wright's algorithm 16.3): from
-``x = clamp(0, lo, hi)``, each round either
+**The active set** (the primal method for bounds, Nocedal and Wright's algorithm 16.3). The
+first round solves the problem with every joint free but those whose bounds meet (the damped
+normal equations, :func:`~poekin.ik.numerical.damped_step`'s systems) and clamps the answer
+into the box; each joint the box cut is fixed at its bound (a feasible start with its working
+set; none cut: the step is done). Each further round
 
-* solves the problem for the free joints with the fixed ones at their bounds (the damped
-  normal equations, :func:`~poekin.ik.numerical.damped_step`'s systems: the ``n x n`` form, or,
-  for a chain whose free joints outnumber the residual's rows, the dual ``m x m`` form, each
-  well conditioned where it is used) and moves toward that answer as far as the box allows,
-  fixing the joint that stops it; or, at a subspace optimum,
-* releases the fixed joint whose multiplier has the wrong sign (the cost falls if it leaves its
-  bound), or stops when there is none (the KKT conditions hold: the step is optimal).
+* solves the problem for the free joints with the fixed ones at their bounds (the ``n x n``
+  system: ``J^T J`` and ``J^T b`` are formed once per step, each round takes their free rows
+  and columns; or, for a chain whose free joints outnumber the residual's rows, the dual
+  ``m x m`` form, each well conditioned where it is used) and moves toward that answer as far
+  as the box allows, fixing the joint that stops it;
+* where the move reached that answer, releases the fixed joint whose multiplier has the wrong
+  sign there (the cost falls if it leaves its bound), or stops when there is none (the KKT
+  conditions hold: the step is optimal).
 
-Every round keeps ``x`` inside the box, so a step cut short by :data:`MAX_ROUNDS` is still
+Every round keeps ``x`` inside the box, so a step cut short by :func:`max_rounds` is still
 within every limit. The rounds run in lock-step over the batch with masks, with the array
-library's namespace ``xp`` (entries, as :mod:`poekin.ik.numerical`): NumPy runs rounds until
-every step is done, JAX (``jax.lax.fori_loop``) and PyTorch run all of them, and a finished step
+library's namespace ``xp`` (entries, as :mod:`poekin.ik.numerical`), until every step is done
+(NumPy, PyTorch, and JAX's ``jax.lax.while_loop``) or :func:`max_rounds`; a finished step
 keeps its bits, so each step's answer depends on its own numbers only. Under JAX and PyTorch
 the step is differentiable with respect to the target and ``q`` for the active set it ends
 with.
@@ -51,12 +55,12 @@ from poekin.errors import InputError
 from poekin.ik import fixed
 from poekin.ik.numerical import (
     Settings,
+    _cholesky_solve,
     _ik_kernel,
     _kernel_options,
     broadcast_together,
     check_targets,
     damped_step_dual,
-    damped_step_primal,
     evaluate,
     jacobian_rows,
     residual,
@@ -84,13 +88,11 @@ def max_rounds(n: int) -> int:
 
 
 class _Round(NamedTuple):
-    """The active set's state: the step ``x``, the fixed joints (each at its bound), whether
-    ``x`` is the optimum of the free joints (then the next round tests the multipliers), and
+    """The active set's state: the step ``x``, the fixed joints (each at its bound), and
     whether the step is done."""
 
     x: Entries
     fixed: Entries
-    optimal: Entry
     done: Entry
 
 
@@ -130,22 +132,50 @@ def step_entries(
         xp.where(f, xp.where(x <= lc, lj, hj), 0.0 * lj)
         for f, x, lc, lj, hj in zip(state.fixed, state.x, lo_cut, lo, hi, strict=True)
     ]
-    live = _solve_free(J, b, lam, at, state.fixed, xp)
+    H, g = _gram(J, b)
+    live = _solve_free(J, b, H, g, lam, at, state.fixed, xp)
     return [xp.where(state.done, u, stop(x)) for u, x in zip(live, state.x, strict=True)]
 
 
+def _gram(J: list[Entries], b: Entries) -> tuple[list[Entries], Entries]:
+    """``J^T J`` (``n x n`` entries, both triangles, each entry once: ``H[i][j]`` is
+    ``H[j][i]``) and ``J^T b`` (``n``), which every round's system and multipliers read."""
+    n, m = len(J[0]), len(J)
+    cols = [[J[k][i] for k in range(m)] for i in range(n)]
+    H: list[Entries] = [[None] * n for _ in range(n)]
+    for i in range(n):
+        for j in range(i + 1):
+            H[i][j] = H[j][i] = _dot(cols[i], cols[j])
+    return H, [_dot(c, b) for c in cols]
+
+
 def _solve_free(
-    J: list[Entries], b: Entries, lam: float, x: Entries, fx: Entries, xp: Any
+    J: list[Entries],
+    b: Entries,
+    H: list[Entries],
+    g: Entries,
+    lam: float,
+    x: Entries,
+    fx: Entries,
+    xp: Any,
 ) -> Entries:
-    """The free joints' optimum with the fixed ones (``fx``) at ``x`` (entries, ``n``)."""
+    """The free joints' optimum with the fixed ones (``fx``) at ``x`` (entries, ``n``), from
+    the rows ``J``, ``b`` and their :func:`_gram` ``H``, ``g``: the primal system is ``H``'s
+    free rows and columns with ``lam`` added, and ``g_i - sum_j H_ij x_j`` over the fixed
+    ``j`` (the free part of ``J^T (b - J x_fixed)``)."""
     n, m = len(x), len(J)
-    J_free = [[xp.where(f, 0.0, v) for f, v in zip(fx, row, strict=True)] for row in J]
-    b_free = [
-        bk - _dot(row, [xp.where(f, xj, 0.0) for f, xj in zip(fx, x, strict=True)])
-        for bk, row in zip(b, J, strict=True)
+    A = [
+        [xp.where(fx[i] | fx[j], 0.0, H[i][j]) for j in range(i)] + [xp.where(fx[i], 0.0, H[i][i])]
+        for i in range(n)
     ]
-    d = damped_step_primal(J_free, b_free, lam, FLOOR, xp)
+    for i in range(n):
+        A[i][i] = A[i][i] + lam
+    at = [xp.where(f, xj, 0.0) for f, xj in zip(fx, x, strict=True)]
+    rhs = [xp.where(fx[i], 0.0, g[i] - _dot(H[i], at)) for i in range(n)]
+    d = _cholesky_solve(A, rhs, FLOOR, xp)
     if n > m:  # more free joints than rows: the dual form where they are
+        J_free = [[xp.where(f, 0.0, v) for f, v in zip(fx, row, strict=True)] for row in J]
+        b_free = [bk - _dot(row, at) for bk, row in zip(b, J, strict=True)]
         free = _count([~f for f in fx], xp)
         dual = damped_step_dual(J_free, b_free, lam, FLOOR, xp)
         d = [xp.where(free > m, u, v) for u, v in zip(dual, d, strict=True)]
@@ -157,24 +187,28 @@ def _rounds(
 ) -> _Round:
     """The active set's rounds (the module's docstring) on the rows ``J``, ``b`` in the box
     ``lo``, ``hi``: the last state."""
-    n, m = len(lo), len(J)
+    n = len(lo)
     zero = xp.zeros_like(lo[0])
     never = zero > 1.0  # False, of the batch's shape
+    H, g = _gram(J, b)
     size_b = xp.sqrt(_sum_squares(b))
-    size_J = [xp.sqrt(_sum_squares([J[k][j] for k in range(m)])) for j in range(n)]
+    size_J = [xp.sqrt(H[j][j]) for j in range(n)]
     # a joint whose bounds meet cannot move: fixed from the start, and never released
     pinned = [lo[j] >= hi[j] for j in range(n)]
+    # the first round: the free joints' optimum, clamped into the box, each joint the box
+    # cut fixed at its bound (done where none was)
+    inside = [xp.minimum(xp.maximum(zero, lo[j]), hi[j]) for j in range(n)]
+    first = _solve_free(J, b, H, g, lam, inside, pinned, xp)
+    x0 = [xp.minimum(xp.maximum(t, lo[j]), hi[j]) for j, t in enumerate(first)]
+    cut = [~pin & (v != t) for pin, v, t in zip(pinned, x0, first, strict=True)]
     start = _Round(
-        x=[xp.minimum(xp.maximum(zero, lo[j]), hi[j]) for j in range(n)],
-        fixed=list(pinned),
-        optimal=never,
-        done=never,
+        x=x0, fixed=[pin | c for pin, c in zip(pinned, cut, strict=True)], done=~_any(cut)
     )
 
     def body(state: _Round) -> _Round:
         x, fx = state.x, state.fixed
-        # (1) not at an optimum: toward the free joints' optimum, as far as the box allows
-        target_x = _solve_free(J, b, lam, x, fx, xp)
+        # (1) toward the free joints' optimum, as far as the box allows
+        target_x = _solve_free(J, b, H, g, lam, x, fx, xp)
         p = [t - xj for t, xj in zip(target_x, x, strict=True)]
         alpha = xp.ones_like(zero)
         block = [never] * n
@@ -196,31 +230,24 @@ def _rounds(
         ]
         moved = [xp.minimum(xp.maximum(v, lo[j]), hi[j]) for j, v in enumerate(moved)]
         fixed_moved = [f | (bk & ~full) for f, bk in zip(fx, block, strict=True)]
-        # (2) at an optimum: the multipliers of the fixed joints, the most negative released
-        residual_x = [_dot(row, x) - bk for row, bk in zip(J, b, strict=True)]
+        # (2) where the move reached the optimum: the multipliers of the fixed joints there,
+        # the most negative released
         worst = -RELEASE * xp.ones_like(zero)
         release = [never] * n
         for j in range(n):
-            g = _dot([J[k][j] for k in range(m)], residual_x) + lam * x[j]
-            mu = xp.where(x[j] <= lo[j], g, -g) / xp.where(
+            grad = (_dot(H[j], moved) - g[j]) + lam * moved[j]  # J^T (J x - b) + lam x
+            mu = xp.where(moved[j] <= lo[j], grad, -grad) / xp.where(
                 size_J[j] * size_b > 0, size_J[j] * size_b, 1.0
             )
-            candidate = fx[j] & ~pinned[j] & (mu < worst)
+            candidate = fixed_moved[j] & ~pinned[j] & (mu < worst)
             release = [candidate if k == j else rk & ~candidate for k, rk in enumerate(release)]
             worst = xp.where(candidate, mu, worst)
-        released = _any(release)
-        opt = state.optimal
-        new_x = [xp.where(opt, xj, v) for xj, v in zip(x, moved, strict=True)]
-        new_fixed = [
-            xp.where(opt, f & ~rl, fm) for f, rl, fm in zip(fx, release, fixed_moved, strict=True)
-        ]
-        new_optimal = xp.where(opt, never, full)
-        new_done = opt & ~released
+        new_fixed = [fm & ~(full & rl) for fm, rl in zip(fixed_moved, release, strict=True)]
+        new_done = full & ~_any(release)
         keep = state.done
         return _Round(
-            x=[xp.where(keep, a, c) for a, c in zip(x, new_x, strict=True)],
+            x=[xp.where(keep, a, c) for a, c in zip(x, moved, strict=True)],
             fixed=[xp.where(keep, a, c) for a, c in zip(fx, new_fixed, strict=True)],
-            optimal=xp.where(keep, state.optimal, new_optimal),
             done=keep | new_done,
         )
 

@@ -5,7 +5,9 @@
  * reference's rounds operation for operation and in the same order, LANES targets side by side,
  * so that both give the same bits. A lane whose step is done keeps it while the others run.
  */
+#define ik_step_gram GLUE(ik_step_gram, LANES)
 #define ik_step_primal GLUE(ik_step_primal, LANES)
+#define ik_step_free GLUE(ik_step_free, LANES)
 #define ik_step_dual GLUE(ik_step_dual, LANES)
 #define ik_step_cholesky GLUE(ik_step_cholesky, LANES)
 #define ik_step_block GLUE(ik_step_block, LANES)
@@ -26,23 +28,35 @@ AI void ik_step_cholesky(vd A[IK_STEP_MAX_JOINTS][IK_STEP_MAX_JOINTS], const vd 
     IK_LDL_SOLVE(IK_STEP_MAX_JOINTS)
 }
 
-/* damped_step_primal: (J^T J + lam I) d = J^T r, n x n */
-AI void ik_step_primal(vd J[6][IK_STEP_MAX_JOINTS], const vd *r, double lam, double tiny, int m,
-                       int n, vd *d) {
-    vd A[IK_STEP_MAX_JOINTS][IK_STEP_MAX_JOINTS], g[IK_STEP_MAX_JOINTS];
-    for (int i = 0; i < n; ++i)
+/* _gram: H = J^T J (both triangles) and g = J^T b, m rows */
+AI void ik_step_gram(vd J[6][IK_STEP_MAX_JOINTS], const vd *b, int m, int n,
+                     vd H[IK_STEP_MAX_JOINTS][IK_STEP_MAX_JOINTS], vd *g) {
+    for (int i = 0; i < n; ++i) {
         for (int j = 0; j <= i; ++j) {
             vd t = J[0][i] * J[0][j];
             for (int k = 1; k < m; ++k) t = t + J[k][i] * J[k][j];
-            A[i][j] = t;
+            H[i][j] = H[j][i] = t;
         }
-    for (int i = 0; i < n; ++i) A[i][i] = A[i][i] + lam;
-    for (int i = 0; i < n; ++i) {
-        vd t = J[0][i] * r[0];
-        for (int k = 1; k < m; ++k) t = t + J[k][i] * r[k];
+        vd t = J[0][i] * b[0];
+        for (int k = 1; k < m; ++k) t = t + J[k][i] * b[k];
         g[i] = t;
     }
-    ik_step_cholesky(A, g, d, n, tiny);
+}
+
+/* _solve_free's primal system: H's free rows and columns plus lam, g_i - sum_j H_ij x_j over
+ * the fixed j (at, the fixed joints' x, 0 elsewhere) */
+AI void ik_step_primal(vd H[IK_STEP_MAX_JOINTS][IK_STEP_MAX_JOINTS], const vd *g, const vd *at,
+                       const vl *fixed, double lam, double tiny, int n, vd *d) {
+    vd A[IK_STEP_MAX_JOINTS][IK_STEP_MAX_JOINTS], rhs[IK_STEP_MAX_JOINTS];
+    const vd zero = {0};
+    for (int i = 0; i < n; ++i) {
+        for (int j = 0; j < i; ++j) A[i][j] = vselect(fixed[i] | fixed[j], zero, H[i][j]);
+        A[i][i] = vselect(fixed[i], zero, H[i][i]) + lam;
+        vd t = H[i][0] * at[0];
+        for (int j = 1; j < n; ++j) t = t + H[i][j] * at[j];
+        rhs[i] = vselect(fixed[i], zero, g[i] - t);
+    }
+    ik_step_cholesky(A, rhs, d, n, tiny);
 }
 
 /* damped_step_dual: d = J^T z, (J J^T + lam I) z = r, m x m */
@@ -64,6 +78,43 @@ AI void ik_step_dual(vd J[6][IK_STEP_MAX_JOINTS], const vd *r, double lam, doubl
     }
 }
 
+/* _solve_free: the free joints' optimum with the fixed ones at x, for the lanes that take it (a
+ * lane that is done keeps its step, one with every joint fixed takes x: the same bits) */
+AI void ik_step_free(vd J[6][IK_STEP_MAX_JOINTS], const vd *b,
+                     vd H[IK_STEP_MAX_JOINTS][IK_STEP_MAX_JOINTS], const vd *g, double lam,
+                     const vd *x, const vl *fixed, vl done, int rows, int n, vd *target) {
+    const vd zero = {0};
+    vd at[IK_STEP_MAX_JOINTS], d[IK_STEP_MAX_JOINTS];
+    for (int j = 0; j < n; ++j) {
+        at[j] = vselect(fixed[j], x[j], zero);
+        d[j] = zero;
+    }
+    vl free = (vl){0}; /* a mask is -1 where true */
+    for (int j = 0; j < n; ++j) free = free - ~fixed[j];
+    const vl wide = free > rows;
+    int primal = 0, dual = 0;
+    for (int l = 0; l < LANES; ++l) {
+        if (done[l] || free[l] == 0) continue;
+        if (n > rows && wide[l])
+            dual = 1;
+        else
+            primal = 1;
+    }
+    if (primal) ik_step_primal(H, g, at, fixed, lam, IK_STEP_FLOOR, n, d);
+    if (dual) {
+        vd Jf[6][IK_STEP_MAX_JOINTS], bf[6], by_rows[IK_STEP_MAX_JOINTS];
+        for (int k = 0; k < rows; ++k) {
+            for (int j = 0; j < n; ++j) Jf[k][j] = vselect(fixed[j], zero, J[k][j]);
+            vd t = J[k][0] * at[0];
+            for (int j = 1; j < n; ++j) t = t + J[k][j] * at[j];
+            bf[k] = b[k] - t;
+        }
+        ik_step_dual(Jf, bf, lam, IK_STEP_FLOOR, rows, n, by_rows);
+        for (int j = 0; j < n; ++j) d[j] = vselect(wide, by_rows[j], d[j]);
+    }
+    for (int j = 0; j < n; ++j) target[j] = vselect(fixed[j], x[j], d[j]);
+}
+
 /* step_entries for the lanes of S (their q, Rt, pt loaded) with bounds lo, hi: x */
 AI void ik_step_block(IKState *S, const IKModel *m, const IKOptions *o, const vd *lo,
                       const vd *hi, double gain, double lam, double release, int rounds, vd *x) {
@@ -78,60 +129,40 @@ AI void ik_step_block(IKState *S, const IKModel *m, const IKOptions *o, const vd
     run_ops(m->prog, NULL, S->q, S->ang, S->jac, NULL, FORM_4X4, LANES, huge, &cur);
     vd r[6], ep2, eo2, b[6];
     (void)ik_residual(S, &cur, o, n, r, &ep2, &eo2);
-    vd J[6][IK_STEP_MAX_JOINTS], Jf[6][IK_STEP_MAX_JOINTS];
+    vd J[6][IK_STEP_MAX_JOINTS], H[IK_STEP_MAX_JOINTS][IK_STEP_MAX_JOINTS], g[IK_STEP_MAX_JOINTS];
     for (int k = 0; k < rows; ++k)
         for (int j = 0; j < n; ++j) J[k][j] = S->J[k][j];
     for (int k = 0; k < rows; ++k) b[k] = gain * r[k];
+    ik_step_gram(J, b, rows, n, H, g);
     const vd zero = {0}, one = (vd){0} + 1.0, two = (vd){0} + 2.0;
     const vl never = (vl){0};
     vd size_b = b[0] * b[0];
     for (int k = 1; k < rows; ++k) size_b = size_b + b[k] * b[k];
     for (int l = 0; l < LANES; ++l) size_b[l] = sqrt(size_b[l]);
-    vd size_J[IK_STEP_MAX_JOINTS];
+    vd size_J[IK_STEP_MAX_JOINTS], target[IK_STEP_MAX_JOINTS];
     vl pinned[IK_STEP_MAX_JOINTS], fixed[IK_STEP_MAX_JOINTS];
     for (int j = 0; j < n; ++j) {
-        vd t = J[0][j] * J[0][j];
-        for (int k = 1; k < rows; ++k) t = t + J[k][j] * J[k][j];
+        vd t = H[j][j];
         for (int l = 0; l < LANES; ++l) t[l] = sqrt(t[l]);
         size_J[j] = t;
         pinned[j] = lo[j] >= hi[j];
-        fixed[j] = pinned[j];
         x[j] = ik_vmin(ik_vmax(zero, lo[j]), hi[j]);
     }
-    vl optimal = never, done = never;
+    /* the first round: the free joints' optimum clamped into the box, each joint it cut fixed */
+    ik_step_free(J, b, H, g, lam, x, pinned, never, rows, n, target);
+    vl cut_any = never;
+    for (int j = 0; j < n; ++j) {
+        x[j] = ik_vmin(ik_vmax(target[j], lo[j]), hi[j]);
+        const vl cut = ~pinned[j] & (x[j] != target[j]);
+        fixed[j] = pinned[j] | cut;
+        cut_any = cut_any | cut;
+    }
+    vl done = ~cut_any;
     for (int round = 0; round < rounds; ++round) {
         int all = 1;
         for (int l = 0; l < LANES; ++l) all &= done[l] != 0;
         if (all) break;
-        /* solve_free */
-        vd bf[6], d[IK_STEP_MAX_JOINTS], target[IK_STEP_MAX_JOINTS];
-        for (int k = 0; k < rows; ++k) {
-            for (int j = 0; j < n; ++j) Jf[k][j] = vselect(fixed[j], zero, J[k][j]);
-            vd t = J[k][0] * vselect(fixed[0], x[0], zero);
-            for (int j = 1; j < n; ++j) t = t + J[k][j] * vselect(fixed[j], x[j], zero);
-            bf[k] = b[k] - t;
-        }
-        /* a system only where a running lane with free joints takes its answer (a lane that
-         * is done keeps its step, one with every joint fixed takes none): the same bits */
-        vl free = (vl){0}; /* a mask is -1 where true */
-        for (int j = 0; j < n; ++j) free = free - ~fixed[j];
-        const vl wide = free > rows;
-        int primal = 0, dual = 0;
-        for (int l = 0; l < LANES; ++l) {
-            if (done[l] || free[l] == 0) continue;
-            if (n > rows && wide[l])
-                dual = 1;
-            else
-                primal = 1;
-        }
-        for (int j = 0; j < n; ++j) d[j] = zero;
-        if (primal) ik_step_primal(Jf, bf, lam, IK_STEP_FLOOR, rows, n, d);
-        if (dual) {
-            vd by_rows[IK_STEP_MAX_JOINTS];
-            ik_step_dual(Jf, bf, lam, IK_STEP_FLOOR, rows, n, by_rows);
-            for (int j = 0; j < n; ++j) d[j] = vselect(wide, by_rows[j], d[j]);
-        }
-        for (int j = 0; j < n; ++j) target[j] = vselect(fixed[j], x[j], d[j]);
+        ik_step_free(J, b, H, g, lam, x, fixed, done, rows, n, target);
         /* (1) toward the free joints' optimum, as far as the box allows */
         vd p[IK_STEP_MAX_JOINTS], alpha = one;
         vl block[IK_STEP_MAX_JOINTS];
@@ -157,38 +188,30 @@ AI void ik_step_block(IKState *S, const IKModel *m, const IKOptions *o, const vd
             moved[j] = ik_vmin(ik_vmax(v, lo[j]), hi[j]);
             fixed_moved[j] = fixed[j] | (block[j] & ~full);
         }
-        /* (2) at an optimum: the most negative multiplier's joint released */
-        vd res[6];
-        for (int k = 0; k < rows; ++k) {
-            vd t = J[k][0] * x[0];
-            for (int j = 1; j < n; ++j) t = t + J[k][j] * x[j];
-            res[k] = t - b[k];
-        }
+        /* (2) where the move reached the optimum: the most negative multiplier's joint there
+         * released */
         vd worst = (vd){0} + release;
         vl rel[IK_STEP_MAX_JOINTS];
         for (int j = 0; j < n; ++j) rel[j] = never;
         for (int j = 0; j < n; ++j) {
-            vd g = J[0][j] * res[0];
-            for (int k = 1; k < rows; ++k) g = g + J[k][j] * res[k];
-            g = g + lam * x[j];
+            vd t = H[j][0] * moved[0];
+            for (int k = 1; k < n; ++k) t = t + H[j][k] * moved[k];
+            const vd grad = (t - g[j]) + lam * moved[j];
             const vd scale = size_J[j] * size_b;
-            const vd mu = vselect(x[j] <= lo[j], g, -g) / vselect(scale > 0.0, scale, one);
-            const vl candidate = fixed[j] & ~pinned[j] & (mu < worst);
+            const vd mu =
+                vselect(moved[j] <= lo[j], grad, -grad) / vselect(scale > 0.0, scale, one);
+            const vl candidate = fixed_moved[j] & ~pinned[j] & (mu < worst);
             for (int k = 0; k < n; ++k) rel[k] = k == j ? candidate : rel[k] & ~candidate;
             worst = vselect(candidate, mu, worst);
         }
         vl released = rel[0];
         for (int j = 1; j < n; ++j) released = released | rel[j];
         for (int j = 0; j < n; ++j) {
-            const vd new_x = vselect(optimal, x[j], moved[j]);
-            const vl new_fixed = ik_lselect(optimal, fixed[j] & ~rel[j], fixed_moved[j]);
-            x[j] = vselect(done, x[j], new_x);
+            const vl new_fixed = fixed_moved[j] & ~(full & rel[j]);
+            x[j] = vselect(done, x[j], moved[j]);
             fixed[j] = ik_lselect(done, fixed[j], new_fixed);
         }
-        const vl new_optimal = ik_lselect(optimal, never, full);
-        const vl new_done = optimal & ~released;
-        optimal = ik_lselect(done, optimal, new_optimal);
-        done = done | new_done;
+        done = done | (full & ~released);
     }
 }
 
@@ -227,7 +250,9 @@ TARGET static int ik_step_task(const IKModel *m, const IKOptions *o, const doubl
     return 0;
 }
 
+#undef ik_step_gram
 #undef ik_step_primal
+#undef ik_step_free
 #undef ik_step_dual
 #undef ik_step_cholesky
 #undef ik_step_block
