@@ -371,13 +371,15 @@ def _cholesky_solve(A: list[Entries], b: Entries, tiny: float, xp: Any) -> Entri
         for k in range(i):
             acc = acc - L[i][k] * y[k]
         y.append(acc)
+    # under JAX each pass's entries computed once (_pose.settle), not again in each later one
+    y = _pose.settle(y, xp)
     x: Entries = [None] * n
     for i in reversed(range(n)):
         acc = y[i] / D[i]
         for k in range(i + 1, n):
             acc = acc - L[k][i] * x[k]
         x[i] = acc
-    return x
+    return _pose.settle(x, xp)
 
 
 def damped_step(J: list[Entries], r: Entries, lam: Entry, tiny: float, xp: Any) -> Entries:
