@@ -78,6 +78,7 @@ Entry = Any
 Entries = list[Any]
 
 FLOOR = 1e-18  # m^2: the damping's floor, which keeps the systems positive definite
+COMPACT = 8  # JAX: the rounds run on the steps not done where at most 1 in this many is
 RELEASE = 1e-12  # a multiplier below -RELEASE |J_j| |gain r| releases its joint (rounding)
 
 
@@ -132,21 +133,44 @@ def step_entries(
         xp.where(f, xp.where(x <= lc, lj, hj), 0.0 * lj)
         for f, x, lc, lj, hj in zip(state.fixed, state.x, lo_cut, lo, hi, strict=True)
     ]
-    H, g = _gram(J, b)
-    live = _solve_free(J, b, H, g, lam, at, state.fixed, xp)
+    H, g = _gram(J, b, xp)
+    live = _solve_free(*_dual_rows(J, b), H, g, lam, at, state.fixed, xp)
     return [xp.where(state.done, u, stop(x)) for u, x in zip(live, state.x, strict=True)]
 
 
-def _gram(J: list[Entries], b: Entries) -> tuple[list[Entries], Entries]:
+def _gram(J: list[Entries], b: Entries, xp: Any) -> tuple[list[Entries], Entries]:
     """``J^T J`` (``n x n`` entries, both triangles, each entry once: ``H[i][j]`` is
     ``H[j][i]``) and ``J^T b`` (``n``), which every round's system and multipliers read."""
     n, m = len(J[0]), len(J)
     cols = [[J[k][i] for k in range(m)] for i in range(n)]
+    pairs = [(i, j) for i in range(n) for j in range(i + 1)]
+    # under JAX each entry computed once (_pose.settle), not again in every round's
+    once = _pose.settle([_dot(cols[i], cols[j]) for i, j in pairs] + [_dot(c, b) for c in cols], xp)
     H: list[Entries] = [[None] * n for _ in range(n)]
-    for i in range(n):
-        for j in range(i + 1):
-            H[i][j] = H[j][i] = _dot(cols[i], cols[j])
-    return H, [_dot(c, b) for c in cols]
+    for (i, j), v in zip(pairs, once, strict=False):
+        H[i][j] = H[j][i] = v
+    return H, once[len(pairs) :]
+
+
+def _dual_rows(J: list[Entries], b: Entries) -> tuple[list[Entries], Entries]:
+    """The rows ``J``, ``b`` where the joints outnumber them (the dual form can then be
+    needed), else none."""
+    return (J, b) if len(J[0]) > len(J) else ([], [])
+
+
+class _Data(NamedTuple):
+    """What the rounds read, entries of the batch's shape: the rows where the dual form can be
+    needed (:func:`_dual_rows`), their :func:`_gram`, the box, the joints whose bounds meet,
+    and each joint's multiplier scale ``|J_j| |b|`` (1 where it is 0)."""
+
+    J: list[Entries]
+    b: Entries
+    H: list[Entries]
+    g: Entries
+    lo: Entries
+    hi: Entries
+    pinned: Entries
+    scale: Entries
 
 
 def _solve_free(
@@ -160,9 +184,10 @@ def _solve_free(
     xp: Any,
 ) -> Entries:
     """The free joints' optimum with the fixed ones (``fx``) at ``x`` (entries, ``n``), from
-    the rows ``J``, ``b`` and their :func:`_gram` ``H``, ``g``: the primal system is ``H``'s
-    free rows and columns with ``lam`` added, and ``g_i - sum_j H_ij x_j`` over the fixed
-    ``j`` (the free part of ``J^T (b - J x_fixed)``)."""
+    the :func:`_gram` ``H``, ``g`` of the rows: the primal system is ``H``'s free rows and
+    columns with ``lam`` added, and ``g_i - sum_j H_ij x_j`` over the fixed ``j`` (the free
+    part of ``J^T (b - J x_fixed)``). The rows ``J``, ``b`` themselves where the joints
+    outnumber them (:func:`_dual_rows`; else empty): the dual form where the free ones do."""
     n, m = len(x), len(J)
     A = [
         [xp.where(fx[i] | fx[j], 0.0, H[i][j]) for j in range(i)] + [xp.where(fx[i], 0.0, H[i][i])]
@@ -173,7 +198,7 @@ def _solve_free(
     at = [xp.where(f, xj, 0.0) for f, xj in zip(fx, x, strict=True)]
     rhs = [xp.where(fx[i], 0.0, g[i] - _dot(H[i], at)) for i in range(n)]
     d = _cholesky_solve(A, rhs, FLOOR, xp)
-    if n > m:  # more free joints than rows: the dual form where they are
+    if m:  # more free joints than rows: the dual form where they are
         J_free = [[xp.where(f, 0.0, v) for f, v in zip(fx, row, strict=True)] for row in J]
         b_free = [bk - _dot(row, at) for bk, row in zip(b, J, strict=True)]
         free = _count([~f for f in fx], xp)
@@ -189,28 +214,30 @@ def _rounds(
     ``lo``, ``hi``: the last state."""
     n = len(lo)
     zero = xp.zeros_like(lo[0])
-    never = zero > 1.0  # False, of the batch's shape
-    H, g = _gram(J, b)
+    H, g = _gram(J, b, xp)
     size_b = xp.sqrt(_sum_squares(b))
-    size_J = [xp.sqrt(H[j][j]) for j in range(n)]
+    scale = [xp.sqrt(H[j][j]) * size_b for j in range(n)]
     # a joint whose bounds meet cannot move: fixed from the start, and never released
     pinned = [lo[j] >= hi[j] for j in range(n)]
+    data = _Data(*_dual_rows(J, b), H, g, lo, hi, pinned, [xp.where(s > 0, s, 1.0) for s in scale])
     # the first round: the free joints' optimum, clamped into the box, each joint the box
     # cut fixed at its bound (done where none was)
     inside = [xp.minimum(xp.maximum(zero, lo[j]), hi[j]) for j in range(n)]
-    first = _solve_free(J, b, H, g, lam, inside, pinned, xp)
+    first = _solve_free(data.J, data.b, H, g, lam, inside, pinned, xp)
     x0 = [xp.minimum(xp.maximum(t, lo[j]), hi[j]) for j, t in enumerate(first)]
     cut = [~pin & (v != t) for pin, v, t in zip(pinned, x0, first, strict=True)]
     start = _Round(
         x=x0, fixed=[pin | c for pin, c in zip(pinned, cut, strict=True)], done=~_any(cut)
     )
 
-    def body(state: _Round) -> _Round:
+    def body(state: _Round, data: _Data) -> _Round:
         x, fx = state.x, state.fixed
+        lo, hi, H, g = data.lo, data.hi, data.H, data.g
+        never = state.done & ~state.done  # False, of the batch's shape
         # (1) toward the free joints' optimum, as far as the box allows
-        target_x = _solve_free(J, b, H, g, lam, x, fx, xp)
+        target_x = _solve_free(data.J, data.b, H, g, lam, x, fx, xp)
         p = [t - xj for t, xj in zip(target_x, x, strict=True)]
-        alpha = xp.ones_like(zero)
+        alpha = xp.ones_like(x[0])
         block = [never] * n
         for j in range(n):
             room = xp.where(p[j] < 0.0, lo[j] - x[j], hi[j] - x[j])
@@ -232,14 +259,12 @@ def _rounds(
         fixed_moved = [f | (bk & ~full) for f, bk in zip(fx, block, strict=True)]
         # (2) where the move reached the optimum: the multipliers of the fixed joints there,
         # the most negative released
-        worst = -RELEASE * xp.ones_like(zero)
+        worst = -RELEASE * xp.ones_like(x[0])
         release = [never] * n
         for j in range(n):
             grad = (_dot(H[j], moved) - g[j]) + lam * moved[j]  # J^T (J x - b) + lam x
-            mu = xp.where(moved[j] <= lo[j], grad, -grad) / xp.where(
-                size_J[j] * size_b > 0, size_J[j] * size_b, 1.0
-            )
-            candidate = fixed_moved[j] & ~pinned[j] & (mu < worst)
+            mu = xp.where(moved[j] <= lo[j], grad, -grad) / data.scale[j]
+            candidate = fixed_moved[j] & ~data.pinned[j] & (mu < worst)
             release = [candidate if k == j else rk & ~candidate for k, rk in enumerate(release)]
             worst = xp.where(candidate, mu, worst)
         new_fixed = [fm & ~(full & rl) for fm, rl in zip(fixed_moved, release, strict=True)]
@@ -257,9 +282,9 @@ def _rounds(
         for _ in range(rounds):
             if bool(np.all(state.done)):
                 break
-            state = body(state)
+            state = body(state, data)
     else:
-        state = loop(rounds, body, start)
+        state = loop(rounds, body, start, data)
     return state
 
 
@@ -418,32 +443,60 @@ def _quick_options(
 
 
 def _loop(kind: str) -> tuple[Any, Any]:
-    """The rounds and the cut from differentiation under JAX (``jax.lax.while_loop``, until
-    every step of the batch is done or :func:`max_rounds`; ``stop_gradient``) and PyTorch (the
-    same in Python; ``detach``)."""
+    """The rounds and the cut from differentiation under JAX (:func:`_jax_rounds`;
+    ``stop_gradient``) and PyTorch (until every step of the batch is done or
+    :func:`max_rounds`, in Python; ``detach``)."""
     if kind == "jax":
         import jax
 
-        def run(rounds: int, body: Any, state: Any) -> Any:
-            def more(carry: Any) -> Any:
-                k, st = carry
-                return (k < rounds) & ~jax.numpy.all(st.done)
+        return _jax_rounds, jax.lax.stop_gradient
 
-            def once(carry: Any) -> Any:
-                k, st = carry
-                return k + 1, body(st)
-
-            return jax.lax.while_loop(more, once, (0, state))[1]
-
-        return run, jax.lax.stop_gradient
-
-    def run_torch(rounds: int, body: Any, state: Any) -> Any:
+    def run_torch(rounds: int, body: Any, state: Any, data: Any) -> Any:
         import torch
 
         for _ in range(rounds):
             if bool(torch.all(state.done)):
                 break
-            state = body(state)
+            state = body(state, data)
         return state
 
     return run_torch, lambda x: x.detach()
+
+
+def _jax_rounds(rounds: int, body: Any, state: _Round, data: _Data) -> _Round:
+    """The rounds under JAX: ``jax.lax.while_loop``, until every step is done or
+    :func:`max_rounds`. In a batch of ``B >= 2 COMPACT`` steps, once at most ``B / COMPACT``
+    (rounded up) are not done, the rounds go on with those steps alone, gathered and scattered
+    back: the lock-step rounds of a tick's few hard steps then cost that fraction of the
+    batch's (each step's numbers are its own: the same answer)."""
+    import jax
+    import jax.numpy as jnp
+
+    def run(carry: tuple[Any, _Round], dt: _Data, until: Any) -> tuple[Any, _Round]:
+        def more(c: tuple[Any, _Round]) -> Any:
+            return (c[0] < rounds) & ~until(c[1].done)
+
+        def once(c: tuple[Any, _Round]) -> tuple[Any, _Round]:
+            return c[0] + 1, body(c[1], dt)
+
+        return jax.lax.while_loop(more, once, carry)  # type: ignore[no-any-return]
+
+    shape = jnp.shape(state.done)
+    size = math.prod(shape)
+    room = -(-size // COMPACT)
+    if 2 * room > size:
+        return run((0, state), data, jnp.all)[1]
+    k, state = run((0, state), data, lambda done: jnp.sum(~done) <= room)
+
+    def flat(v: Any) -> Any:
+        return jnp.broadcast_to(v, shape).reshape(size)
+
+    at = jnp.nonzero(~flat(state.done), size=room, fill_value=size)[0]  # filled past the end
+
+    def take(v: Any) -> Any:  # a filled slot: done, every joint fixed, zeros
+        return flat(v).at[at].get(mode="fill", fill_value=v.dtype == jnp.bool_)
+
+    _, few = run((k, jax.tree.map(take, state)), jax.tree.map(take, data), jnp.all)
+    return jax.tree.map(  # type: ignore[no-any-return]
+        lambda v, u: flat(v).at[at].set(u, mode="drop").reshape(shape), state, few
+    )
