@@ -123,17 +123,18 @@ def step_entries(
     r, _, _, _, quat = residual(pose, target, s, xp)
     J = jacobian_rows(columns, quat, s)
     b = [gain * rk for rk in r]
+    H, g = _gram(J, b, xp)
     lo, hi = bounds
     if stop is None:
-        return _rounds(J, b, lo, hi, lam, xp, loop).x
+        return _rounds(J, b, H, g, lo, hi, lam, xp, loop).x
     cut = [[stop(v) for v in row] for row in J], [stop(v) for v in b]
+    gram_cut = [[stop(v) for v in row] for row in H], [stop(v) for v in g]
     lo_cut, hi_cut = [stop(v) for v in lo], [stop(v) for v in hi]
-    state = _rounds(cut[0], cut[1], lo_cut, hi_cut, lam, xp, loop)
+    state = _rounds(*cut, *gram_cut, lo_cut, hi_cut, lam, xp, loop)
     at = [
         xp.where(f, xp.where(x <= lc, lj, hj), 0.0 * lj)
         for f, x, lc, lj, hj in zip(state.fixed, state.x, lo_cut, lo, hi, strict=True)
     ]
-    H, g = _gram(J, b, xp)
     live = _solve_free(*_dual_rows(J, b), H, g, lam, at, state.fixed, xp)
     return [xp.where(state.done, u, stop(x)) for u, x in zip(live, state.x, strict=True)]
 
@@ -208,13 +209,20 @@ def _solve_free(
 
 
 def _rounds(
-    J: list[Entries], b: Entries, lo: Entries, hi: Entries, lam: float, xp: Any, loop: Any
+    J: list[Entries],
+    b: Entries,
+    H: list[Entries],
+    g: Entries,
+    lo: Entries,
+    hi: Entries,
+    lam: float,
+    xp: Any,
+    loop: Any,
 ) -> _Round:
-    """The active set's rounds (the module's docstring) on the rows ``J``, ``b`` in the box
-    ``lo``, ``hi``: the last state."""
+    """The active set's rounds (the module's docstring) on the rows ``J``, ``b`` (their
+    :func:`_gram` ``H``, ``g``) in the box ``lo``, ``hi``: the last state."""
     n = len(lo)
     zero = xp.zeros_like(lo[0])
-    H, g = _gram(J, b, xp)
     size_b = xp.sqrt(_sum_squares(b))
     scale = [xp.sqrt(H[j][j]) * size_b for j in range(n)]
     # a joint whose bounds meet cannot move: fixed from the start, and never released

@@ -139,12 +139,13 @@ AI void ik_step_block(IKState *S, const IKModel *m, const IKOptions *o, const vd
     vd size_b = b[0] * b[0];
     for (int k = 1; k < rows; ++k) size_b = size_b + b[k] * b[k];
     for (int l = 0; l < LANES; ++l) size_b[l] = sqrt(size_b[l]);
-    vd size_J[IK_STEP_MAX_JOINTS], target[IK_STEP_MAX_JOINTS];
+    vd scale[IK_STEP_MAX_JOINTS], target[IK_STEP_MAX_JOINTS]; /* _Data.scale: |J_j| |b|, or 1 */
     vl pinned[IK_STEP_MAX_JOINTS], fixed[IK_STEP_MAX_JOINTS];
     for (int j = 0; j < n; ++j) {
         vd t = H[j][j];
         for (int l = 0; l < LANES; ++l) t[l] = sqrt(t[l]);
-        size_J[j] = t;
+        t = t * size_b;
+        scale[j] = vselect(t > 0.0, t, one);
         pinned[j] = lo[j] >= hi[j];
         x[j] = ik_vmin(ik_vmax(zero, lo[j]), hi[j]);
     }
@@ -197,9 +198,7 @@ AI void ik_step_block(IKState *S, const IKModel *m, const IKOptions *o, const vd
             vd t = H[j][0] * moved[0];
             for (int k = 1; k < n; ++k) t = t + H[j][k] * moved[k];
             const vd grad = (t - g[j]) + lam * moved[j];
-            const vd scale = size_J[j] * size_b;
-            const vd mu =
-                vselect(moved[j] <= lo[j], grad, -grad) / vselect(scale > 0.0, scale, one);
+            const vd mu = vselect(moved[j] <= lo[j], grad, -grad) / scale[j];
             const vl candidate = fixed_moved[j] & ~pinned[j] & (mu < worst);
             for (int k = 0; k < n; ++k) rel[k] = k == j ? candidate : rel[k] & ~candidate;
             worst = vselect(candidate, mu, worst);
