@@ -346,6 +346,8 @@ def _levels(
 def _gather(M: FloatArray, order: NDArray[np.intp]) -> FloatArray:
     """The columns ``order`` of ``M (B, ..., n)``: shared ``(f,)``, or each entry's ``(B,
     f)``."""
+    if order.ndim == 1 and len(order) == M.shape[-1]:  # every column, in order (none fixed)
+        return M
     if order.ndim == 1:
         shared: FloatArray = M[..., order]
         return shared
@@ -357,6 +359,9 @@ def _gather(M: FloatArray, order: NDArray[np.intp]) -> FloatArray:
 def _add_at(total: FloatArray, order: NDArray[np.intp], move: FloatArray) -> FloatArray:
     """``total (B, n)`` with ``move (B, f)`` added at the columns ``order`` (as
     :func:`_gather`)."""
+    if order.ndim == 1 and len(order) == total.shape[-1]:  # every column, in order
+        whole: FloatArray = total + move
+        return whole
     out: FloatArray = np.array(total)
     if order.ndim == 1:
         out[:, order] = total[:, order] + move

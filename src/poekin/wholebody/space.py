@@ -87,7 +87,7 @@ class Space:
         reach)`` to ``clamp(upper - q, -reach, reach)``, so that a joint outside its limits
         moves back toward them, at most at its velocity limit (:meth:`bounds` lets it stay)."""
         lo, hi = self._room(qpos)
-        return np.clip(lo, -reach, reach), np.clip(hi, -reach, reach)
+        return np.minimum(np.maximum(lo, -reach), reach), np.minimum(np.maximum(hi, -reach), reach)
 
     def _room(self, qpos: FloatArray) -> tuple[FloatArray, FloatArray]:
         """``(B, n)`` hinge and slide ``lower - q`` and ``upper - q``; -inf and inf for the
