@@ -34,7 +34,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from poekin import lie
+from poekin import _pose, lie
 from poekin._blas import one_thread
 from poekin.errors import HeldFramesError, InputError
 from poekin.ik import _rng
@@ -159,7 +159,9 @@ class Problem:
         # e_o's exact derivative, as poekin.ik.numerical.jacobian_rows: turning the frame by
         # a dt changes e_o by -(w I + [u]) a dt, (w, u) the quaternion (k a near a solution)
         Jw = J[:, :, :3]
-        k_e_o, k_Jw = k * e_o, k * (quat[..., :1, None] * Jw + _cross_columns(quat, Jw))
+        u = [quat[..., i, None] for i in (1, 2, 3)]  # each (B, tasks, 1) against Jw's columns
+        turned = np.stack(_pose.cross(u, [Jw[..., i, :] for i in range(3)]), axis=-2)
+        k_e_o, k_Jw = k * e_o, k * (quat[..., :1, None] * Jw + turned)
         zero = np.zeros(B)
         errs: list[tuple[FloatArray, ...]] = []
         held: list[tuple[FloatArray, FloatArray]] = []  # each task's rows: J, r
@@ -200,18 +202,6 @@ class Problem:
     @functools.cached_property
     def _stacked_targets(self) -> tuple[FloatArray, FloatArray]:
         return np.stack(self.R, axis=1), np.stack(self.p, axis=1)
-
-
-def _cross_columns(quat: FloatArray, a: FloatArray) -> FloatArray:
-    """``u x a_j`` for each column ``a_j`` of ``a (..., 3, n)``, ``u`` the vector part of
-    ``quat (..., 4)``: ``numpy.cross``'s products and differences (the same bits), without
-    the axis moves around them that took half its time on a G1's five frames."""
-    u = quat[..., 1:, None]
-    out = np.empty_like(a)
-    out[..., 0, :] = u[..., 1, :] * a[..., 2, :] - u[..., 2, :] * a[..., 1, :]
-    out[..., 1, :] = u[..., 2, :] * a[..., 0, :] - u[..., 0, :] * a[..., 2, :]
-    out[..., 2, :] = u[..., 0, :] * a[..., 1, :] - u[..., 1, :] * a[..., 0, :]
-    return out
 
 
 def rotation_quaternion(M: FloatArray) -> FloatArray:
@@ -762,8 +752,6 @@ def _flat(value: FloatArray, batch: tuple[int, ...], B: int, tail: tuple[int, ..
 
 def _posture(posture: float | ArrayLike, sp: Space) -> FloatArray:
     """Per-variable weights ``>= 0``: one number for every joint, or ``(nv,)``."""
-    if type(posture) is float and 0.0 <= posture < math.inf:  # one weight (the usual 0)
-        return np.full(len(sp.variables), posture)
     arr = np.asarray(posture, dtype=np.float64) if not isinstance(posture, bool) else None
     if arr is None or arr.shape not in ((), (sp.nv,)) or not np.all(np.isfinite(arr) & (arr >= 0)):
         raise InputError(
